@@ -1,0 +1,72 @@
+//! criterion benches of the per-sample paths: one warmed `push` per method and
+//! window length, `push` over a record, `simulate` on the paper's input, one `Model::step`.
+
+use std::hint::black_box;
+
+use boucwen::identify::{OnlineIdentifier, PaperConfig, PaperIdentifier};
+use boucwen::model::paper_input;
+use boucwen::{simulate_into, Model, Params};
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+
+const DT: f64 = 1e-4;
+
+fn record() -> (Vec<f64>, Vec<f64>) {
+    let u = paper_input(DT, 0.05);
+    let mut x = vec![0.0; u.len()];
+    simulate_into(&Params::paper_1hz(), &u, DT, 0.0, None, &mut x).expect("valid input");
+    (u, x)
+}
+
+fn push(c: &mut Criterion) {
+    let (u, x) = record();
+    let mut group = c.benchmark_group("paper_push");
+    group.throughput(Throughput::Elements(1));
+    for window in [100usize, 1_000, 10_000, 100_000] {
+        let mut id = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(window))
+            .expect("valid config");
+        // Warm up past the first full window so every sub-fit runs.
+        let mut k = 0usize;
+        for _ in 0..(window + 1000).min(u.len()) {
+            id.push(u[k], x[k]).expect("finite");
+            k = (k + 1) % u.len();
+        }
+        group.bench_with_input(BenchmarkId::from_parameter(window), &window, |b, _| {
+            b.iter(|| {
+                let y = id.push(black_box(u[k]), black_box(x[k])).expect("finite");
+                k = (k + 1) % u.len();
+                y
+            })
+        });
+    }
+    group.finish();
+}
+
+fn simulate(c: &mut Criterion) {
+    let (u, _) = record();
+    let mut out = vec![0.0; u.len()];
+    let mut group = c.benchmark_group("simulate");
+    group.throughput(Throughput::Elements(u.len() as u64));
+    group.bench_function("paper_input", |b| {
+        b.iter(|| simulate_into(&Params::paper_1hz(), black_box(&u), DT, 0.0, None, &mut out).expect("finite"))
+    });
+    group.finish();
+}
+
+fn model_step(c: &mut Criterion) {
+    let (u, _) = record();
+    let mut model = Model::new(Params::paper_1hz(), DT, 0.0).expect("valid");
+    let mut k = 0usize;
+    let mut group = c.benchmark_group("model_step");
+    group.throughput(Throughput::Elements(1));
+    group.bench_function("paper_1hz", |b| {
+        b.iter(|| {
+            let y = model.step(black_box(u[k])).expect("finite");
+            k = (k + 1) % u.len();
+            y
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, push, simulate, model_step);
+criterion_main!(benches);

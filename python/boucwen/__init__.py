@@ -1,0 +1,16 @@
+"""boucwen: the asymmetric Bouc–Wen model of piezoelectric-actuator hysteresis.
+
+    x = kv·u + x0 + h                                             (3)
+    dh/dt = A·u̇ − β·|u̇|·|h|^(n−1)·h − γ·u̇·|h|^n + δ·u·sgn(u̇)      (5)
+
+u: voltage [V]; x, h: displacement [µm]; t: time [s] (Zhu, Bian & Rui,
+Precision Engineering 38 (2014) 921–927).
+
+- :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
+- :class:`Identifier` identifies them online, one sample at a time;
+- :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
+"""
+
+from ._core import Identifier, Model, Params, __version__, paper_input, simulate
+
+__all__ = ["Identifier", "Model", "Params", "__version__", "paper_input", "simulate"]

@@ -1,0 +1,301 @@
+"""Reading and writing measured records.
+
+A record is a uniformly sampled pair of signals: the voltage ``u`` [V] applied to
+(or commanded for) the actuator and the displacement ``x`` [µm] it produced,
+with the sample times ``t`` [s].
+
+CSV format read by :func:`read_csv`:
+
+* UTF-8 text, comma-separated, one header line, then one row per sample;
+* the header names the columns; ``t``, ``u`` and ``x`` must be present (any order,
+  names compared after stripping spaces, case-sensitive), other columns are ignored;
+* every field of the three columns is a finite decimal number;
+* at least 3 rows, ``t`` strictly increasing and uniformly sampled.
+
+Uniform sampling means that every step ``t[k+1] - t[k]`` lies within
+``1e-3·dt + 1e-8·max|t|`` of the mean step ``dt = (t[-1] - t[0]) / (N - 1)``.
+The first term allows the jitter of a real clock, the second the rounding of
+time stamps printed with 9 significant digits (as :func:`write_csv` does).
+
+Every failure raises :class:`ValueError` with a one-line message that names the
+file and, where it applies, the line and column.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+__all__ = ["Record", "read_csv", "write_csv", "validate_samples", "REQUIRED_COLUMNS"]
+
+#: Columns :func:`read_csv` needs: time [s], voltage [V], displacement [µm].
+REQUIRED_COLUMNS = ("t", "u", "x")
+
+#: Relative tolerance on the sampling step (see the module docs).
+STEP_RTOL = 1e-3
+#: Tolerance on the step relative to the largest |t| (9-digit time stamps).
+STAMP_RTOL = 1e-8
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """A uniformly sampled measurement.
+
+    Attributes:
+        t: sample times [s], float64, shape (N,).
+        u: actuator voltage [V], float64, shape (N,).
+        x: actuator displacement [µm], float64, shape (N,).
+        dt: sampling interval [s] (> 0).
+        name: short label of the record.
+        meta: free-form details (source, licence, units, extra signals).
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    x: np.ndarray
+    dt: float
+    name: str = ""
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        u, x = validate_samples(self.u, self.x, self.dt)
+        t = _as_float_vector(self.t, "t")
+        if t.shape != u.shape:
+            raise ValueError(f"t has {t.size} samples but u and x have {u.size}")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "dt", float(self.dt))
+        object.__setattr__(self, "name", str(self.name))
+        object.__setattr__(self, "meta", dict(self.meta))
+
+    def __len__(self) -> int:
+        return int(self.u.size)
+
+    @property
+    def sample_rate(self) -> float:
+        """Sampling rate 1/dt [Hz]."""
+        return 1.0 / self.dt
+
+    def __repr__(self) -> str:
+        return (f"Record(name={self.name!r}, samples={len(self)}, dt={self.dt!r} s, "
+                f"duration={(len(self) - 1) * self.dt:.6g} s)")
+
+
+# --------------------------------------------------------------------------- arrays
+
+def _as_float_vector(values: Any, name: str) -> np.ndarray:
+    """`values` as a contiguous 1-D float64 array; TypeError/ValueError otherwise."""
+    try:
+        a = np.asarray(values)
+    except Exception as exc:  # ragged nested sequences and the like
+        raise ValueError(f"{name} cannot be read as an array: {exc}") from None
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must hold real numbers, got dtype {a.dtype}")
+    if a.ndim != 1:
+        shape = "a scalar" if a.ndim == 0 else f"shape {a.shape}"
+        raise ValueError(f"{name} must be 1-D, got {shape}")
+    if a.size == 0:
+        raise ValueError(f"{name} is empty")
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        k = int(bad[0])
+        raise ValueError(f"{name}[{k}] is {a[k]}; all samples must be finite "
+                         f"({bad.size} non-finite)")
+    return a
+
+
+def _check_dt(dt: Any) -> float:
+    if isinstance(dt, (bool, np.bool_)) or not isinstance(dt, (int, float, np.integer, np.floating)):
+        raise TypeError(f"dt must be a real number, got {type(dt).__name__}")
+    value = float(dt)
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"dt must be finite and > 0 s, got {value}")
+    return value
+
+
+def validate_samples(u: Any, x: Any, dt: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Checks a (u, x) pair and returns it as contiguous float64 arrays.
+
+    Args:
+        u: voltage samples [V], 1-D, real, finite.
+        x: displacement samples [µm], 1-D, real, finite, same length as ``u``.
+        dt: optional sampling interval [s]; if given it must be finite and > 0.
+
+    Returns:
+        ``(u, x)`` as C-contiguous float64 arrays (copies only when needed).
+
+    Raises:
+        TypeError: non-numeric (or complex, boolean) data, or a non-numeric ``dt``.
+        ValueError: wrong dimension, empty, different lengths, non-finite values,
+            or ``dt`` not finite and positive.
+    """
+    u = _as_float_vector(u, "u")
+    x = _as_float_vector(x, "x")
+    if u.size != x.size:
+        raise ValueError(f"u and x must have the same length, got {u.size} and {x.size}")
+    if dt is not None:
+        _check_dt(dt)
+    return u, x
+
+
+# --------------------------------------------------------------------------- CSV
+
+def _fail(path: Path, message: str, line: int | None = None) -> ValueError:
+    where = f"{path}: line {line}: " if line is not None else f"{path}: "
+    return ValueError(where + message)
+
+
+def _parse_number(text: str) -> float:
+    """float(text) without Python's extras (digit underscores)."""
+    if "_" in text:
+        raise ValueError(text)
+    return float(text)
+
+
+def read_csv(path: str | os.PathLike) -> Record:
+    """Reads a measured record from a CSV file (format in the module docs).
+
+    Args:
+        path: file to read.
+
+    Returns:
+        A :class:`Record` with ``t`` [s], ``u`` [V], ``x`` [µm], the mean step ``dt``
+        [s], ``name`` = the file name without extension and ``meta`` =
+        ``{"path": ..., "columns": [...]}``.
+
+    Raises:
+        ValueError: for every problem with the file, naming the file and, where it
+            applies, the line (1 = header) and column.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"no such file: {path}")
+    if path.is_dir():
+        raise _fail(path, "is a directory, not a CSV file")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise _fail(path, f"not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise _fail(path, f"cannot be read: {exc.strerror or exc}") from None
+
+    lines = text.splitlines()
+    first = next((i for i, s in enumerate(lines) if s.strip()), None)
+    if first is None:
+        raise _fail(path, "empty file, expected a header line such as 't,u,x'")
+    header_line = lines[first]
+    header_no = first + 1
+    if "," not in header_line:
+        for sep, label in ((";", "';'"), ("\t", "tabs")):
+            if sep in header_line:
+                raise _fail(path, f"header {header_line.strip()!r} is separated by {label}; "
+                                  "columns must be separated by ','", header_no)
+        if len(header_line.split()) > 1:
+            raise _fail(path, f"header {header_line.strip()!r} is separated by spaces; "
+                              "columns must be separated by ','", header_no)
+
+    header = [name.strip() for name in next(csv.reader([header_line]))]
+    for name in REQUIRED_COLUMNS:
+        if header.count(name) > 1:
+            raise _fail(path, f"column {name!r} appears {header.count(name)} times in the header",
+                        header_no)
+    missing = [name for name in REQUIRED_COLUMNS if name not in header]
+    if missing:
+        found = ", ".join(repr(h) for h in header)
+        raise _fail(path, f"missing column{'s' if len(missing) > 1 else ''} "
+                          f"{', '.join(repr(m) for m in missing)} (found: {found})", header_no)
+    cols = {name: header.index(name) for name in REQUIRED_COLUMNS}
+    width = len(header)
+
+    rows: list[tuple[float, float, float]] = []
+    line_nos: list[int] = []
+    body = [(i + 1, s) for i, s in enumerate(lines) if i > first and s.strip()]
+    for line_no, fields in zip((n for n, _ in body), csv.reader(s for _, s in body)):
+        if len(fields) != width:
+            hint = ""
+            if len(fields) == 1 and (";" in fields[0] or "\t" in fields[0]):
+                hint = " (the row seems to use ';' or tabs; columns must be separated by ',')"
+            raise _fail(path, f"expected {width} comma-separated fields as in the header, "
+                              f"found {len(fields)}{hint}", line_no)
+        values = []
+        for name in REQUIRED_COLUMNS:
+            raw = fields[cols[name]].strip()
+            try:
+                value = _parse_number(raw)
+            except ValueError:
+                raise _fail(path, f"column {name!r}: {raw!r} is not a number", line_no) from None
+            if not math.isfinite(value):
+                raise _fail(path, f"column {name!r}: non-finite value {raw!r}", line_no)
+            values.append(value)
+        rows.append((values[0], values[1], values[2]))
+        line_nos.append(line_no)
+
+    if not rows:
+        raise _fail(path, "header only, no data rows")
+    if len(rows) < 3:
+        raise _fail(path, f"only {len(rows)} data row{'s' if len(rows) > 1 else ''}, "
+                          "at least 3 are needed")
+
+    data = np.array(rows, dtype=np.float64)
+    t, u, x = data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy()
+    steps = np.diff(t)
+    bad = np.flatnonzero(steps <= 0.0)
+    if bad.size:
+        k = int(bad[0])
+        raise _fail(path, f"time not strictly increasing: t = {t[k + 1]!r} s after "
+                          f"t = {t[k]!r} s", line_nos[k + 1])
+    dt = float((t[-1] - t[0]) / (t.size - 1))
+    tol = STEP_RTOL * dt + STAMP_RTOL * float(np.max(np.abs(t)))
+    dev = np.abs(steps - dt)
+    worst = int(np.argmax(dev))
+    if dev[worst] > tol:
+        raise _fail(path, f"non-uniform sampling: step {steps[worst]:.9g} s differs from the "
+                          f"mean step {dt:.9g} s by {100.0 * dev[worst] / dt:.3g}% "
+                          f"(tolerance {100.0 * tol / dt:.3g}%)", line_nos[worst + 1])
+    return Record(t=t, u=u, x=x, dt=dt, name=path.stem,
+                  meta={"path": str(path), "columns": header})
+
+
+def write_csv(path: str | os.PathLike, columns: Mapping[str, Any]) -> None:
+    """Writes equal-length 1-D columns as CSV: a header line, then rows formatted ``%.9g``.
+
+    Args:
+        path: file to create or overwrite.
+        columns: ``{name: values}`` in the order the columns should appear, e.g.
+            ``{"t": t, "u": u, "x": x}``. Names must be non-empty and must not contain
+            commas, quotes or line breaks.
+
+    Raises:
+        ValueError: no columns, bad names, columns not 1-D or of different lengths.
+        TypeError: non-numeric column data.
+    """
+    if not columns:
+        raise ValueError("write_csv needs at least one column")
+    names = list(columns)
+    arrays = []
+    for name in names:
+        if not isinstance(name, str) or not name.strip() or any(c in name for c in ',"\r\n'):
+            raise ValueError(f"bad column name {name!r}: must be a non-empty string without "
+                             "commas, quotes or line breaks")
+        a = np.asarray(columns[name])
+        if a.dtype.kind not in "biuf":
+            raise TypeError(f"column {name!r} must hold real numbers, got dtype {a.dtype}")
+        if a.ndim != 1:
+            raise ValueError(f"column {name!r} must be 1-D, got shape {a.shape}")
+        arrays.append(a.astype(np.float64))
+    lengths = {a.size for a in arrays}
+    if len(lengths) != 1:
+        sizes = ", ".join(f"{n}: {a.size}" for n, a in zip(names, arrays))
+        raise ValueError(f"columns must have the same length ({sizes})")
+    table = np.column_stack(arrays)
+    with open(path, "w", encoding="utf-8", newline="") as fh:
+        fh.write(",".join(names) + "\n")
+        np.savetxt(fh, table, fmt="%.9g", delimiter=",")

@@ -1,0 +1,316 @@
+"""A simulated piezo bench: the source of "measured" (u, x) records.
+
+The bench imitates the rig of Zhu, Bian & Rui (2014, section 4): a piezo stack
+driven through a power amplifier, a laser Doppler vibrometer reading the
+displacement, and a 16-bit A/D reading the voltage. Signal chain, per sample
+interval ``dt`` [s]::
+
+    u (command, V) ──► amplifier lag ──► u_a (on the stack, V)
+    u_a ──► asymmetric Bouc–Wen, eqs. (3)+(5) ──► kv·u_a + x0 + h   (µm)
+    u_a ──► creep: Σ_i first-order elements (τ_i, g_i) ──► c        (µm)
+    x = kv·u_a + x0 + h + c ──► + white noise ──► 2 nm resolution   (measured x)
+    u ──► 16-bit A/D ──► measured u
+
+* **Amplifier**: first-order low-pass ``τ·du_a/dt = u − u_a`` with
+  ``τ = 1/(2π·fc)``. The command is a straight line between samples; the lag is
+  solved exactly for such an input on a grid ``oversample`` times finer than the
+  sampling, and the Bouc–Wen core and the creep are run on the same fine grid.
+* **Creep**: ``τ_i·dc_i/dt = g_i·u_a − c_i``, ``c = Σ c_i``, with log-spaced time
+  constants (10 ms … 10 s). A 100 V step makes the stack creep on by about
+  ``Σ g_i·100 V`` over the following ~30 s, a few percent of the stroke, roughly
+  equally per decade of time (the usual logarithmic creep of piezo stacks).
+* **Vibrometer**: white noise of standard deviation ``noise_um``, then the reading
+  is rounded to multiples of ``resolution_um`` and held within ``±range_um``.
+  Its 0.05 % non-linearity is not modelled.
+* **A/D**: the *command* is read back (the amplifier's input, expressed in volts
+  at the stack), rounded to ``2**adc_bits − 1`` steps over
+  ``adc_min_v … adc_max_v`` and clipped to that span. The voltage actually on the
+  stack is not measured, so the amplifier's bandwidth is a dynamic that a model
+  of (u, x) does not see, as on the paper's rig.
+
+Everything starts at rest in equilibrium with the first command sample
+(``u_a = u[0]``, ``c_i = g_i·u[0]``, ``h = 0``).
+
+The Bouc–Wen core is integrated by :func:`boucwen.simulate`. The bench is a data
+source: its settings are known here only, the identification code sees nothing
+but the measured record.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .io import Record, validate_samples
+
+__all__ = ["BenchSettings", "paper_input", "measure", "true_displacement",
+           "DEFAULT_DT", "PAPER_SEGMENTS"]
+
+#: Default sampling interval [s] (10 kHz).
+DEFAULT_DT = 1e-4
+
+#: The paper's input as (frequency [Hz], duration [s]) pairs: 1 Hz for 3 s,
+#: 10 Hz for 0.3 s, 100 Hz for 0.03 s, then 200 Hz for 0.05 s (10 periods).
+PAPER_SEGMENTS: tuple[tuple[float, float], ...] = (
+    (1.0, 3.0), (10.0, 0.3), (100.0, 0.03), (200.0, 0.05))
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    """Every value of the simulated bench, with its unit.
+
+    The Bouc–Wen values default to the paper's Table 2 row identified at 1 Hz.
+    """
+
+    kv: float = 0.19
+    """Linear gain kv [µm/V]."""
+    x0: float = 0.015
+    """Offset x0 [µm]."""
+    A: float = -0.072
+    """Hysteresis gain A [µm/V]."""
+    beta: float = 0.020
+    """β [µm^(1−n)/V]."""
+    gamma: float = -0.019
+    """γ [µm^(1−n)/V]."""
+    n: float = 1.52
+    """Shape exponent n [-]."""
+    delta: float = 0.0075
+    """Asymmetry δ [µm/(V·s)]."""
+    amplifier_fc_hz: float = 500.0
+    """Corner frequency of the amplifier's first-order lag [Hz]; ``math.inf`` = no lag."""
+    creep_tau_s: tuple[float, ...] = (0.01, 0.1, 1.0, 10.0)
+    """Time constants of the creep elements [s]."""
+    creep_gain_um_per_v: tuple[float, ...] = (0.0015, 0.0015, 0.0015, 0.0015)
+    """Static gain of each creep element [µm/V]; all zero = no creep."""
+    noise_um: float = 0.001
+    """Standard deviation of the vibrometer's white noise [µm] (1 nm)."""
+    resolution_um: float = 0.002
+    """Vibrometer resolution [µm] (2 nm); the reading is a multiple of it; 0 = none."""
+    range_um: float = 40.0
+    """Vibrometer range [µm]; readings are held within ±range_um."""
+    adc_bits: int = 16
+    """A/D resolution [bits]; 0 = no quantisation of u."""
+    adc_min_v: float = 0.0
+    """Lowest voltage the A/D reads [V] (code 0)."""
+    adc_max_v: float = 100.0
+    """Highest voltage the A/D reads [V] (code 2**adc_bits − 1)."""
+    oversample: int = 4
+    """Fine-grid points per sample interval for the lag, creep and Bouc–Wen core [-]."""
+
+    def __post_init__(self) -> None:
+        for name in ("kv", "x0", "A", "beta", "gamma", "n", "delta", "noise_um",
+                     "resolution_um", "range_um", "adc_min_v", "adc_max_v"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"BenchSettings.{name} must be a finite number, got {value!r}")
+        if self.n <= 0:
+            raise ValueError(f"BenchSettings.n must be > 0, got {self.n}")
+        if not (self.amplifier_fc_hz > 0):
+            raise ValueError(f"BenchSettings.amplifier_fc_hz must be > 0 Hz (math.inf = no lag), "
+                             f"got {self.amplifier_fc_hz}")
+        object.__setattr__(self, "creep_tau_s", tuple(float(v) for v in self.creep_tau_s))
+        object.__setattr__(self, "creep_gain_um_per_v",
+                           tuple(float(v) for v in self.creep_gain_um_per_v))
+        if len(self.creep_tau_s) != len(self.creep_gain_um_per_v):
+            raise ValueError("BenchSettings.creep_tau_s and creep_gain_um_per_v must have the "
+                             f"same length, got {len(self.creep_tau_s)} and "
+                             f"{len(self.creep_gain_um_per_v)}")
+        if not all(math.isfinite(v) and v > 0 for v in self.creep_tau_s):
+            raise ValueError(f"BenchSettings.creep_tau_s must be finite and > 0 s, "
+                             f"got {self.creep_tau_s}")
+        if not all(math.isfinite(v) for v in self.creep_gain_um_per_v):
+            raise ValueError("BenchSettings.creep_gain_um_per_v must be finite")
+        if self.noise_um < 0 or self.resolution_um < 0 or self.range_um <= 0:
+            raise ValueError("BenchSettings: noise_um and resolution_um must be >= 0, "
+                             "range_um > 0")
+        if not isinstance(self.adc_bits, int) or not 0 <= self.adc_bits <= 32:
+            raise ValueError(f"BenchSettings.adc_bits must be an int in 0…32, got {self.adc_bits!r}")
+        if self.adc_bits and not self.adc_max_v > self.adc_min_v:
+            raise ValueError("BenchSettings.adc_max_v must be > adc_min_v")
+        if not isinstance(self.oversample, int) or self.oversample < 1:
+            raise ValueError(f"BenchSettings.oversample must be an int >= 1, "
+                             f"got {self.oversample!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The settings as a plain dict (tuples become lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    def params(self):
+        """The Bouc–Wen core as a :class:`boucwen.Params`."""
+        from . import _core
+        return _core.Params(self.kv, self.x0, self.A, self.beta, self.gamma, self.n, self.delta)
+
+    @property
+    def adc_lsb_v(self) -> float:
+        """Voltage step of one A/D code [V] (0 if the A/D does not quantise)."""
+        if not self.adc_bits:
+            return 0.0
+        return (self.adc_max_v - self.adc_min_v) / (2 ** self.adc_bits - 1)
+
+
+# --------------------------------------------------------------------------- input
+
+def paper_input(dt: float = DEFAULT_DT,
+                durations: Sequence[tuple[float, float]] | Mapping[float, float] | None = None,
+                ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, int, int]]]:
+    """The paper's test voltage u = 50 + 50·sin(2πf·t' − π/2) [V], f switching at minima.
+
+    ``t'`` is the time since the start of the current segment, so every segment
+    starts at u = 0 V, and because each lasts a whole number of periods u stays
+    continuous across the switches.
+
+    Args:
+        dt: sampling interval [s].
+        durations: (frequency [Hz], duration [s]) pairs in order, or an ordered
+            mapping {frequency: duration}; default :data:`PAPER_SEGMENTS`
+            (1 Hz 3 s, 10 Hz 0.3 s, 100 Hz 0.03 s, 200 Hz 0.05 s).
+
+    Returns:
+        ``(t, u, segments)``: times [s] from 0 to the total duration inclusive,
+        voltage [V], and ``(f_hz, start_index, stop_index)`` per segment (stop
+        exclusive; the last segment also holds the final sample).
+
+    Raises:
+        ValueError: dt not > 0, a frequency or duration not > 0, or a duration that
+            is not a whole number of periods.
+    """
+    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be finite and > 0 s, got {dt!r}")
+    pairs = list(durations.items() if isinstance(durations, Mapping)
+                 else (PAPER_SEGMENTS if durations is None else durations))
+    if not pairs:
+        raise ValueError("durations must hold at least one (frequency, duration) pair")
+    starts = [0.0]
+    for f, d in pairs:
+        f, d = float(f), float(d)
+        if not (math.isfinite(f) and f > 0 and math.isfinite(d) and d > 0):
+            raise ValueError(f"frequency and duration must be finite and > 0, got ({f}, {d})")
+        periods = f * d
+        if abs(periods - round(periods)) > 1e-6 * max(1.0, periods) or round(periods) < 1:
+            raise ValueError(f"{f:g} Hz for {d:g} s is {periods:.6g} periods, not a whole "
+                             "number; the switch would not fall on a minimum")
+        starts.append(starts[-1] + d)
+    total = starts[-1]
+    count = int(math.floor(total / dt + 1e-9)) + 1
+    t = np.arange(count, dtype=np.float64) * dt
+    u = np.empty(count, dtype=np.float64)
+    segments: list[tuple[float, int, int]] = []
+    for i, (f, _) in enumerate(pairs):
+        lo = int(math.ceil(starts[i] / dt - 1e-9))
+        hi = count if i == len(pairs) - 1 else int(math.ceil(starts[i + 1] / dt - 1e-9))
+        local = t[lo:hi] - starts[i]
+        u[lo:hi] = 50.0 - 50.0 * np.cos(2.0 * math.pi * float(f) * local)
+        segments.append((float(f), lo, hi))
+    return t, u, segments
+
+
+# --------------------------------------------------------------------------- bench
+
+def _lowpass(v: np.ndarray, tau: float, step: float, y0: float) -> np.ndarray:
+    """Exact response of τ·dy/dt = v − y to v linear between grid points [same unit as v]."""
+    a = math.exp(-step / tau)
+    b = tau / step * -math.expm1(-step / tau)
+    c1, c0 = 1.0 - b, b - a
+    vs = v.tolist()
+    out = [0.0] * len(vs)
+    y = y0
+    out[0] = y
+    prev = vs[0]
+    for k in range(1, len(vs)):
+        cur = vs[k]
+        y = a * y + c1 * cur + c0 * prev
+        out[k] = y
+        prev = cur
+    return np.asarray(out, dtype=np.float64)
+
+
+def _respond(u: np.ndarray, dt: float, s: BenchSettings) -> dict[str, np.ndarray]:
+    """Noise-free signals at the sample instants: u_applied [V], creep [µm], x [µm]."""
+    from . import _core
+
+    m = s.oversample
+    fine_dt = dt / m
+    if m > 1:
+        k = np.arange((u.size - 1) * m + 1, dtype=np.float64) / m
+        u_fine = np.interp(k, np.arange(u.size, dtype=np.float64), u)
+    else:
+        u_fine = u
+    if math.isinf(s.amplifier_fc_hz):
+        ua_fine = u_fine.copy()
+    else:
+        ua_fine = _lowpass(u_fine, 1.0 / (2.0 * math.pi * s.amplifier_fc_hz), fine_dt, u_fine[0])
+    creep_fine = np.zeros_like(ua_fine)
+    for tau, gain in zip(s.creep_tau_s, s.creep_gain_um_per_v):
+        if gain != 0.0:
+            creep_fine += gain * _lowpass(ua_fine, tau, fine_dt, ua_fine[0])
+    x_fine, _ = _core.simulate(s.params(), ua_fine, fine_dt, 0.0)
+    x_fine = np.asarray(x_fine, dtype=np.float64) + creep_fine
+    return {"u_applied": ua_fine[::m].copy(), "creep": creep_fine[::m].copy(),
+            "x": x_fine[::m].copy()}
+
+
+def _as_input(u: Any, dt: Any) -> tuple[np.ndarray, float]:
+    u, _ = validate_samples(u, u, dt)
+    if dt is None:
+        raise TypeError("dt is required")
+    return u, float(dt)
+
+
+def true_displacement(u: Any, dt: float = DEFAULT_DT,
+                      settings: BenchSettings = BenchSettings()) -> np.ndarray:
+    """Noise-free displacement x [µm] of the bench for the command u [V] sampled every dt [s].
+
+    Deterministic: the same input always gives the same output.
+    """
+    u, dt = _as_input(u, dt)
+    return _respond(u, dt, settings)["x"]
+
+
+def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings(),
+            seed: int | None = 0) -> Record:
+    """Runs the bench on the command u [V] sampled every dt [s] and returns what is measured.
+
+    Args:
+        u: commanded voltage [V], 1-D.
+        dt: sampling interval [s].
+        settings: the bench.
+        seed: seed of the vibrometer noise (same seed, same record; ``None`` = fresh).
+
+    Returns:
+        A :class:`~boucwen.io.Record` named ``"bench"``: ``t`` [s], ``u`` = the command
+        as read by the A/D [V], ``x`` = the vibrometer reading [µm]. ``meta`` holds
+        the settings (``settings``), ``seed``, ``units`` and, for checking only, the
+        noise-free signals ``u_command`` [V], ``u_applied`` [V], ``creep`` [µm] and
+        ``x_true`` [µm].
+    """
+    u, dt = _as_input(u, dt)
+    s = settings
+    truth = _respond(u, dt, s)
+    rng = np.random.default_rng(seed)
+    x = truth["x"] + s.noise_um * rng.standard_normal(u.size)
+    if s.resolution_um > 0:
+        x = s.resolution_um * np.round(x / s.resolution_um)
+    x = np.clip(x, -s.range_um, s.range_um)
+    if s.adc_bits:
+        top = 2 ** s.adc_bits - 1
+        lsb = s.adc_lsb_v
+        code = np.clip(np.round((u - s.adc_min_v) / lsb), 0, top)
+        u_read = s.adc_min_v + code * lsb
+    else:
+        u_read = u.copy()
+    meta = {
+        "source": "boucwen.plant simulated bench",
+        "settings": s.to_dict(),
+        "seed": seed,
+        "units": {"t": "s", "u": "V (command read by the A/D)", "x": "µm (vibrometer)",
+                  "u_command": "V", "u_applied": "V", "creep": "µm", "x_true": "µm"},
+        "u_command": u.copy(),
+        "u_applied": truth["u_applied"],
+        "creep": truth["creep"],
+        "x_true": truth["x"],
+    }
+    t = np.arange(u.size, dtype=np.float64) * dt
+    return Record(t=t, u=u_read, x=x, dt=dt, name="bench", meta=meta)

@@ -1,0 +1,33 @@
+//! # boucwen
+//!
+//! The asymmetric Bouc–Wen model of piezoelectric-actuator hysteresis and its
+//! online (sample-by-sample) identification, after Zhu, Bian & Rui, *Online
+//! parameter identification of the asymmetrical Bouc–Wen model for piezoelectric
+//! actuators*, Precision Engineering 38 (2014) 921–927.
+//!
+//! ```text
+//! x(t)  = kv·u(t) + x0 + h(t)                                   (3)
+//! dh/dt = A·u̇ − β·|u̇|·|h|^(n−1)·h − γ·u̇·|h|^n + δ·u·sgn(u̇)    (5)
+//! ```
+//!
+//! u: voltage [V]; x: displacement [µm]; h: hysteresis state [µm]; t: time [s].
+//!
+//! - [`Params`]: the seven parameters and their units.
+//! - [`model`]: the operator, its integrator, the per-sample [`Model`] and [`simulate`].
+//! - [`identify`]: online identifiers behind one trait, [`identify::OnlineIdentifier`].
+//! - [`Error`]: every fallible call returns it; nothing here panics on user input.
+//!
+//! The Python bindings live in `python/` behind the `python` feature; this crate's
+//! numerics never depend on them.
+
+pub mod error;
+pub mod identify;
+pub mod model;
+pub mod params;
+
+#[cfg(feature = "python")]
+mod python;
+
+pub use error::{Error, Result};
+pub use model::{simulate, simulate_into, Model, ModelState};
+pub use params::Params;

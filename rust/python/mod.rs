@@ -1,0 +1,67 @@
+//! Python bindings: conversions and error mapping only; the numerics live in the
+//! crate's other modules. Compiled with the `python` feature into `boucwen._core`.
+
+mod identifier;
+mod model;
+mod params;
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+
+use crate::Error;
+
+/// Maps a crate error to `ValueError` with the error's one-line message.
+pub(crate) fn value_error(err: Error) -> PyErr {
+    PyValueError::new_err(err.to_string())
+}
+
+/// Converts any array-like to a contiguous 1-D float64 copy, with a precise error.
+pub(crate) fn samples(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
+    let py = obj.py();
+    if obj.is_none() {
+        return Err(PyTypeError::new_err(format!("{name} must be a 1-D array of numbers, got None")));
+    }
+    if obj.is_instance_of::<pyo3::types::PyString>() || obj.is_instance_of::<pyo3::types::PyBytes>() {
+        return Err(PyTypeError::new_err(format!("{name} must be a 1-D array of numbers, got a string")));
+    }
+    let numpy = py.import("numpy")?;
+    let array = numpy.call_method1("asarray", (obj,)).map_err(|_| {
+        PyTypeError::new_err(format!("{name} must be a 1-D array of numbers"))
+    })?;
+    let kind: String = array.getattr("dtype")?.getattr("kind")?.extract()?;
+    if !matches!(kind.as_str(), "f" | "i" | "u" | "b") {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must hold real numbers, got an array of dtype {}",
+            array.getattr("dtype")?.str()?
+        )));
+    }
+    let array = numpy.call_method1("ascontiguousarray", (array, "float64"))?;
+    let array: Bound<'_, PyArray1<f64>> = array.cast_into::<PyArray1<f64>>().map_err(|_| {
+        let shape = obj.getattr("shape").map(|s| s.to_string()).unwrap_or_else(|_| "?".into());
+        PyValueError::new_err(format!("{name} must be 1-D, got shape {shape}"))
+    })?;
+    let view: PyReadonlyArray1<'_, f64> = array.readonly();
+    let _ = view.len();
+    Ok(view.as_slice().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?.to_vec())
+}
+
+/// Checks that a float argument is finite.
+pub(crate) fn finite(value: f64, name: &str) -> PyResult<f64> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(PyValueError::new_err(format!("{name} = {value} must be finite")))
+    }
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<params::PyParams>()?;
+    m.add_class::<model::PyModel>()?;
+    m.add_class::<identifier::PyIdentifier>()?;
+    m.add_function(wrap_pyfunction!(model::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(model::paper_input, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
