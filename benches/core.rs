@@ -1,9 +1,11 @@
 //! criterion benches of the per-sample paths: one warmed `push` per method and
-//! window length, `push` over a record, `simulate` on the paper's input, one `Model::step`.
+//! window length, `push_many` over a record, `simulate` on the paper's input, one
+//! `Model::step`. Run with `cargo bench --bench core`; every group reports its
+//! throughput in samples per second (criterion's "elem/s").
 
 use std::hint::black_box;
 
-use boucwen::identify::{OnlineIdentifier, PaperConfig, PaperIdentifier};
+use boucwen::identify::{AnyIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier};
 use boucwen::model::paper_input;
 use boucwen::{simulate_into, Model, Params};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
@@ -41,6 +43,26 @@ fn push(c: &mut Criterion) {
     group.finish();
 }
 
+/// `push_many` over the whole paper record (3.38 s at 10 kHz), window 10 000, from a
+/// warmed identifier: the batch path a Python caller gets with one call.
+fn push_many(c: &mut Criterion) {
+    let (u, x) = record();
+    let mut out = vec![0.0; u.len()];
+    let mut group = c.benchmark_group("paper_push_many");
+    group.throughput(Throughput::Elements(u.len() as u64));
+    group.sample_size(20);
+    for window in [1_000usize, 10_000] {
+        let mut id = AnyIdentifier::Paper(
+            PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(window)).expect("valid config"),
+        );
+        id.push_many(&u, &x, &mut out).expect("finite");
+        group.bench_with_input(BenchmarkId::from_parameter(window), &window, |b, _| {
+            b.iter(|| id.push_many(black_box(&u), black_box(&x), &mut out).expect("finite"))
+        });
+    }
+    group.finish();
+}
+
 fn simulate(c: &mut Criterion) {
     let (u, _) = record();
     let mut out = vec![0.0; u.len()];
@@ -68,5 +90,5 @@ fn model_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, push, simulate, model_step);
+criterion_group!(benches, push, push_many, simulate, model_step);
 criterion_main!(benches);

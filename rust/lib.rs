@@ -16,18 +16,23 @@
 //! - [`model`]: the operator, its integrator, the per-sample [`Model`] and [`simulate`].
 //! - [`identify`]: online identifiers behind one trait, [`identify::OnlineIdentifier`].
 //! - [`Error`]: every fallible call returns it; nothing here panics on user input.
+//! - [`Snapshot`]: save a [`Model`] or an identifier to bytes and restore it bit for bit.
 //!
 //! The Python bindings live in `python/` behind the `python` feature; this crate's
 //! numerics never depend on them.
 
+pub mod effects;
 pub mod error;
 pub mod identify;
 pub mod model;
 pub mod params;
+pub mod snapshot;
 
 #[cfg(feature = "python")]
 mod python;
 
+pub use effects::{simulate_extended, EffectSet, ExtendedModel};
 pub use error::{Error, Result};
 pub use model::{simulate, simulate_into, Model, ModelState};
 pub use params::Params;
+pub use snapshot::Snapshot;

@@ -9,13 +9,18 @@
 //! Methods:
 //! - [`paper::PaperIdentifier`]: the paper's limited-memory RLS plus least-squares
 //!   sub-fits (section 3 of the paper).
+//! - [`output_error::OutputErrorIdentifier`] ("rpem"): recursive prediction-error
+//!   method on the model's output (simulation) error, sensitivities of h propagated
+//!   through the integrator, bounded covariance and projected steps.
 
+pub mod output_error;
 pub mod paper;
 pub mod window;
 
 use crate::error::Result;
 use crate::params::Params;
 
+pub use output_error::{OutputErrorConfig, OutputErrorIdentifier, OutputErrorStatus};
 pub use paper::{Decomposition, PaperConfig, PaperIdentifier};
 
 /// Outcome of one sub-fit in a push.
@@ -65,6 +70,8 @@ pub struct PushStatus {
 pub enum AnyIdentifier {
     /// The paper's method.
     Paper(PaperIdentifier),
+    /// The output-error recursive prediction-error method ("rpem").
+    OutputError(OutputErrorIdentifier),
 }
 
 impl AnyIdentifier {
@@ -72,18 +79,21 @@ impl AnyIdentifier {
     pub fn method(&self) -> &'static str {
         match self {
             AnyIdentifier::Paper(_) => "paper",
+            AnyIdentifier::OutputError(_) => "rpem",
         }
     }
 
     fn inner(&self) -> &dyn OnlineIdentifier {
         match self {
             AnyIdentifier::Paper(id) => id,
+            AnyIdentifier::OutputError(id) => id,
         }
     }
 
     fn inner_mut(&mut self) -> &mut dyn OnlineIdentifier {
         match self {
             AnyIdentifier::Paper(id) => id,
+            AnyIdentifier::OutputError(id) => id,
         }
     }
 
@@ -112,6 +122,7 @@ impl OnlineIdentifier for AnyIdentifier {
     fn push(&mut self, u: f64, x: f64) -> Result<f64> {
         match self {
             AnyIdentifier::Paper(id) => id.push(u, x),
+            AnyIdentifier::OutputError(id) => id.push(u, x),
         }
     }
     fn params(&self) -> Params {

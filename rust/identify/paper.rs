@@ -587,3 +587,164 @@ mod tests {
         assert_eq!(id.status().line_fit, SubFit::Held);
     }
 }
+
+// Save and restore (see `crate::snapshot`): every field the identifier carries
+// between samples. The shadow half of the window sums is not stored: it is the
+// sum, in arrival order, of the newest `(samples − 2) mod N` window points, and
+// is recomputed from them with the same additions.
+impl crate::snapshot::Snapshot for PaperIdentifier {
+    fn to_bytes(&self) -> Vec<u8> {
+        use crate::snapshot::Writer;
+        let mut w = Writer::new(crate::snapshot::KIND_PAPER);
+        let c = &self.config;
+        w.u64(c.window_len as u64);
+        w.u8(match c.decomposition {
+            Decomposition::Line => 0,
+            Decomposition::Model => 1,
+        });
+        w.f64s(&[c.h_zero_frac, c.rate_frac]);
+        w.u64(c.min_points as u64);
+        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
+        w.f64(self.dt);
+        w.params(&self.init);
+        w.f64(self.h0);
+        w.params(&self.params);
+        w.f64(self.h_model);
+        for raw in self.raw {
+            match raw {
+                Some(r) => {
+                    w.u8(1);
+                    w.f64s(&[r.u, r.x, r.h_model]);
+                }
+                None => w.u8(0),
+            }
+        }
+        w.u64(self.window.len() as u64);
+        for p in self.window.iter() {
+            w.f64s(&[p.u, p.x, p.y, p.udot, p.a, p.b]);
+            w.u8(match p.class {
+                Class::Unused => 0,
+                Class::Crossing => 1,
+                Class::Loading { positive: true } => 2,
+                Class::Loading { positive: false } => 3,
+                Class::Unloading { positive: true } => 4,
+                Class::Unloading { positive: false } => 5,
+            });
+        }
+        w.f64s(self.sums.get());
+        w.f64s(self.rls.theta.as_slice());
+        w.f64s(self.rls.p.as_slice());
+        w.u8(self.rls.active as u8);
+        let s = &self.status;
+        w.u64(s.samples);
+        w.u8(s.window_full as u8);
+        w.u8(s.refreshed as u8);
+        for f in [s.line_fit, s.rate_fit, s.shape_fit, s.return_fit] {
+            w.u8(match f {
+                SubFit::Held => 0,
+                SubFit::Reduced => 1,
+                SubFit::Ran => 2,
+            });
+        }
+        w.finish()
+    }
+
+    fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        use crate::snapshot::{corrupt, rebuild_window_sums, Reader};
+        let mut r = Reader::new(bytes, crate::snapshot::KIND_PAPER)?;
+        let at = r.offset();
+        let window_len = usize::try_from(r.u64()?)
+            .ok()
+            .filter(|&n| n <= crate::snapshot::MAX_WINDOW_LEN)
+            .ok_or_else(|| corrupt(at, "window length out of range"))?;
+        let decomposition = match r.u8()? {
+            0 => Decomposition::Line,
+            1 => Decomposition::Model,
+            _ => return Err(corrupt(r.offset() - 1, "unknown decomposition tag")),
+        };
+        let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
+        let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
+        let [rank_tol, min_log_spread, min_r2, min_u_std_v, n_lo, n_hi] = r.f64s::<6>()?;
+        let config = PaperConfig {
+            window_len,
+            decomposition,
+            h_zero_frac,
+            rate_frac,
+            min_points,
+            rank_tol,
+            min_log_spread,
+            min_r2,
+            min_u_std_v,
+            n_bounds: (n_lo, n_hi),
+        };
+        let dt = r.f64()?;
+        let init = r.params()?;
+        let h0 = r.finite()?;
+        // Validates dt, init, h0 and the whole configuration.
+        let mut id = PaperIdentifier::new(dt, init, h0, config)?;
+        id.params = r.params()?;
+        id.h_model = r.finite()?;
+        for slot in 0..2 {
+            id.raw[slot] = if r.bool()? {
+                Some(Raw { u: r.finite()?, x: r.finite()?, h_model: r.finite()? })
+            } else {
+                None
+            };
+        }
+        let at = r.offset();
+        let points = r.u64()?;
+        if points > window_len as u64 {
+            return Err(corrupt(at, "more window points than the window holds"));
+        }
+        for _ in 0..points {
+            let [u, x, y, udot, a, b] = r.f64s::<6>()?;
+            let class = match r.u8()? {
+                0 => Class::Unused,
+                1 => Class::Crossing,
+                2 => Class::Loading { positive: true },
+                3 => Class::Loading { positive: false },
+                4 => Class::Unloading { positive: true },
+                5 => Class::Unloading { positive: false },
+                _ => return Err(corrupt(r.offset() - 1, "unknown window point class")),
+            };
+            id.window.push(Point { u, x, y, udot, a, b, class });
+        }
+        let sums = r.f64s::<NSUMS>()?;
+        let theta = r.f64s::<2>()?;
+        let p = r.f64s::<4>()?;
+        id.rls = LineRls { theta: Vector2::from_column_slice(&theta), p: Matrix2::from_column_slice(&p), active: r.bool()? };
+        let at = r.offset();
+        let samples = r.u64()?;
+        let window_full = r.bool()?;
+        let refreshed = r.bool()?;
+        let mut fits = [SubFit::Held; 4];
+        for f in fits.iter_mut() {
+            *f = match r.u8()? {
+                0 => SubFit::Held,
+                1 => SubFit::Reduced,
+                2 => SubFit::Ran,
+                _ => return Err(corrupt(r.offset() - 1, "unknown sub-fit status")),
+            };
+        }
+        r.end()?;
+        let [line_fit, rate_fit, shape_fit, return_fit] = fits;
+        id.status = PushStatus { samples, window_full, refreshed, line_fit, rate_fit, shape_fit, return_fit };
+
+        // One window point per push from the third on; the shadow sum holds the
+        // newest `slides mod N` of them.
+        let slides = samples.saturating_sub(2);
+        let raws = id.raw.iter().filter(|r| r.is_some()).count() as u64;
+        if points != slides.min(window_len as u64) || raws != samples.min(2) {
+            return Err(corrupt(at, "sample count does not match the stored window"));
+        }
+        let count = (slides % window_len as u64) as usize;
+        let mut shadow = [0.0; NSUMS];
+        for p in id.window.iter().skip(points as usize - count) {
+            for (s, c) in shadow.iter_mut().zip(p.contribution()) {
+                *s += c;
+            }
+        }
+        id.sums = rebuild_window_sums(window_len, &sums, &shadow, count);
+        Ok(id)
+    }
+}

@@ -3,11 +3,14 @@
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict, PyType};
 
 use super::params::PyParams;
 use super::{samples, value_error};
-use crate::identify::{AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfig, PaperIdentifier};
+use crate::identify::{
+    AnyIdentifier, Decomposition, OnlineIdentifier, OutputErrorConfig, OutputErrorIdentifier, PaperConfig,
+    PaperIdentifier,
+};
 
 /// Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
 ///
@@ -23,6 +26,35 @@ use crate::identify::{AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfi
 /// paper method (defaults in brackets): `decomposition` "model" or "line" ["model"],
 /// `h_zero_frac` [0.005], `rate_frac` [0.2], `min_points` [8], `rank_tol` [1e-3],
 /// `min_log_spread` [0.05], `min_r2` [0.9], `n_bounds` [(0.5, 4.0)].
+///
+/// `method="rpem"`: recursive prediction-error method on the model's output
+/// (simulation) error, sensitivities ∂h/∂θ propagated through the integrator;
+/// `window` is not used. Options (defaults in brackets): `forgetting` λ per
+/// sample [1.0]; `memory_travel_v` memory in input travel [400 V = two periods
+/// of a 0–100 V sine]; `p0` initial covariance of θᵢ/scaleᵢ [1e-2];
+/// `noise_um2` expected prediction-error variance R [1e-4 µm²]; `max_trace`
+/// bound on tr P [1.0]; `max_step` largest change per sample as a fraction of
+/// each parameter's scale [0.01]; `n_bounds` [(1.0, 4.0)]; `margin` least
+/// β + γ and β − γ [1e-6]; `offset_walk_um` random walk of x0 per sample
+/// (creep, drift) [0.05 µm]; `max_offset_step_um` largest change of x0 per
+/// sample [0.5 µm].
+/// Largest window [samples] the binding accepts (56 bytes per sample are kept).
+const MAX_WINDOW: usize = crate::snapshot::MAX_WINDOW_LEN;
+
+/// An integer argument; a too-large int is a ValueError (not OverflowError), a non-int a TypeError.
+fn count_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
+    obj.extract::<i64>().map_err(|err| {
+        if err.is_instance_of::<pyo3::exceptions::PyOverflowError>(obj.py()) {
+            PyValueError::new_err(format!("invalid {name} = {obj}: too large"))
+        } else {
+            pyo3::exceptions::PyTypeError::new_err(format!(
+                "{name} must be an integer, got {}",
+                obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into())
+            ))
+        }
+    })
+}
+
 #[pyclass(name = "Identifier", module = "boucwen")]
 #[derive(Clone)]
 pub struct PyIdentifier {
@@ -34,23 +66,63 @@ impl PyIdentifier {
     #[new]
     #[pyo3(signature = (dt, window, init, h0 = 0.0, method = "paper", *, decomposition = "model",
         h_zero_frac = None, rate_frac = None, min_points = None, rank_tol = None,
-        min_log_spread = None, min_r2 = None, n_bounds = None))]
+        min_log_spread = None, min_r2 = None, n_bounds = None, forgetting = None, memory_travel_v = None,
+        p0 = None, noise_um2 = None, max_trace = None, max_step = None, margin = None, offset_walk_um = None, max_offset_step_um = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         dt: f64,
-        window: i64,
+        window: &Bound<'_, PyAny>,
         init: &PyParams,
         h0: f64,
         method: &str,
         decomposition: &str,
         h_zero_frac: Option<f64>,
         rate_frac: Option<f64>,
-        min_points: Option<i64>,
+        min_points: Option<&Bound<'_, PyAny>>,
         rank_tol: Option<f64>,
         min_log_spread: Option<f64>,
         min_r2: Option<f64>,
         n_bounds: Option<(f64, f64)>,
+        forgetting: Option<f64>,
+        memory_travel_v: Option<f64>,
+        p0: Option<f64>,
+        noise_um2: Option<f64>,
+        max_trace: Option<f64>,
+        max_step: Option<f64>,
+        margin: Option<f64>,
+        offset_walk_um: Option<f64>,
+        max_offset_step_um: Option<f64>,
     ) -> PyResult<Self> {
+        if method == "rpem" {
+            let mut cfg = OutputErrorConfig::default();
+            let options = [
+                (&mut cfg.forgetting, forgetting),
+                (&mut cfg.memory_travel_v, memory_travel_v),
+                (&mut cfg.p0, p0),
+                (&mut cfg.noise_um2, noise_um2),
+                (&mut cfg.max_trace, max_trace),
+                (&mut cfg.max_step, max_step),
+                (&mut cfg.margin, margin),
+                (&mut cfg.offset_walk_um, offset_walk_um),
+                (&mut cfg.max_offset_step_um, max_offset_step_um),
+            ];
+            for (slot, value) in options {
+                if let Some(v) = value {
+                    *slot = v;
+                }
+            }
+            if let Some(v) = n_bounds {
+                cfg.n_bounds = v;
+            }
+            let id = OutputErrorIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
+            return Ok(PyIdentifier { inner: AnyIdentifier::OutputError(id) });
+        }
+        let window = count_arg(window, "window")?;
+        if window > MAX_WINDOW as i64 {
+            return Err(PyValueError::new_err(format!(
+                "invalid window = {window}: at most {MAX_WINDOW} samples (the window is held in memory)"
+            )));
+        }
         if window < PaperConfig::MIN_WINDOW as i64 {
             return Err(PyValueError::new_err(format!(
                 "invalid window = {window}: the window must hold at least {} samples",
@@ -74,6 +146,7 @@ impl PyIdentifier {
             cfg.rate_frac = v;
         }
         if let Some(v) = min_points {
+            let v = count_arg(v, "min_points")?;
             if v < 2 {
                 return Err(PyValueError::new_err(format!("invalid min_points = {v}: must be >= 2")));
             }
@@ -94,7 +167,7 @@ impl PyIdentifier {
         let inner = match method {
             "paper" => AnyIdentifier::Paper(PaperIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?),
             other => {
-                return Err(PyValueError::new_err(format!("invalid method = {other:?}: expected \"paper\"")))
+                return Err(PyValueError::new_err(format!("invalid method = {other:?}: expected \"paper\" or \"rpem\"")))
             }
         };
         Ok(PyIdentifier { inner })
@@ -163,6 +236,28 @@ impl PyIdentifier {
     /// Back to the state right after construction.
     fn reset(&mut self) {
         self.inner.reset()
+    }
+
+    /// Pickle support: the identifier is saved as its byte snapshot (every value it
+    /// carries between samples), so an unpickled copy continues bit for bit.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
+        let bytes = slf.borrow().inner.to_snapshot().map_err(value_error)?;
+        let restore = slf.get_type().getattr("_from_snapshot")?;
+        Ok((restore, (PyBytes::new(slf.py(), &bytes),)))
+    }
+
+    /// Rebuilds an identifier from the bytes written by `__reduce__` (ValueError if corrupt).
+    #[classmethod]
+    fn _from_snapshot(_cls: &Bound<'_, PyType>, data: &[u8]) -> PyResult<Self> {
+        AnyIdentifier::from_snapshot(data).map(|inner| PyIdentifier { inner }).map_err(value_error)
+    }
+
+    fn __copy__(&self) -> Self {
+        self.clone()
+    }
+
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
+        self.clone()
     }
 
     fn __repr__(&self) -> String {

@@ -1,0 +1,263 @@
+#!/usr/bin/env python3
+"""Side-by-side speed of boucwen's Rust core against plain NumPy/SciPy, in one run.
+
+    python benches/compare.py            # about a minute; prints a markdown table
+    python benches/compare.py --full     # also runs the reference-driven fit (minutes)
+
+Every row uses the same data: the paper's input (1 Hz for 3 s, then 10, 100 and
+200 Hz) sampled at 10 kHz, its simulated response with the paper's parameters and
+1 nm of noise. Each figure is the median of several repeats (one for the slow
+pure-Python rows).
+
+Rows:
+- ``Identifier.push`` called from Python in a loop, ``push_many`` on arrays (each
+  online method this build offers), and the NumPy reference identifier
+  (:mod:`boucwen.reference`, O(N) per sample by design) on the same samples;
+- ``simulate`` against :func:`boucwen.reference.simulate` (the same integrator in
+  pure Python) and against ``scipy.integrate.solve_ivp`` tuned to the same
+  accuracy (the loosest tolerance whose error against a 200-sub-step RK4
+  solution is within 1e-4 µm, the accuracy the tests ask of ``simulate``, or
+  ``simulate``'s own error if larger; ``simulate`` is far more accurate than
+  that, so the ratio is a lower bound);
+- the wall time of :func:`boucwen.fit` on a 30 000-sample record, and of the same
+  fit with its simulator replaced by the NumPy reference. By default the second is
+  an estimate: the samples the Rust-driven fit simulated, times the reference's
+  measured cost per sample (its simulator holds the GIL, so threads do not help);
+  ``--full`` runs it.
+
+Missing optional pieces (the reference module, the fit, SciPy) are skipped with a
+message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from typing import Any, Callable
+
+import numpy as np
+
+import boucwen
+from boucwen import Identifier, Params
+
+DT = 1e-4
+WINDOW = 1_000
+
+
+def median_time(fn: Callable[[], Any], repeats: int) -> float:
+    """Median wall time [s] of ``repeats`` calls (after one warm-up call when repeats > 1)."""
+    if repeats > 1:
+        fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} CPUs, Python {platform.python_version()}, NumPy {np.__version__}"
+
+
+def optional(name: str) -> Any:
+    try:
+        return __import__(name, fromlist=["*"])
+    except ImportError as exc:
+        print(f"note: {name} not available ({exc}); its rows are skipped", file=sys.stderr)
+        return None
+
+
+def methods() -> list[str]:
+    found = []
+    for method in ("paper", "rpem"):
+        try:
+            Identifier(DT, WINDOW, Params.paper_1hz(), method=method)
+        except ValueError:
+            continue
+        found.append(method)
+    return found
+
+
+class Table:
+    def __init__(self) -> None:
+        self.rows: list[tuple[str, str, str, str]] = []
+
+    def add(self, what: str, figure: str, ratio: str = "", note: str = "") -> None:
+        self.rows.append((what, figure, ratio, note))
+        print(f"  {what}: {figure} {ratio} {note}", file=sys.stderr, flush=True)
+
+    def markdown(self) -> str:
+        head = "| what | figure | ratio | note |\n|---|---:|---:|---|\n"
+        return head + "\n".join(f"| {a} | {b} | {c} | {d} |" for a, b, c, d in self.rows)
+
+
+def ns(seconds: float, samples: int) -> str:
+    return f"{seconds / samples * 1e9:,.0f} ns/sample"
+
+
+def rate(seconds: float, samples: int) -> str:
+    return f"{samples / seconds / 1e6:.1f} M samples/s"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--full", action="store_true", help="run the reference-driven fit instead of estimating it")
+    parser.add_argument("--repeats", type=int, default=5, help="repeats of each fast figure (median; default 5)")
+    args = parser.parse_args(argv)
+    reps = max(1, args.repeats)
+
+    reference = optional("boucwen.reference")
+    params = Params.paper_1hz()
+    u = np.asarray(boucwen.paper_input(DT, 0.05))
+    x_clean, _ = boucwen.simulate(params, u, DT)
+    x = x_clean + 1e-3 * np.random.default_rng(0).standard_normal(u.size)
+    n = u.size
+    table = Table()
+    print(f"{n} samples at dt = {DT} s; machine: {machine()}", file=sys.stderr)
+
+    # ---------------------------------------------------------------- online identification
+    ref_samples = 3_000
+    for method in methods():
+        def push_loop() -> None:
+            ident = Identifier(DT, WINDOW, params, method=method)
+            push = ident.push
+            for uk, xk in zip(u.tolist(), x.tolist()):
+                push(uk, xk)
+
+        def push_many() -> None:
+            Identifier(DT, WINDOW, params, method=method).push_many(u, x)
+
+        t_loop = median_time(push_loop, reps)
+        t_many = median_time(push_many, reps)
+        table.add(f"`Identifier.push` from Python ({method}, N = {WINDOW})", ns(t_loop, n),
+                  note="per call, the Python loop included; target ≤ 500 ns")
+        table.add(f"`Identifier.push_many` ({method}, N = {WINDOW})", ns(t_many, n),
+                  f"{rate(t_many, n)}", "target ≥ 10 M samples/s")
+        if method == "paper" and reference is not None:
+            def ref_loop() -> None:
+                ident = reference.PaperIdentifier(DT, WINDOW, params)
+                for uk, xk in zip(u[:ref_samples].tolist(), x[:ref_samples].tolist()):
+                    ident.push(uk, xk)
+
+            t_ref = median_time(ref_loop, 1)
+            per_ref = t_ref / ref_samples
+            table.add(f"NumPy reference `PaperIdentifier.push` (N = {WINDOW})", ns(t_ref, ref_samples),
+                      f"{per_ref / (t_many / n):,.0f}× `push_many`, {per_ref / (t_loop / n):,.0f}× `push`",
+                      f"first {ref_samples} samples; recomputes the window, O(N) per sample")
+
+    # ---------------------------------------------------------------- simulation
+    t_sim = median_time(lambda: boucwen.simulate(params, u, DT), max(reps, 9))
+    table.add("`simulate` (Rust)", ns(t_sim, n), rate(t_sim, n), "paper input; target ≥ 10 M samples/s")
+    if reference is not None:
+        t_ref_sim = median_time(lambda: reference.simulate(params, u, DT), 1)
+        ref_sim_per_sample = t_ref_sim / n
+        table.add("`reference.simulate` (NumPy/Python)", ns(t_ref_sim, n), f"{t_ref_sim / t_sim:,.0f}× `simulate`",
+                  "same integrator rule")
+    else:
+        ref_sim_per_sample = None
+
+    scipy_integrate = optional("scipy.integrate")
+    if scipy_integrate is not None and reference is not None:
+        m = 10_000  # 1 s of the 1 Hz part, one full loop, kept short for the slow solver
+        us = u[:m]
+        fine, _ = reference.simulate_fine(params, us, DT, substeps=200)
+        xs, _ = boucwen.simulate(params, us, DT)
+        err_rust = float(np.max(np.abs(xs - fine)))
+        # solve_ivp cannot integrate across the kinks of u̇ at every sample as closely as
+        # simulate does; it is given the accuracy the model tests ask of simulate
+        # (1e-4 µm) or simulate's own error, whichever is larger, so its ratio is a lower bound.
+        target = max(err_rust, 1e-4)
+        t_sim_m = median_time(lambda: boucwen.simulate(params, us, DT), max(reps, 9))
+        t_grid = np.arange(m) * DT
+        slopes = np.diff(us) / DT
+        p = params
+
+        def rhs(t: float, h: np.ndarray) -> np.ndarray:
+            k = min(int(t / DT), m - 2)
+            udot = slopes[k]
+            uu = us[k] + udot * (t - k * DT)
+            hh = h[0]
+            hn = abs(hh) ** p.n
+            sh = (hh > 0) - (hh < 0)
+            su = (udot > 0) - (udot < 0)
+            return np.array([p.A * udot - (p.beta * abs(udot) * sh + p.gamma * udot) * hn + p.delta * uu * su])
+
+        chosen = None
+        for rtol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9):
+            start = time.perf_counter()
+            sol = scipy_integrate.solve_ivp(rhs, (0.0, t_grid[-1]), [0.0], method="RK45", t_eval=t_grid,
+                                            rtol=rtol, atol=rtol * 1e-3, max_step=DT)
+            elapsed = time.perf_counter() - start
+            if not sol.success:
+                continue
+            xi = p.kv * us + p.x0 + sol.y[0]
+            err = float(np.max(np.abs(xi - fine)))
+            chosen = (rtol, err, elapsed, sol.nfev)
+            if err <= target:
+                break
+        if chosen is not None:
+            rtol, err, elapsed, nfev = chosen
+            table.add("`scipy.integrate.solve_ivp` (RK45)", ns(elapsed, m), f"{elapsed / t_sim_m:,.0f}× `simulate`",
+                      f"rtol {rtol:g}: max error {err:.1e} µm (target {target:.0e} µm; `simulate`: {err_rust:.1e} µm); "
+                      f"first {m} samples, {nfev / m:.1f} evaluations per sample, max_step = dt (u̇ jumps at every sample)")
+
+    # ---------------------------------------------------------------- offline fit
+    fit_module = optional("boucwen.fit")
+    if fit_module is not None:
+        m = 30_000
+        uf, xf = u[:m], x[:m]
+        simulated = [0]
+        rust_simulate = fit_module.simulate
+
+        def counting(p: Any, uu: Any, *a: Any, **k: Any) -> Any:
+            simulated[0] += len(uu)
+            return rust_simulate(p, uu, *a, **k)
+
+        fit_module.simulate = counting
+        try:
+            start = time.perf_counter()
+            result = fit_module.fit(uf, xf, DT)
+            t_fit = time.perf_counter() - start
+        finally:
+            fit_module.simulate = rust_simulate
+        table.add(f"`boucwen.fit`, {m} samples", f"{t_fit:.2f} s",
+                  note=f"{result.nfev} simulations, {simulated[0] / 1e6:.1f} M samples simulated, "
+                       f"rms error {result.rms_um:.3g} µm; target ≤ 2 s")
+        if reference is not None and ref_sim_per_sample is not None:
+            if args.full:
+                fit_module.simulate = reference.simulate
+                try:
+                    start = time.perf_counter()
+                    fit_module.fit(uf, xf, DT)
+                    t_ref_fit = time.perf_counter() - start
+                finally:
+                    fit_module.simulate = rust_simulate
+                label, how = f"{t_ref_fit:.1f} s", "measured (--full)"
+            else:
+                t_ref_fit = simulated[0] * ref_sim_per_sample
+                label, how = f"≈ {t_ref_fit:.0f} s", "estimated: samples simulated × reference cost per sample (--full runs it)"
+            table.add("same fit, NumPy reference simulator", label, f"{t_ref_fit / t_fit:,.0f}× `boucwen.fit`", how)
+
+    print()
+    print(f"Measured with `python benches/compare.py` on {machine()}; boucwen {boucwen.__version__}.")
+    print()
+    print(table.markdown())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,277 @@
+"""Type stubs for ``boucwen._core``, the compiled Rust core (re-exported by ``boucwen``).
+
+The model (Zhu, Bian & Rui, Precision Engineering 38 (2014) 921–927)::
+
+    x     = kv·u + x0 + h                                           (3)
+    dh/dt = A·u̇ − β·|u̇|·|h|^(n−1)·h − γ·u̇·|h|^n + δ·u·sgn(u̇)        (5)
+
+u: voltage [V]; x, h: displacement [µm]; t: time [s].
+
+Every invalid argument or non-finite sample raises ``ValueError`` with a
+one-line message naming the offending value; an argument of the wrong kind
+(a string or ``None`` for an array) raises ``TypeError``.
+
+Layout of this file, one section per part of the extension, so that a new
+part is one new section (and one line in ``__all__``):
+
+- module constants
+- parameters: ``Params``
+- simulation: ``simulate``, ``paper_input``, ``Model``
+- online identification: ``_IdentifierMethod``, ``_SubFitOutcome`` and
+  ``_IdentifierStatus`` (type-only names, absent at run time), ``Identifier``
+"""
+
+from typing import ClassVar, Dict, List, Literal, Optional, Tuple, TypedDict, final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "__version__",
+    "Params",
+    "simulate",
+    "paper_input",
+    "Model",
+    "Identifier",
+]
+
+# ---------------------------------------------------------------- module constants
+
+__version__: str
+"""Version of the compiled core (the crate version)."""
+
+# ---------------------------------------------------------------- parameters
+
+@final
+class Params:
+    """Parameters of the asymmetric Bouc–Wen model (eqs. 3 and 5).
+
+    kv [µm/V], x0 [µm], A [µm/V], beta and gamma [µm^(1−n)/V], n [-] (> 0),
+    delta [µm/(V·s)]. Immutable and hashable; ``repr`` round-trips; pickles.
+    Building one with a non-finite value or n ≤ 0 raises ``ValueError``
+    naming the parameter.
+    """
+
+    names: ClassVar[List[str]]
+    """Parameter names in array order: ``["kv", "x0", "A", "beta", "gamma", "n", "delta"]``."""
+
+    def __new__(
+        cls, kv: float, x0: float, A: float, beta: float, gamma: float, n: float, delta: float
+    ) -> "Params": ...
+    @staticmethod
+    def paper_1hz() -> "Params":
+        """The paper's Table 2 values identified at 1 Hz on a P-885.51 stack."""
+    @property
+    def kv(self) -> float:
+        """Linear gain kv [µm/V]."""
+    @property
+    def x0(self) -> float:
+        """Offset x0 [µm]."""
+    @property
+    def A(self) -> float:
+        """Hysteresis gain A [µm/V]."""
+    @property
+    def beta(self) -> float:
+        """β [µm^(1−n)/V], weight of the |u̇|·|h|^(n−1)·h term."""
+    @property
+    def gamma(self) -> float:
+        """γ [µm^(1−n)/V], weight of the u̇·|h|^n term."""
+    @property
+    def n(self) -> float:
+        """Shape exponent n [-], > 0."""
+    @property
+    def delta(self) -> float:
+        """Asymmetry δ [µm/(V·s)], weight of the u·sgn(u̇) term."""
+    def to_array(self) -> NDArray[np.float64]:
+        """``[kv, x0, A, beta, gamma, n, delta]`` as a new float64 array."""
+    @staticmethod
+    def from_array(values: ArrayLike) -> "Params":
+        """Inverse of :meth:`to_array` (7 values); ``ValueError`` naming an invalid parameter."""
+    def to_dict(self) -> Dict[str, float]:
+        """``{"kv": …, "x0": …, "A": …, "beta": …, "gamma": …, "n": …, "delta": …}``."""
+    @staticmethod
+    def from_dict(d: Dict[str, float]) -> "Params":
+        """Inverse of :meth:`to_dict`: every key required (``KeyError``), no other key allowed (``ValueError``)."""
+    def replace(self, **changes: float) -> "Params":
+        """A copy with some values replaced, e.g. ``p.replace(n=1.6)``; validated."""
+    def __eq__(self, value: object, /) -> bool: ...
+    def __ne__(self, value: object, /) -> bool: ...
+    def __hash__(self) -> int: ...
+    def __reduce__(self) -> Tuple[type, Tuple[float, float, float, float, float, float, float]]: ...
+
+# ---------------------------------------------------------------- simulation
+
+def simulate(
+    params: Params,
+    u: ArrayLike,
+    dt: float,
+    h0: float = 0.0,
+    u_prev: Optional[float] = None,
+) -> Tuple[NDArray[np.float64], float]:
+    """Simulates the model over a record; returns ``(x, h_final)``.
+
+    ``u`` [V] is piecewise linear between samples ``dt`` [s] apart. ``x[k] =
+    kv·u[k] + x0 + h[k]`` [µm]; ``h_final`` is h after the last sample [µm].
+    With ``u_prev=None``, h[0] = ``h0`` [µm]; with ``u_prev=v`` [V] the first
+    interval runs from v to u[0], so ``simulate(p, u[k:], dt, h0=h_final,
+    u_prev=u[k-1])`` continues a record split at k exactly as one call would
+    (as ``scipy.signal.lfilter(..., zi)``). A non-finite sample raises
+    ``ValueError`` before anything is computed. Releases the GIL.
+    """
+
+def paper_input(dt: float, tail_s: float = 0.05) -> NDArray[np.float64]:
+    """The paper's input u = 50 + 50·sin(2πft − π/2) [V] sampled every ``dt`` [s].
+
+    f = 1 Hz for t < 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for
+    ``tail_s`` [s]; each switch falls on a minimum (u = 0).
+    """
+
+@final
+class Model:
+    """A per-sample model for control loops: ``step(u) -> x``.
+
+    ``params``: the model; ``dt``: sampling interval [s]; ``h0``: initial h [µm].
+    The first sample keeps h = h0; each later one integrates eq. (5) from the
+    previous voltage. A non-finite ``u`` raises ``ValueError`` and changes
+    nothing. Pickles with its state.
+    """
+
+    def __new__(cls, params: Params, dt: float, h0: float = 0.0) -> "Model": ...
+    def step(self, u: float) -> float:
+        """Takes the next voltage u [V]; returns the displacement x [µm]."""
+    @property
+    def h(self) -> float:
+        """Current hysteresis state h [µm]."""
+    @property
+    def params(self) -> Params:
+        """The model's parameters."""
+    @property
+    def dt(self) -> float:
+        """Sampling interval [s]."""
+    def reset(self, h0: float = 0.0) -> None:
+        """Forgets the past: h = ``h0`` [µm], no previous sample."""
+    def __getstate__(self) -> Tuple[Params, float, float, Optional[float]]: ...
+    def __setstate__(self, state: Tuple[Params, float, float, Optional[float]]) -> None: ...
+    def __getnewargs__(self) -> Tuple[Params, float]: ...
+
+# ---------------------------------------------------------------- online identification
+
+_IdentifierMethod = Literal["paper"]
+"""Names accepted by ``Identifier(method=...)``."""
+
+_SubFitOutcome = Literal["ran", "reduced", "held"]
+"""What a sub-fit did in the last push: ran in full, ran on fewer unknowns
+(rank-deficient data; the rest kept), or held the previous estimate."""
+
+class _IdentifierStatus(TypedDict):
+    """``Identifier.status``: what the last push did."""
+
+    samples: int
+    """Samples pushed since construction or reset."""
+    window_full: bool
+    """The window holds its full N samples."""
+    refreshed: bool
+    """The window's running sums were recomputed exactly in this push."""
+    line_fit: _SubFitOutcome
+    """Step 1, kv and x0 (limited-memory RLS)."""
+    rate_fit: _SubFitOutcome
+    """Step 2, A and δ."""
+    shape_fit: _SubFitOutcome
+    """Step 3, n and β + γ."""
+    return_fit: _SubFitOutcome
+    """Step 4, γ − β."""
+
+@final
+class Identifier:
+    """Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
+
+    ``push(u, x)`` takes a voltage u [V] and a measured displacement x [µm] and
+    returns the model's displacement [µm] for that sample, predicted with the
+    estimates from *before* the sample and with the model's own simulated h;
+    then it updates the estimates. A non-finite sample raises ``ValueError``
+    and leaves the identifier exactly as it was.
+
+    Arguments: ``dt`` sampling interval [s]; ``window`` limited memory N
+    [samples] (16 to 10 000 000); ``init`` starting parameters (e.g. an offline fit);
+    ``h0`` initial h [µm]; ``method`` the online method.
+
+    Options of ``method="paper"`` (default in brackets; ``None`` keeps it):
+    ``decomposition`` "model" (line through x − h_model) or "line" (the
+    paper, literal: line through the loop) ["model"]; ``h_zero_frac``: |h|
+    below this fraction of the window's std(x) counts as h ≈ 0 [0.005];
+    ``rate_frac``: points with |u̇| below this fraction of rms(u̇) are left out
+    [0.2]; ``min_points``: fewest points for a sub-fit [8]; ``rank_tol``: step 2
+    fits δ only when 1 − corr²(u̇, u) exceeds it [1e-3]; ``min_log_spread``:
+    fewest std(ln h) for fitting n [0.05]; ``min_r2``: least squared correlation
+    of the log–log points [0.9]; ``n_bounds``: accepted range of n [(0.5, 4.0)].
+    """
+
+    def __new__(
+        cls,
+        dt: float,
+        window: int,
+        init: Params,
+        h0: float = 0.0,
+        method: _IdentifierMethod = "paper",
+        *,
+        decomposition: Literal["model", "line"] = "model",
+        h_zero_frac: Optional[float] = None,
+        rate_frac: Optional[float] = None,
+        min_points: Optional[int] = None,
+        rank_tol: Optional[float] = None,
+        min_log_spread: Optional[float] = None,
+        min_r2: Optional[float] = None,
+        n_bounds: Optional[Tuple[float, float]] = None,
+    ) -> "Identifier": ...
+    def push(self, u: float, x: float) -> float:
+        """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""
+    def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
+        """``push`` over arrays with the GIL released; predictions [µm] identical to a
+        loop of ``push``. A non-finite value anywhere raises ``ValueError`` before any
+        sample is used (the state is unchanged)."""
+    @property
+    def params(self) -> Params:
+        """The current parameter estimates."""
+    @property
+    def h(self) -> float:
+        """The model's hysteresis state h [µm] after the last sample."""
+    @property
+    def method(self) -> _IdentifierMethod:
+        """The online method in use."""
+    @property
+    def status(self) -> _IdentifierStatus:
+        """What the last push did (a new dict at each read)."""
+    def reset(self) -> None:
+        """Back to the state right after construction."""
+
+@final
+class EffectSet:
+    """Which effects surround the base model, with their parameters (see boucwen.effects).
+
+    creep={"tau_s": [s…], "gain_um_per_v": [µm/V…]}, input_lag={"fc_hz": Hz},
+    resonance={"fn_hz": Hz, "zeta": -}, drift={"rate_um_per_s": µm/s},
+    delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError."""
+    vocabulary: ClassVar[List[str]]
+    def __init__(
+        self,
+        *,
+        creep: Optional[Dict[str, object]] = None,
+        input_lag: Optional[Dict[str, float]] = None,
+        resonance: Optional[Dict[str, float]] = None,
+        drift: Optional[Dict[str, float]] = None,
+        delay: Optional[Dict[str, int]] = None,
+    ) -> None: ...
+    @property
+    def names(self) -> List[str]:
+        """Names of the effects present, in vocabulary order."""
+    def to_dict(self) -> Dict[str, Dict[str, object]]: ...
+    @staticmethod
+    def from_dict(d: Dict[str, Dict[str, object]]) -> EffectSet: ...
+    def __len__(self) -> int: ...
+    def __contains__(self, name: object) -> bool: ...
+
+def simulate_extended(
+    params: Params, effects: Optional[EffectSet], u: ArrayLike, dt: float, h0: float = 0.0
+) -> NDArray[np.float64]:
+    """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen + creep) →
+    resonance → + drift → delay. GIL released."""

@@ -1,0 +1,210 @@
+"""Command line: ``boucwen <subcommand> ...``.
+
+Subcommands:
+
+* ``boucwen fit DATA.csv [--json OUT.json]``: the traditional offline fit of a
+  record (CSV with a header line and columns t, u, x in s, V, µm; other columns
+  ignored); prints the parameters and the output error in µm.
+* ``boucwen reproduce [--out DIR] [--quick]``: the paper's experiment on the
+  simulated bench (:mod:`boucwen.experiments.reproduce`).
+* ``boucwen diagnose (DATA.csv | --dataset NAME) --json REPORT.json --predictions PRED.csv
+  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnose`).
+
+Exit codes: 0 success; 1 ``fit`` finished without converging (the result is still
+printed and written); 2 error. Every error (bad file, bad data, unwritable output)
+ends the program with exit code 2 and a single line ``boucwen <subcommand>: error: <message>`` on stderr.
+
+Adding a subcommand: write ``_add_<name>(subparsers)`` that creates its parser and
+sets ``handler=`` to a function ``(args) -> int``, and append it to
+:data:`SUBCOMMANDS`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Callable, Sequence
+
+__all__ = ["main", "build_parser", "SUBCOMMANDS"]
+
+EXIT_OK = 0
+EXIT_ERROR = 2
+#: ``boucwen fit`` ran but the optimiser stopped before convergence (result still printed).
+EXIT_NOT_CONVERGED = 1
+
+
+class _UsageError(Exception):
+    """Raised by the parser instead of printing usage and calling sys.exit."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # type: ignore[override]
+        raise _UsageError(f"{self.prog}: error: {message}")
+
+
+# --------------------------------------------------------------------------- fit
+
+def _cmd_fit(args: argparse.Namespace) -> int:
+    from .fit import fit
+    from .io import read_csv
+
+    rec = read_csv(args.data)
+    result = fit(rec.u, rec.x, rec.dt, n_starts=args.starts, seed=args.seed,
+                 progress=args.progress)
+    p = result.params
+    print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
+    print(f"  kv    = {p.kv:.6g} µm/V")
+    print(f"  x0    = {p.x0:.6g} µm")
+    print(f"  A     = {p.A:.6g} µm/V")
+    print(f"  beta  = {p.beta:.6g} µm^(1-n)/V")
+    print(f"  gamma = {p.gamma:.6g} µm^(1-n)/V")
+    print(f"  n     = {p.n:.6g}")
+    print(f"  delta = {p.delta:.6g} µm/(V·s)")
+    print(f"  h0    = {result.h0:.6g} µm")
+    print(f"output error: rms {result.rms_um:.4g} µm, max {result.max_um:.4g} µm")
+    print(f"{'converged' if result.success else 'NOT converged'}: {result.message} "
+          f"({result.nfev} simulations, {result.elapsed_s:.2f} s)")
+    if args.json:
+        doc = result.to_dict()
+        doc["data"] = {"path": str(args.data), "samples": len(rec), "dt_s": rec.dt}
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump(doc, fh, indent=2)
+        print(f"wrote {args.json}")
+    return EXIT_OK if result.success else EXIT_NOT_CONVERGED
+
+
+def _add_fit(sub) -> None:
+    p = sub.add_parser("fit", help="offline output-error fit of a CSV record (t, u, x)",
+                       description="Identifies the seven parameters and h0 of the asymmetric "
+                                   "Bouc-Wen model from a CSV record with columns t [s], u [V], "
+                                   "x [um] by output-error least squares.")
+    p.add_argument("data", help="CSV file with a header line and columns t,u,x")
+    p.add_argument("--json", metavar="OUT.json", help="also write the result as JSON")
+    p.add_argument("--starts", type=int, default=4, help="local starts (default 4)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random starts (default 0)")
+    p.add_argument("--progress", action="store_true", help="print progress to stderr")
+    p.set_defaults(handler=_cmd_fit)
+
+
+# --------------------------------------------------------------------------- reproduce
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from .experiments.reproduce import run
+
+    run(args.out, quick=args.quick, window=args.window, seed=args.seed,
+        figures=not args.no_figures)
+    return EXIT_OK
+
+
+def _add_reproduce(sub) -> None:
+    from .experiments.reproduce import DEFAULT_OUT
+
+    p = sub.add_parser("reproduce", help="the paper's experiment on the simulated bench",
+                       description="Runs the paper's experiment (1 -> 10 -> 100 -> 200 Hz) on the "
+                                   "simulated bench: traditional fit vs online identification, "
+                                   "Tables 1-2, Figs. 6-9.")
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
+                   help=f"output directory (default {DEFAULT_OUT})")
+    p.add_argument("--quick", action="store_true", help="reduced input, for smoke tests")
+    p.add_argument("--window", type=int, default=None,
+                   help="limited memory N of the online method [samples] "
+                        "(default: one period of the highest frequency)")
+    p.add_argument("--seed", type=int, default=0, help="seed of noise and fit (default 0)")
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.set_defaults(handler=_cmd_reproduce)
+
+
+# --------------------------------------------------------------------------- diagnose
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from .diagnose import diagnose, plot_diagnosis, write_predictions, write_report
+
+    if (args.data is None) == (args.dataset is None):
+        raise ValueError("give either DATA.csv or --dataset NAME (exactly one)")
+    if args.dataset is not None:
+        from .datasets import load
+
+        rec = load(args.dataset)
+        source = {"dataset": args.dataset, "citation": rec.meta.get("citation"),
+                  "licence": rec.meta.get("licence")}
+    else:
+        from .io import read_csv
+
+        rec = read_csv(args.data)
+        source = {"path": str(args.data)}
+    result = diagnose(rec.u, rec.x, rec.dt, progress=args.progress, seed=args.seed)
+    print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
+    print(f"effects: {', '.join(result.effects) if result.effects else 'none'}")
+    print(f"error before (base model): rms {result.rms_before:.4g} um, max {result.max_before:.4g} um")
+    print(f"error after (with effects): rms {result.rms_after:.4g} um, max {result.max_after:.4g} um")
+    write_report(result, args.json, data={**source, "samples": len(rec), "dt_s": rec.dt})
+    print(f"wrote {args.json}")
+    write_predictions(result, rec.t, rec.x, args.predictions)
+    print(f"wrote {args.predictions}")
+    if args.plot:
+        plot_diagnosis(result, rec.t, rec.u, rec.x, args.plot, title=rec.name)
+        print(f"wrote {args.plot}")
+    return EXIT_OK
+
+
+def _add_diagnose(sub) -> None:
+    p = sub.add_parser("diagnose", help="find which effect the base model misses in a record",
+                       description="Fits the base model, analyses the residual, adds the effects "
+                                   "(creep, input_lag, resonance, drift, delay) that earn their "
+                                   "parameters on held-out data, and reports the error before "
+                                   "and after [um].")
+    p.add_argument("data", nargs="?", default=None,
+                   help="CSV file with a header line and columns t,u,x (s, V, um)")
+    p.add_argument("--dataset", metavar="NAME", default=None,
+                   help="use a shipped dataset instead of a CSV file (e.g. micromanipulator)")
+    p.add_argument("--json", metavar="REPORT.json", required=True, help="write the report here")
+    p.add_argument("--predictions", metavar="PRED.csv", required=True,
+                   help="write t,x,x_base,x_extended here")
+    p.add_argument("--plot", metavar="FIG.png", default=None,
+                   help="also draw the residual before and after, and the loops")
+    p.add_argument("--seed", type=int, default=0, help="seed of the base fit's starts (default 0)")
+    p.add_argument("--progress", action="store_true", help="print progress to stderr")
+    p.set_defaults(handler=_cmd_diagnose)
+
+
+# --------------------------------------------------------------------------- main
+
+#: One registration function per subcommand, in help order.
+SUBCOMMANDS: list[Callable] = [_add_fit, _add_reproduce, _add_diagnose]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand of :data:`SUBCOMMANDS`."""
+    parser = _Parser(prog="boucwen",
+                     description="Asymmetric Bouc-Wen hysteresis of piezoelectric actuators.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for add in SUBCOMMANDS:
+        add(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``boucwen`` script; returns the exit code."""
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except _UsageError as exc:
+        print(str(exc).splitlines()[0] if str(exc) else "boucwen: error", file=sys.stderr)
+        return EXIT_ERROR
+    except SystemExit as exc:  # --help / --version
+        return int(exc.code or 0)
+    try:
+        return int(args.handler(args))
+    except (ValueError, TypeError, OSError) as exc:
+        message = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"boucwen {args.command}: error: {message}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print(f"boucwen {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

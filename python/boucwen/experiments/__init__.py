@@ -1,0 +1,6 @@
+"""Experiments that run the library end to end on the simulated bench.
+
+- :mod:`boucwen.experiments.reproduce`: the paper's experiment (section 4): the
+  traditional offline fit on 1 Hz data against the online identifiers over
+  1 → 10 → 100 → 200 Hz, Tables 1–2 and Figs. 6–9.
+"""

@@ -1,0 +1,452 @@
+"""The paper's experiment (Zhu, Bian & Rui 2014, section 4) on the simulated bench.
+
+Steps of :func:`run`:
+
+1. **Input.** u = 50 + 50·sin(2πf·t − π/2) [V] from :func:`boucwen.plant.paper_input`
+   at the bench's sampling interval (:data:`boucwen.plant.DEFAULT_DT`, 10 kHz):
+   1 Hz for 3 s, 10 Hz for 0.3 s, 100 Hz for 0.03 s, then 200 Hz for **0.1 s
+   (20 periods)** — longer than the paper's Fig. 8 (which ends about 15 ms after
+   the switch) so that the 200 Hz steady state is reached by every method.
+2. **Measurement.** :func:`boucwen.plant.measure` with the default
+   :class:`boucwen.plant.BenchSettings` (or the ones given).
+3. **Traditional method.** :func:`boucwen.fit` on the 1 Hz part; its parameters
+   and h0 are then held fixed and simulated over the whole record.
+4. **Online methods** (:data:`ONLINE_METHODS`), each started from the traditional
+   values and pushed the whole record sample by sample; the prediction of each
+   sample uses the estimates from before it.
+5. **Table 1**: maximum absolute error in steady state per frequency; **Table 2**:
+   the online estimates at the end of each frequency; both beside the paper's.
+   Adaptation times after each switch (:func:`adaptation_times`).
+6. ``DIR/results.json``, ``DIR/predictions.npz`` (every signal the tables and
+   figures are computed from) and the figures ``DIR/fig6_1_to_10hz.png``,
+   ``fig7_10_to_100hz.png``, ``fig8_100_to_200hz.png``, ``fig9_loops.png``.
+
+Definitions:
+
+* **Steady state** of a frequency: its last full period (for 200 Hz the last
+  period of the record). Table 1 is the maximum of |x − x̂| there.
+* **Adaptation time** after a switch (or after the start, for 1 Hz): split the
+  segment into whole periods; it is the time from the switch to the start of the
+  first period from which on *every* period's maximum |x − x̂| stays within
+  :data:`ADAPTATION_FACTOR` (1.5) × the steady-state value. 0 means the error never
+  left that band; the time is a whole number of periods of the new frequency.
+* **Window** (limited memory N) of the paper method: by default one period of
+  the highest input frequency (50 samples = 5 ms at 10 kHz and 200 Hz). The paper
+  reports an adaptive state of about one period of the new frequency after each
+  switch; a limited-memory estimate rests entirely on data of the new frequency
+  only once N samples have passed, so N can be at most about one period of the
+  fastest frequency. ``results.json`` also holds a sweep over N (``window_sweep``)
+  so the sensitivity to this choice is on record.
+* **Best fixed parameters per frequency** (``best_fixed_per_frequency``): the
+  traditional fit repeated on each frequency's own data, evaluated on its steady
+  state. No method that adapts the seven parameters can do better in steady
+  state, so it separates the model's structural error from the identifier's.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .. import plant
+from .._core import Identifier, Params, simulate
+from ..fit import FitResult, fit
+
+__all__ = ["run", "OnlineMethod", "ONLINE_METHODS", "available_online_methods",
+           "default_online_method", "fixed_parameter_prediction", "table1_from_predictions", "adaptation_times",
+           "steady_state_slice", "default_window", "SEGMENTS", "QUICK_SEGMENTS",
+           "PAPER_TABLE1", "PAPER_TABLE2", "STEADY_STATE", "ADAPTATION_RULE",
+           "ADAPTATION_FACTOR", "DEFAULT_OUT"]
+
+#: Default output directory of ``boucwen reproduce``.
+DEFAULT_OUT = os.path.join("out", "reproduce")
+
+#: The experiment's input: (frequency [Hz], duration [s]); 200 Hz for 0.1 s = 20 periods.
+SEGMENTS: tuple[tuple[float, float], ...] = ((1.0, 3.0), (10.0, 0.3), (100.0, 0.03), (200.0, 0.1))
+#: Reduced input for ``--quick`` (tests, smoke runs): 1 s, 0.1 s, 0.02 s, 0.02 s.
+QUICK_SEGMENTS: tuple[tuple[float, float], ...] = ((1.0, 1.0), (10.0, 0.1), (100.0, 0.02), (200.0, 0.02))
+
+#: Paper, Table 1: maximum absolute error in steady state [µm].
+PAPER_TABLE1: dict[str, dict[str, float]] = {
+    "traditional": {"1": 0.47, "10": 0.75, "100": 1.25, "200": 2.91},
+    "online": {"1": 0.47, "10": 0.48, "100": 0.45, "200": 0.49},
+}
+#: Paper, Table 2: the online estimates at each frequency (units of :class:`Params`).
+PAPER_TABLE2: dict[str, dict[str, float]] = {
+    "1": {"kv": 0.19, "x0": 0.015, "A": -0.072, "beta": 0.020, "gamma": -0.019, "n": 1.52, "delta": 0.0075},
+    "10": {"kv": 0.18, "x0": 0.017, "A": -0.072, "beta": 0.025, "gamma": -0.021, "n": 1.53, "delta": 0.0067},
+    "100": {"kv": 0.18, "x0": 0.021, "A": -0.072, "beta": 0.023, "gamma": -0.018, "n": 1.51, "delta": 0.0063},
+    "200": {"kv": 0.16, "x0": 0.013, "A": -0.10, "beta": 0.015, "gamma": -0.005, "n": 1.68, "delta": 0.0045},
+}
+
+#: Band of the adaptation rule: per-period maximum error within this × steady state.
+ADAPTATION_FACTOR = 1.5
+STEADY_STATE = ("the last full period of each frequency (for the last frequency, the last "
+                "period of the record); Table 1 is max |x - x_hat| over it")
+ADAPTATION_RULE = (f"time from the switch (or from the start, for the first frequency) to the "
+                   f"start of the first whole period of the new frequency from which on every "
+                   f"period's max |x - x_hat| stays within {ADAPTATION_FACTOR} x the steady-state "
+                   f"value; a whole number of periods")
+
+_PARAM_NAMES = ("kv", "x0", "A", "beta", "gamma", "n", "delta")
+
+
+# --------------------------------------------------------------------------- methods
+
+@dataclass(frozen=True)
+class OnlineMethod:
+    """One online identifier in the comparison.
+
+    Attributes:
+        label: key suffix in the results (``online_<label>``).
+        method: the ``method`` argument of :class:`boucwen.Identifier`.
+        options: extra keyword arguments of :class:`boucwen.Identifier`.
+        description: one line for the printed tables.
+    """
+
+    label: str
+    method: str
+    options: Mapping[str, Any] = field(default_factory=dict)
+    description: str = ""
+
+
+#: Every online method the experiment compares, in print order. Methods the
+#: installed library does not offer (Identifier raises ValueError) are skipped.
+ONLINE_METHODS: tuple[OnlineMethod, ...] = (
+    OnlineMethod("paper", "paper", {}, "paper's method, kv/x0 from x - h_model (library default)"),
+    OnlineMethod("paper_literal", "paper", {"decomposition": "line"},
+                 "paper's method, kv/x0 = line through the loop (literal)"),
+    OnlineMethod("rpem", "rpem", {}, "recursive prediction-error (output-error) method"),
+)
+
+
+def _make_identifier(m: OnlineMethod, dt: float, window: int, init: Params, h0: float) -> Identifier:
+    return Identifier(dt, window, init, h0, m.method, **dict(m.options))
+
+
+def available_online_methods(dt: float = plant.DEFAULT_DT, window: int = 50,
+                             init: Params | None = None) -> list[OnlineMethod]:
+    """The entries of :data:`ONLINE_METHODS` that :class:`boucwen.Identifier` accepts."""
+    init = init if init is not None else Params.paper_1hz()
+    out = []
+    for m in ONLINE_METHODS:
+        try:
+            _make_identifier(m, dt, window, init, 0.0)
+        except (ValueError, TypeError):
+            continue
+        out.append(m)
+    return out
+
+
+def default_online_method(labels: Sequence[str]) -> str:
+    """The library's default online method, reported as ``online``: "rpem" if
+    available, else "paper"."""
+    return "rpem" if "rpem" in labels else "paper"
+
+
+def default_window(segments: Sequence[tuple[float, int, int]], dt: float) -> int:
+    """One period of the highest frequency [samples], at least 16 (see the module docs)."""
+    fmax = max(f for f, _, _ in segments)
+    return max(16, int(round(1.0 / (fmax * dt))))
+
+
+# --------------------------------------------------------------------------- metrics
+
+def _period(f: float, dt: float) -> int:
+    return max(1, int(round(1.0 / (f * dt))))
+
+
+def steady_state_slice(f: float, lo: int, hi: int, dt: float) -> slice:
+    """Samples of the steady state of a segment [lo, hi): its last full period."""
+    return slice(max(lo, hi - _period(f, dt)), hi)
+
+
+def _key(f: float) -> str:
+    return f"{f:g}"
+
+
+def table1_from_predictions(x: np.ndarray, predictions: Mapping[str, np.ndarray],
+                            segments: Sequence[tuple[float, int, int]], dt: float,
+                            ) -> dict[str, dict[str, float]]:
+    """Table 1: ``{label: {"1": max|x − x̂| in steady state [µm], ...}}``."""
+    return {label: {_key(f): float(np.max(np.abs(x - pred)[steady_state_slice(f, lo, hi, dt)]))
+                    for f, lo, hi in segments}
+            for label, pred in predictions.items()}
+
+
+def adaptation_times(x: np.ndarray, pred: np.ndarray, segments: Sequence[tuple[float, int, int]],
+                     dt: float, factor: float = ADAPTATION_FACTOR) -> dict[str, dict[str, float]]:
+    """Adaptation time per segment (see the module docs): ``{"1": {"s": …, "periods": …}, …}``."""
+    err = np.abs(x - pred)
+    out: dict[str, dict[str, float]] = {}
+    for f, lo, hi in segments:
+        p = _period(f, dt)
+        count = max(1, (hi - lo) // p)
+        maxima = np.array([np.max(err[lo + k * p: min(hi, lo + (k + 1) * p)]) for k in range(count)])
+        steady = float(np.max(err[steady_state_slice(f, lo, hi, dt)]))
+        bad = np.flatnonzero(maxima > factor * steady)
+        first_good = int(bad[-1]) + 1 if bad.size else 0
+        out[_key(f)] = {"s": first_good * p * dt, "periods": first_good}
+    return out
+
+
+# --------------------------------------------------------------------------- run
+
+def _json_safe(obj: Any) -> Any:
+    """Non-finite floats (a parameter set that could not be simulated) become null."""
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def _params_dict(p: Params) -> dict[str, float]:
+    return {k: float(v) for k, v in p.to_dict().items()}
+
+
+def _run_online(m: OnlineMethod, u: np.ndarray, x: np.ndarray, dt: float, window: int,
+                init: Params, h0: float, segments) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
+    ident = _make_identifier(m, dt, window, init, h0)
+    pred = np.empty_like(x)
+    estimates = {}
+    for f, lo, hi in segments:
+        pred[lo:hi] = ident.push_many(u[lo:hi], x[lo:hi])
+        estimates[_key(f)] = _params_dict(ident.params)
+    return pred, estimates
+
+
+def fixed_parameter_prediction(u: np.ndarray, dt: float, estimates: Mapping[str, Mapping[str, float]],
+                               segments: Sequence[tuple[float, int, int]], h0: float) -> np.ndarray:
+    """The model run with *fixed* parameters per frequency, as in the paper's Fig. 9.
+
+    For each segment, the model with that segment's end-of-frequency estimates
+    (Table 2) is simulated from t = 0 (h[0] = ``h0``) to the end of the segment; the
+    returned array holds, on each segment, that simulation [µm]. A parameter set
+    that cannot be simulated gives NaN on its segment.
+    """
+    out = np.full(u.shape, np.nan)
+    for f, lo, hi in segments:
+        try:
+            p = Params.from_dict(dict(estimates[_key(f)]))
+            xs, _ = simulate(p, u[:hi], dt, h0)
+        except ValueError:
+            continue
+        out[lo:hi] = np.asarray(xs)[lo:hi]
+    return out
+
+
+def _fmt_row(name: str, values: Sequence[float], width: int = 9, fmt: str = "{:.3f}") -> str:
+    return f"{name:<34}" + "".join(f"{fmt.format(v):>{width}}" for v in values)
+
+
+def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions, adapt, sweep,
+                  best_fixed):
+    heads = [f"{f} Hz" for f in freqs]
+    log("")
+    log("Table 1  maximum absolute error in steady state [µm]")
+    log(f"{'method':<34}" + "".join(f"{h:>9}" for h in heads))
+    log(_fmt_row("traditional (this bench)", [table1["traditional"][f] for f in freqs]))
+    log(_fmt_row("traditional (paper)", [PAPER_TABLE1["traditional"][f] for f in freqs]))
+    for label in labels:
+        log(_fmt_row(f"online_{label} (this bench)", [table1[f"online_{label}"][f] for f in freqs]))
+    log(_fmt_row("online (paper)", [PAPER_TABLE1["online"][f] for f in freqs]))
+    if best_fixed:
+        log(_fmt_row("best fixed params per frequency", [best_fixed[f] for f in freqs]))
+    log("Same, model run with the Table 2 estimates held fixed per frequency (Fig. 9):")
+    for label in labels:
+        log(_fmt_row(f"online_{label}, fixed", [table1_fixed[f"online_{label}"][f] for f in freqs]))
+    for label in labels:
+        log(f"  online_{label}: {descriptions[label]}")
+    log("")
+    log("Adaptation time after each switch [s] (periods of the new frequency)")
+    for label in labels:
+        a = adapt[f"online_{label}"]
+        log(f"{'online_' + label:<34}" + "".join(
+            f"{a[f]['s']:>9.4f}" for f in freqs) + "   (" + ", ".join(
+            f"{a[f]['periods']}" for f in freqs) + ")")
+    log("")
+    log("Table 2  online estimates at the end of each frequency (paper's value in brackets)")
+    for label in labels:
+        log(f"online_{label}:")
+        log(f"{'f':>6}" + "".join(f"{n:>20}" for n in _PARAM_NAMES))
+        for f in freqs:
+            est = table2[f"online_{label}"][f]
+            log(f"{f + ' Hz':>6}" + "".join(
+                f"{est[n]:>11.4g} ({PAPER_TABLE2[f][n]:.3g})".rjust(20) for n in _PARAM_NAMES))
+    if sweep:
+        log("")
+        log("Window sweep, default online method: max steady-state error [µm] per frequency")
+        log("(streaming prediction | model with that run's Table 2 values held fixed)")
+        for w, rows in sweep.items():
+            log(_fmt_row(f"N = {w}", [rows["streaming"][f] for f in freqs])
+                + "  |" + "".join(f"{rows['fixed'][f]:>9.3f}" for f in freqs))
+    log("")
+
+
+def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window: int | None = None,
+        seed: int = 0, settings: plant.BenchSettings | None = None, figures: bool = True,
+        log: Callable[[str], None] | None = print) -> dict[str, Any]:
+    """Runs the experiment and writes ``results.json``, ``predictions.npz`` and the figures.
+
+    Args:
+        out_dir: output directory (created if needed).
+        quick: reduced input (:data:`QUICK_SEGMENTS`), a lighter fit, no window sweep
+            and no per-frequency refits: for tests and smoke runs.
+        window: limited memory N [samples] of the windowed online methods; default
+            :func:`default_window`.
+        seed: seed of the bench's noise and of the fit's random starts.
+        settings: the bench (default :class:`boucwen.plant.BenchSettings`).
+        figures: write the PNG figures.
+        log: where progress and tables go (``None``: silent).
+
+    Returns:
+        The content of ``results.json`` as a dict.
+
+    Raises:
+        ValueError: bad window; OSError: the directory cannot be written.
+    """
+    say = log or (lambda _msg: None)
+    started = time.perf_counter()
+
+    def step(msg: str) -> None:
+        say(f"[{time.perf_counter() - started:6.1f} s] {msg}")
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    settings = settings if settings is not None else plant.BenchSettings()
+    dt = plant.DEFAULT_DT
+    seg_spec = QUICK_SEGMENTS if quick else SEGMENTS
+    t, u_cmd, segments = plant.paper_input(dt, seg_spec)
+    if window is None:
+        window = default_window(segments, dt)
+    if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 16:
+        raise ValueError(f"window must be an integer >= 16 samples, got {window!r}")
+    window = int(window)
+    freqs = [_key(f) for f, _, _ in segments]
+
+    step(f"measuring {t.size} samples at {1 / dt:.0f} Hz on the simulated bench "
+         f"({', '.join(f'{f:g} Hz for {d:g} s' for f, d in seg_spec)})")
+    rec = plant.measure(u_cmd, dt, settings, seed=seed)
+    u, x = rec.u, rec.x
+
+    _, lo1, hi1 = segments[0]
+    step(f"traditional method: output-error fit on the {freqs[0]} Hz part ({hi1 - lo1} samples)")
+    fit_opts = {"n_candidates": 16, "n_starts": 2} if quick else {}
+    trad: FitResult = fit(u[lo1:hi1], x[lo1:hi1], dt, seed=seed, **fit_opts)
+    step(f"  {trad.params!r}, h0 = {trad.h0:.4g} µm; rms {trad.rms_um:.4g} µm, max "
+         f"{trad.max_um:.4g} µm, {trad.nfev} simulations, {trad.elapsed_s:.2f} s")
+    x_trad, _ = simulate(trad.params, u, dt, trad.h0)
+    x_trad = np.asarray(x_trad)
+
+    methods = available_online_methods(dt, window, trad.params)
+    labels = [m.label for m in methods]
+    default = default_online_method(labels)
+    predictions: dict[str, np.ndarray] = {"traditional": x_trad}
+    table2: dict[str, dict[str, dict[str, float]]] = {}
+    for m in methods:
+        step(f"online method {m.label!r} (window {window} samples = {window * dt * 1e3:g} ms)")
+        pred, est = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments)
+        predictions[f"online_{m.label}"] = pred
+        table2[f"online_{m.label}"] = est
+    skipped = [m.label for m in ONLINE_METHODS if m.label not in labels]
+    if skipped:
+        step(f"online methods not available in this build: {', '.join(skipped)}")
+    table2["online"] = table2[f"online_{default}"]
+    table2["traditional"] = {f: _params_dict(trad.params) for f in freqs}
+
+    table1 = table1_from_predictions(x, predictions, segments, dt)
+    table1["online"] = table1[f"online_{default}"]
+    step("fixed-parameter check: the model with each frequency's Table 2 estimates")
+    fixed = {f"online_{lab}": fixed_parameter_prediction(u, dt, table2[f"online_{lab}"], segments,
+                                                        trad.h0) for lab in labels}
+    table1_fixed = table1_from_predictions(x, fixed, segments, dt)
+    table1_fixed["online"] = table1_fixed[f"online_{default}"]
+    adapt = {f"online_{lab}": adaptation_times(x, predictions[f"online_{lab}"], segments, dt)
+             for lab in labels}
+    adapt["online"] = adapt[f"online_{default}"]
+
+    sweep: dict[str, dict[str, float]] = {}
+    best_fixed: dict[str, float] = {}
+    if not quick:
+        dm = next(m for m in methods if m.label == default)
+        windows = [w for w in (25, 50, 100, 200, 500, 1000, 2000, 5000, 10000) if w >= 16]
+        step(f"window sweep of online_{default}: N = {', '.join(map(str, windows))} samples")
+        for w in windows:
+            pred, est = _run_online(dm, u, x, dt, w, trad.params, trad.h0, segments)
+            xf = fixed_parameter_prediction(u, dt, est, segments, trad.h0)
+            rows = table1_from_predictions(x, {"streaming": pred, "fixed": xf}, segments, dt)
+            sweep[str(w)] = rows
+        step("best fixed parameters per frequency: the traditional fit on each frequency's data")
+        for f, lo, hi in segments:
+            r = fit(u[lo:hi], x[lo:hi], dt, init=trad.params, seed=seed)
+            ss = steady_state_slice(f, lo, hi, dt)
+            best_fixed[_key(f)] = float(np.max(np.abs(x[ss] - r.x_fit[ss.start - lo: ss.stop - lo])))
+
+    results: dict[str, Any] = {
+        "table1": table1,
+        "table2": table2,
+        "table1_fixed": table1_fixed,
+        "paper": {"table1": PAPER_TABLE1, "table2": PAPER_TABLE2},
+        "plant": settings.to_dict(),
+        "steady_state": STEADY_STATE,
+        "adaptation_rule": ADAPTATION_RULE,
+        "adaptation_time_s": {k: {f: v[f]["s"] for f in freqs} for k, v in adapt.items()},
+        "adaptation_periods": {k: {f: v[f]["periods"] for f in freqs} for k, v in adapt.items()},
+        "default_online_method": default,
+        "online_methods": {m.label: {"method": m.method, "options": dict(m.options),
+                                     "description": m.description} for m in methods},
+        "window": {"samples": window, "s": window * dt,
+                   "rule": "one period of the highest input frequency (see boucwen.experiments.reproduce)"},
+        "input": {"dt_s": dt, "segments": [{"f_hz": f, "duration_s": d, "start": lo, "stop": hi}
+                                           for (f, d), (_, lo, hi) in zip(seg_spec, segments)],
+                  "quick": quick, "seed": seed},
+        "traditional_fit": trad.to_dict(),
+        "window_sweep": sweep,
+        "best_fixed_per_frequency": best_fixed,
+    }
+
+    results = _json_safe(results)
+    with open(out / "results.json", "w", encoding="utf-8") as fh:
+        json.dump(results, fh, indent=2, allow_nan=False)
+    np.savez_compressed(out / "predictions.npz", t=t, u=u, x=x, dt=np.float64(dt),
+                        segments=np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
+                        **{f"x_{k}": v for k, v in predictions.items()},
+                        **{f"x_fixed_{k}": v for k, v in fixed.items()})
+
+    if figures:
+        step("figures")
+        _figures(out, t, u, x, predictions, fixed, segments, dt)
+    _print_tables(say, freqs, table1, table1_fixed, table2, labels,
+                  {m.label: m.description for m in methods}, adapt, sweep, best_fixed)
+    say(f"online = online_{default}; steady state = {STEADY_STATE}")
+    step(f"wrote {out / 'results.json'}, {out / 'predictions.npz'} and the figures")
+    return results
+
+
+def _figures(out: Path, t, u, x, predictions, fixed, segments, dt) -> None:
+    from ..plots import plot_loops, plot_switch
+
+    names = ["fig6_1_to_10hz.png", "fig7_10_to_100hz.png", "fig8_100_to_200hz.png"]
+    for k in range(1, len(segments)):
+        f_old, lo_old, _ = segments[k - 1]
+        f_new, lo, hi = segments[k]
+        t_sw = t[lo]
+        before = min(2.0 / f_old, t_sw - t[lo_old])
+        after = min(6.0 / f_new, t[hi - 1] - t_sw)
+        name = names[k - 1] if k - 1 < len(names) else f"fig_switch_{k}.png"
+        plot_switch(out / name, t, x, predictions, t_sw, (t_sw - before, t_sw + after),
+                    f"frequency switch {f_old:g} Hz → {f_new:g} Hz at t = {t_sw:g} s")
+    windows = [(f"{f:g} Hz, steady state", steady_state_slice(f, lo, hi, dt)) for f, lo, hi in segments]
+    loops = {"traditional": predictions["traditional"]}
+    loops.update({f"{k} (Table 2 values, fixed)": v for k, v in fixed.items()})
+    plot_loops(out / "fig9_loops.png", u, x, loops, windows)
+

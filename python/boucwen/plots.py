@@ -1,0 +1,96 @@
+"""Figures of the experiment, drawn with matplotlib's Agg canvas (no display needed).
+
+The functions build their own :class:`matplotlib.figure.Figure` and never touch
+pyplot's global state, so they are safe to call from scripts, tests and threads.
+Displacements and errors in µm, voltage in V, time in s.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["plot_switch", "plot_loops"]
+
+_MEASURED_STYLE = {"color": "black", "linewidth": 1.4, "label": "measured"}
+
+
+def _figure(width: float, height: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def plot_switch(path: str | os.PathLike, t: np.ndarray, x: np.ndarray,
+                predictions: Mapping[str, np.ndarray], t_switch: float,
+                span: tuple[float, float], title: str) -> None:
+    """Displacement and modelling error around a frequency switch (like the paper's Figs. 6–8).
+
+    Args:
+        path: PNG file to write.
+        t: sample times [s].
+        x: measured displacement [µm].
+        predictions: ``{label: predicted displacement [µm]}``, each the length of ``x``.
+        t_switch: time of the switch [s], drawn as a dotted line.
+        span: ``(t_start, t_stop)`` [s] of the plotted interval.
+        title: figure title.
+    """
+    lo, hi = np.searchsorted(t, span[0]), np.searchsorted(t, span[1], side="right")
+    sel = slice(lo, hi)
+    fig = _figure(9.0, 6.0)
+    ax_x, ax_e = fig.subplots(2, 1, sharex=True)
+    ax_x.plot(t[sel], x[sel], **_MEASURED_STYLE)
+    for label, pred in predictions.items():
+        ax_x.plot(t[sel], pred[sel], linewidth=1.0, label=label)
+        ax_e.plot(t[sel], (x - pred)[sel], linewidth=1.0, label=label)
+    for ax in (ax_x, ax_e):
+        ax.axvline(t_switch, color="grey", linestyle=":", linewidth=1.0)
+        ax.grid(True, alpha=0.3)
+    ax_x.set_ylabel("displacement x [µm]")
+    ax_x.set_title(f"(a) {title}")
+    ax_x.legend(loc="upper left", fontsize=8)
+    ax_e.set_ylabel("error x − x̂ [µm]")
+    ax_e.set_xlabel("time t [s]")
+    ax_e.set_title("(b) modelling error")
+    ax_e.legend(loc="upper left", fontsize=8)
+    fig.savefig(path, dpi=110)
+
+
+def plot_loops(path: str | os.PathLike, u: np.ndarray, x: np.ndarray,
+               predictions: Mapping[str, np.ndarray],
+               windows: Sequence[tuple[str, slice]]) -> None:
+    """Hysteresis loops x(u), one panel per window (like the paper's Fig. 9).
+
+    Args:
+        path: PNG file to write.
+        u: voltage [V].
+        x: measured displacement [µm].
+        predictions: ``{label: predicted displacement [µm]}``.
+        windows: ``(panel title, sample slice)`` per panel, e.g. the steady-state
+            period of each frequency.
+    """
+    cols = 2 if len(windows) > 1 else 1
+    rows = (len(windows) + cols - 1) // cols
+    fig = _figure(5.0 * cols, 4.2 * rows)
+    axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
+    for ax, (title, sel) in zip(axes, windows):
+        ax.plot(u[sel], x[sel], **_MEASURED_STYLE)
+        # Keep the measured loop readable when a prediction is far off.
+        lo, hi = float(np.min(x[sel])), float(np.max(x[sel]))
+        pad = 0.3 * max(hi - lo, 1e-9)
+        ax.set_ylim(lo - pad, hi + pad)
+        for label, pred in predictions.items():
+            ax.plot(u[sel], pred[sel], linewidth=1.0, linestyle="--", label=label)
+        ax.set_title(title)
+        ax.set_xlabel("voltage u [V]")
+        ax.set_ylabel("displacement x [µm]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper left", fontsize=7)
+    for ax in axes[len(windows):]:
+        ax.set_visible(False)
+    fig.savefig(path, dpi=110)

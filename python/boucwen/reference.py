@@ -1,0 +1,759 @@
+"""Plain NumPy/Python versions of the simulator and of the paper's identifier.
+
+Written to be read and to check the Rust core against, not for speed. Names
+follow the paper (Zhu, Bian & Rui, Precision Engineering 38 (2014) 921–927)::
+
+    x     = kv·u + x0 + h                                           (3)
+    dh/dt = A·u̇ − β·|u̇|·|h|^(n−1)·h − γ·u̇·|h|^n + δ·u·sgn(u̇)        (5)
+
+u: voltage [V]; x, h: displacement [µm]; t: time [s]; kv [µm/V], x0 [µm],
+A [µm/V], β and γ [µm^(1−n)/V], n [-], δ [µm/(V·s)].
+
+- :func:`simulate` uses the same integrator rule as the Rust core (RK4 on a
+  stiffness-chosen number of sub-steps, backward Euler beyond that, |h| held
+  within :data:`H_LIMIT_UM`), in the same order of operations, so the two agree
+  to rounding (about 1e-12 µm).
+- :func:`simulate_fine` is an independent accuracy reference: plain RK4 with a
+  fixed number of sub-steps per sample interval and no other rule.
+- :class:`PaperIdentifier` is the paper's online method with the same guards
+  and the same decisions as the Rust ``PaperIdentifier``, but every window
+  statistic is recomputed from the stored window points at each sample (O(N)
+  per sample) instead of being kept as running sums, and step 1 is an exact
+  least-squares fit of the window instead of a recursive one. The results
+  therefore differ from the Rust core by rounding only.
+
+Parameters may be given as a :class:`boucwen.Params`, a mapping with the keys
+``kv, x0, A, beta, gamma, n, delta`` or a sequence of the seven values in that
+order.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Deque, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "H_LIMIT_UM",
+    "IMPLICIT_SUBSTEPS",
+    "MAX_SUBSTEPS",
+    "MIN_SUBSTEPS",
+    "STIFFNESS_STEP",
+    "PaperIdentifier",
+    "RefParams",
+    "advance_h",
+    "hysteresis_rate",
+    "paper_input",
+    "simulate",
+    "simulate_fine",
+]
+
+#: RK4 sub-steps for an interval in which h may cross zero (as in the Rust core).
+MIN_SUBSTEPS = 2
+#: Most RK4 sub-steps per sample interval; stiffer intervals take
+#: :data:`IMPLICIT_SUBSTEPS` backward-Euler steps instead.
+MAX_SUBSTEPS = 32
+#: Backward-Euler sub-steps per interval when RK4 would need more than MAX_SUBSTEPS.
+IMPLICIT_SUBSTEPS = 32
+#: Largest |∂ḣ/∂h|·Δt allowed in one RK4 sub-step.
+STIFFNESS_STEP = 0.25
+#: |h| is held within this bound [µm].
+H_LIMIT_UM = 1.0e4
+
+NAMES = ("kv", "x0", "A", "beta", "gamma", "n", "delta")
+
+
+class RefParams(NamedTuple):
+    """The seven parameters as plain floats (units in the module docs)."""
+
+    kv: float
+    x0: float
+    A: float
+    beta: float
+    gamma: float
+    n: float
+    delta: float
+
+    @classmethod
+    def from_any(cls, params: Any) -> "RefParams":
+        """From a :class:`boucwen.Params`, a mapping or a sequence of 7 values; validated."""
+        if isinstance(params, Mapping):
+            values = [params[name] for name in NAMES]
+        elif all(hasattr(params, name) for name in NAMES):
+            values = [getattr(params, name) for name in NAMES]
+        else:
+            values = list(params)
+            if len(values) != 7:
+                raise ValueError(f"expected 7 values {NAMES}, got {len(values)}")
+        p = cls(*(float(v) for v in values))
+        p.validate()
+        return p
+
+    def validate(self) -> None:
+        """All values finite and n > 0, else ValueError naming the parameter."""
+        for name, value in zip(NAMES, self):
+            if not math.isfinite(value):
+                raise ValueError(f"invalid parameter {name} = {value}: must be finite")
+        if self.n <= 0.0:
+            raise ValueError(f"invalid parameter n = {self.n}: must be > 0")
+
+    def is_valid(self) -> bool:
+        try:
+            self.validate()
+        except ValueError:
+            return False
+        return True
+
+    def to_array(self) -> NDArray[np.float64]:
+        """``[kv, x0, A, beta, gamma, n, delta]``."""
+        return np.array(self, dtype=np.float64)
+
+
+# ---------------------------------------------------------------------------
+# Small helpers with the IEEE behaviour of the Rust core (Python's own float
+# operations raise on overflow, division by zero and log(0) instead).
+
+
+def _pow(base: float, exponent: float) -> float:
+    """base**exponent for base ≥ 0, +inf on overflow."""
+    try:
+        return float(base**exponent)
+    except OverflowError:
+        return math.inf
+
+
+def _sgn(v: float) -> float:
+    """sgn with sgn(0) = 0."""
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    return 0.0
+
+
+def _abs_pow(h: float, n: float) -> float:
+    """|h|^n, exactly 0 at h = 0 (so |h|^(n−1)·h = sgn(h)·|h|^n is 0 there for every n > 0)."""
+    a = abs(h)
+    return 0.0 if a == 0.0 else _pow(a, n)
+
+
+def _finite(name: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"sample {name} = {value} is not finite; the sample was rejected and the state kept")
+    return value
+
+
+def _positive_dt(dt: float) -> float:
+    dt = float(dt)
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"invalid dt = {dt}: the sampling interval must be finite and > 0 (seconds)")
+    return dt
+
+
+def _samples(values: ArrayLike, name: str) -> NDArray[np.float64]:
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be 1-D, got shape {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        _finite(name, arr[bad[0]])
+    return arr
+
+
+# ---------------------------------------------------------------------------
+# The model.
+
+
+def hysteresis_rate(p: RefParams, h: float, u: float, udot: float) -> float:
+    """dh/dt of eq. (5) [µm/s] at state h [µm], voltage u [V] and rate u̇ [V/s]."""
+    hn = _abs_pow(h, p.n)
+    return p.A * udot - (p.beta * abs(udot) * _sgn(h) + p.gamma * udot) * hn + p.delta * u * _sgn(udot)
+
+
+def _rate_slope(p: RefParams, h: float, udot: float) -> float:
+    """∂(dh/dt)/∂h [1/s]."""
+    a = abs(h)
+    if a == 0.0:
+        return 0.0
+    return -(p.beta * abs(udot) + p.gamma * udot * _sgn(h)) * p.n * _pow(a, p.n - 1.0)
+
+
+def _implicit_step(p: RefParams, h0: float, u_end: float, udot: float, step: float) -> float:
+    """One backward-Euler step solved by (damped-slope) Newton iterations."""
+    h = h0
+    for _ in range(4):  # at most 4 Newton iterations
+        g = h - h0 - step * hysteresis_rate(p, h, u_end, udot)
+        dg = max(1.0 - step * _rate_slope(p, h, udot), 1.0)
+        nxt = h - g / dg
+        if not math.isfinite(nxt):
+            break
+        done = abs(nxt - h) <= 1e-12 * (1.0 + abs(h))
+        h = nxt
+        if done:
+            break
+    return h
+
+
+def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> Optional[int]:
+    """RK4 sub-steps for one interval (None: more than MAX_SUBSTEPS).
+
+    Enough that |∂ḣ/∂h|·Δt ≤ STIFFNESS_STEP, with |∂ḣ/∂h| ≤ n·(|β|+|γ|)·|u̇|·|h|^(n−1)
+    taken at the start of the interval (and at the Euler end point when h moves by
+    more than a tenth of itself); at least MIN_SUBSTEPS where h may cross
+    zero within the interval (an Euler predictor h + dt·k1 of the other sign, k1
+    being ḣ at the start), since |h|^n is not smooth there; otherwise at least one.
+    """
+    a = abs(h)
+    slope_weight = p.n * (abs(p.beta) + abs(p.gamma)) * abs(udot) * dt
+    if a > 0.0:
+        stiffness_dt = slope_weight * (_abs_pow(h, p.n) / a)
+    elif p.n < 1.0:
+        stiffness_dt = math.inf
+    elif p.n == 1.0:
+        stiffness_dt = slope_weight
+    else:
+        stiffness_dt = 0.0
+    # Where h may move by more than a tenth of itself, also take the stiffness at
+    # the explicit-Euler end point (the start alone can badly underestimate it).
+    h_end = h + dt * k1
+    if abs(h_end - h) > 0.1 * a and abs(h_end) > 0.0:
+        stiffness_dt = max(stiffness_dt, slope_weight * _pow(abs(h_end), p.n - 1.0))
+    may_cross = h == 0.0 or h_end * h <= 0.0
+    floor = MIN_SUBSTEPS if may_cross else 1
+    wanted = stiffness_dt / STIFFNESS_STEP
+    if math.isnan(wanted) or wanted > MAX_SUBSTEPS:
+        return None
+    return max(math.ceil(wanted), floor)
+
+
+#: Largest relative distance |ε| = ||h|/|h_ref| − 1| at which |h|^n is taken from its series.
+NEAR_POWER_MAX_EPS = 0.01
+
+
+def _near_power(n: float, h_ref: float, hn_ref: float, h: float) -> Optional[float]:
+    """|h|^n = |h_ref|^n·(1 + ε)^n to ε⁴, for h of the sign of h_ref and |ε| ≤ 0.01; else None."""
+    if h_ref == 0.0 or h * h_ref <= 0.0:
+        return None
+    e = (abs(h) * (1.0 / abs(h_ref))) - 1.0
+    if abs(e) > NEAR_POWER_MAX_EPS:
+        return None
+    c1 = n
+    c2 = c1 * (n - 1.0) / 2.0
+    c3 = c2 * (n - 2.0) / 3.0
+    c4 = c3 * (n - 3.0) / 4.0
+    return hn_ref * (1.0 + e * (c1 + e * (c2 + e * (c3 + e * c4))))
+
+
+def _clamp_h(h: float) -> float:
+    return min(max(h, -H_LIMIT_UM), H_LIMIT_UM)
+
+
+def advance_h(p: RefParams, h: float, u0: float, u1: float, dt: float) -> float:
+    """h [µm] after one sample interval dt [s] in which u goes linearly from u0 to u1 [V]."""
+    du = u1 - u0
+    if du == 0.0:
+        return h  # sgn(u̇) = 0 and u̇ = 0: h stands still
+    udot = du / dt
+    k1_first = hysteresis_rate(p, h, u0, udot)
+    m = _substeps(p, h, k1_first, dt, udot)
+    if m is None:
+        step = dt / IMPLICIT_SUBSTEPS
+        for i in range(1, IMPLICIT_SUBSTEPS + 1):
+            h = _clamp_h(_implicit_step(p, h, u0 + udot * step * i, udot, step))
+        return h
+    step = dt / m
+    half = 0.5 * step
+    h_ref, hn_ref = h, _abs_pow(h, p.n)
+
+    def rate(hh: float, uu: float) -> float:
+        # |h|^n by its binomial series around the interval's start where that is
+        # close (as the Rust core does, to save pow calls), else directly.
+        hn = _near_power(p.n, h_ref, hn_ref, hh)
+        if hn is None:
+            hn = _abs_pow(hh, p.n)
+        return p.A * udot - (p.beta * abs(udot) * _sgn(hh) + p.gamma * udot) * hn + p.delta * uu * _sgn(udot)
+
+    for i in range(m):
+        ua = u0 + udot * (step * i)
+        um = ua + udot * half
+        ub = ua + udot * step
+        k1 = k1_first if i == 0 else rate(h, ua)
+        k2 = rate(h + half * k1, um)
+        k3 = rate(h + half * k2, um)
+        k4 = rate(h + step * k3, ub)
+        nxt = h + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        h = _clamp_h(nxt) if math.isfinite(nxt) else h
+    return h
+
+
+def simulate(
+    params: Any, u: ArrayLike, dt: float, h0: float = 0.0, u_prev: Optional[float] = None
+) -> Tuple[NDArray[np.float64], float]:
+    """Simulates a record: returns ``(x, h_final)``, x [µm], h_final [µm].
+
+    Same contract as :func:`boucwen.simulate`: u [V] piecewise linear between
+    samples dt [s] apart; with ``u_prev=None`` h[0] = h0, otherwise the first
+    interval runs from u_prev to u[0].
+    """
+    p = RefParams.from_any(params)
+    dt = _positive_dt(dt)
+    h = _finite("h0", h0)
+    if u_prev is not None:
+        u_prev = _finite("u_prev", u_prev)
+    u_arr = _samples(u, "u")
+    x = np.empty_like(u_arr)
+    for k, uk in enumerate(u_arr.tolist()):
+        if u_prev is not None:
+            h = advance_h(p, h, u_prev, uk, dt)
+        x[k] = p.kv * uk + p.x0 + h
+        u_prev = uk
+    return x, h
+
+
+def simulate_fine(
+    params: Any,
+    u: ArrayLike,
+    dt: float,
+    h0: float = 0.0,
+    u_prev: Optional[float] = None,
+    substeps: int = 1000,
+    *,
+    sequential: bool = False,
+) -> Tuple[NDArray[np.float64], float]:
+    """Independent accuracy reference: classic RK4 with ``substeps`` fixed steps per sample.
+
+    No stiffness rule, no implicit fallback, no bound on h: meant for parameters
+    whose solution is smooth and bounded (e.g. the paper's). Same contract as
+    :func:`simulate`.
+
+    With ``sequential=True`` the steps are taken one after the other in pure
+    Python (about 1 µs per step). By default the same solution is computed by
+    parareal iteration: the fine steps of *all* sample intervals run at once as
+    NumPy arrays, started from the current guess of h at each sample, and a
+    sequential sweep of the coarse rule (:func:`advance_h`) carries the
+    corrections forward. Its fixed point is exactly the sequential solution
+    (h[k+1] = F(h[k]), F being ``substeps`` RK4 steps); the iteration stops when
+    max |h[k+1] − F(h[k])| ≤ 1e-13 µm, and falls back to the sequential loop if
+    that is not reached in 12 iterations.
+    """
+    p = RefParams.from_any(params)
+    dt = _positive_dt(dt)
+    if int(substeps) < 1:
+        raise ValueError(f"invalid substeps = {substeps}: must be >= 1")
+    m = int(substeps)
+    h0 = _finite("h0", h0)
+    if u_prev is not None:
+        u_prev = _finite("u_prev", u_prev)
+    u_arr = _samples(u, "u")
+    # The voltage at every sample point; h_at[k] belongs to points[k].
+    points = u_arr if u_prev is None else np.concatenate(([u_prev], u_arr))
+    h_at = None if sequential else _fine_parareal(p, points, dt, h0, m)
+    if h_at is None:
+        h_at = _fine_sequential(p, points, dt, h0, m)
+    if u_prev is not None:
+        h_at = h_at[1:]
+    if h_at.size == 0:
+        return np.empty(0), h0
+    return p.kv * u_arr + p.x0 + h_at, float(h_at[-1])
+
+
+def _fine_sequential(p: RefParams, points: NDArray[np.float64], dt: float, h: float, m: int) -> NDArray[np.float64]:
+    """h at every sample point, RK4 with m fixed steps per interval, one step after the other."""
+    out = np.empty_like(points)
+    step = dt / m
+    half = 0.5 * step
+    big_a, beta, gamma, n, delta = p.A, p.beta, p.gamma, p.n, p.delta
+    values: List[float] = points.tolist()
+    if values:
+        out[0] = h
+    for k in range(1, len(values)):
+        u0, u1 = values[k - 1], values[k]
+        if u1 != u0:
+            udot = (u1 - u0) / dt
+            # Within the interval u̇ is constant, so eq. (5) reads
+            # dh/dt = A·u̇ − (β·|u̇|·sgn(h) + γ·u̇)·|h|^n + δ·sgn(u̇)·u(t).
+            lin = big_a * udot
+            drift = delta * _sgn(udot)
+            w_pos = beta * abs(udot) + gamma * udot  # weight of |h|^n for h > 0
+            w_neg = -beta * abs(udot) + gamma * udot  # for h < 0
+
+            def rate(hh: float, uu: float) -> float:
+                if hh > 0.0:
+                    return lin - w_pos * _pow(hh, n) + drift * uu
+                if hh < 0.0:
+                    return lin - w_neg * _pow(-hh, n) + drift * uu
+                return lin + drift * uu
+
+            for i in range(m):
+                ua = u0 + udot * (step * i)
+                k1 = rate(h, ua)
+                k2 = rate(h + half * k1, ua + udot * half)
+                k3 = rate(h + half * k2, ua + udot * half)
+                k4 = rate(h + step * k3, ua + udot * step)
+                h += step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        out[k] = h
+    return out
+
+
+def _fine_all_intervals(
+    p: RefParams, h_start: NDArray[np.float64], u0: NDArray[np.float64], u1: NDArray[np.float64], dt: float, m: int
+) -> NDArray[np.float64]:
+    """F: m RK4 steps over every interval at once (interval j from u0[j] to u1[j], starting at h_start[j])."""
+    udot = (u1 - u0) / dt
+    lin = p.A * udot
+    drift = p.delta * np.sign(udot)
+    w_abs = p.beta * np.abs(udot)
+    w_lin = p.gamma * udot
+
+    def rate(hh: NDArray[np.float64], uu: NDArray[np.float64]) -> NDArray[np.float64]:
+        hn = np.abs(hh) ** p.n  # 0 at h = 0 for n > 0
+        return lin - (w_abs * np.sign(hh) + w_lin) * hn + drift * uu
+
+    step = dt / m
+    half = 0.5 * step
+    h = h_start.copy()
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(m):
+            ua = u0 + udot * (step * i)
+            k1 = rate(h, ua)
+            k2 = rate(h + half * k1, ua + udot * half)
+            k3 = rate(h + half * k2, ua + udot * half)
+            k4 = rate(h + step * k3, ua + udot * step)
+            h = h + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return h
+
+
+def _fine_parareal(
+    p: RefParams, points: NDArray[np.float64], dt: float, h0: float, m: int, tol: float = 1e-13, max_iter: int = 12
+) -> Optional[NDArray[np.float64]]:
+    """The sequential fine solution by parareal iteration; None if it does not converge."""
+    count = points.size
+    if count < 2:
+        return np.full(count, h0)
+    u_from, u_to = points[:-1].tolist(), points[1:].tolist()
+
+    def coarse(h_start: float, j: int) -> float:
+        return advance_h(p, h_start, u_from[j], u_to[j], dt)
+
+    h_at = np.empty(count)
+    h_at[0] = h0
+    coarse_old = np.empty(count - 1)
+    for j in range(count - 1):  # first guess: the coarse rule alone
+        coarse_old[j] = coarse(float(h_at[j]), j)
+        h_at[j + 1] = coarse_old[j]
+    for _ in range(max_iter):
+        fine = _fine_all_intervals(p, h_at[:-1], points[:-1], points[1:], dt, m)
+        if not np.all(np.isfinite(fine)):
+            return None
+        if np.max(np.abs(h_at[1:] - fine)) <= tol:
+            h_at[1:] = fine
+            return h_at
+        # h[j+1] = G(h_new[j]) + F(h_old[j]) − G(h_old[j])
+        for j in range(count - 1):
+            g_new = coarse(float(h_at[j]), j)
+            h_at[j + 1] = g_new + fine[j] - coarse_old[j]
+            coarse_old[j] = g_new
+    return None
+
+
+def paper_input(dt: float, tail_s: float = 0.05) -> NDArray[np.float64]:
+    """The paper's input u = 50 + 50·sin(2πft − π/2) [V] sampled every dt [s].
+
+    f = 1 Hz for t < 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for
+    ``tail_s`` seconds; the phase restarts at each switch (a minimum, u = 0).
+    """
+    dt = _positive_dt(dt)
+    segments = [(1.0, 0.0), (10.0, 3.0), (100.0, 3.3), (200.0, 3.33)]
+    total = round((3.33 + tail_s) / dt)
+    u = np.empty(total)
+    for k in range(total):
+        t = k * dt
+        f, start = next((f, s) for f, s in reversed(segments) if t >= s - 1e-12)
+        u[k] = 50.0 + 50.0 * math.sin(2.0 * math.pi * f * (t - start) - math.pi / 2)
+    return u
+
+
+# ---------------------------------------------------------------------------
+# The paper's online identifier.
+
+_UNUSED, _CROSSING, _LOADING, _UNLOADING = "unused", "crossing", "loading", "unloading"
+
+
+@dataclass(frozen=True)
+class _Point:
+    """One completed window point, classified when it entered."""
+
+    u: float
+    x: float
+    y: float  # regressand of step 1: x, or x − h_model
+    udot: float
+    a: float  # ẋ (crossing) or ln h (loading / unloading)
+    b: float  # ln|A − r| (loading / unloading)
+    kind: str = _UNUSED
+    positive: bool = True  # sign of A − r (loading / unloading)
+
+
+@dataclass(frozen=True)
+class _Raw:
+    u: float
+    x: float
+    h_model: float
+
+
+class PaperIdentifier:
+    """The paper's online identifier, O(N) per sample (see the module docs).
+
+    Mirrors ``boucwen.Identifier(method="paper")``: ``push(u, x)`` predicts
+    x̂ = kv·u + x0 + h [µm] with the estimates from before the sample and the
+    model's own simulated h, then completes the previous sample (central
+    differences), lets it enter the window of the newest ``window`` points and
+    refits steps 1–5. Options and their defaults are those of the Rust
+    ``PaperConfig``.
+    """
+
+    def __init__(
+        self,
+        dt: float,
+        window: int,
+        init: Any,
+        h0: float = 0.0,
+        *,
+        decomposition: str = "model",
+        h_zero_frac: float = 0.005,
+        rate_frac: float = 0.2,
+        min_points: int = 8,
+        rank_tol: float = 1e-3,
+        min_log_spread: float = 0.05,
+        min_r2: float = 0.9,
+        min_u_std_v: float = 1e-6,
+        n_bounds: Tuple[float, float] = (0.5, 4.0),
+    ) -> None:
+        self.dt = _positive_dt(dt)
+        self.init = RefParams.from_any(init)
+        self.h0 = _finite("h0", h0)
+        if int(window) < 16:
+            raise ValueError(f"invalid window = {window}: the window must hold at least 16 samples")
+        self.window_len = int(window)
+        if decomposition not in ("model", "line"):
+            raise ValueError(f'invalid decomposition = {decomposition!r}: expected "model" or "line"')
+        self.decomposition = decomposition
+        if not 2 <= int(min_points) <= self.window_len:
+            raise ValueError(f"invalid min_points = {min_points}: must be between 2 and the window length")
+        self.min_points = int(min_points)
+        for name, v in [
+            ("h_zero_frac", h_zero_frac),
+            ("rate_frac", rate_frac),
+            ("rank_tol", rank_tol),
+            ("min_log_spread", min_log_spread),
+            ("min_r2", min_r2),
+            ("min_u_std_v", min_u_std_v),
+        ]:
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"invalid {name} = {v}: must be finite and >= 0")
+        lo, hi = n_bounds
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo <= hi):
+            raise ValueError(f"invalid n_bounds = {lo}: need 0 < n_min <= n_max, both finite")
+        self.h_zero_frac = float(h_zero_frac)
+        self.rate_frac = float(rate_frac)
+        self.rank_tol = float(rank_tol)
+        self.min_log_spread = float(min_log_spread)
+        self.min_r2 = float(min_r2)
+        self.min_u_std_v = float(min_u_std_v)
+        self.n_bounds = (float(lo), float(hi))
+        self.reset()
+
+    # -- public -----------------------------------------------------------
+
+    def reset(self) -> None:
+        """Back to the state right after construction."""
+        self._params = self.init
+        self._h = self.h0
+        self._raw: List[_Raw] = []  # the two latest raw samples, oldest first
+        self._window: Deque[_Point] = deque(maxlen=self.window_len)
+        self._status: Dict[str, Any] = {
+            "samples": 0,
+            "window_full": False,
+            "line_fit": "held",
+            "rate_fit": "held",
+            "shape_fit": "held",
+            "return_fit": "held",
+        }
+
+    @property
+    def params(self) -> RefParams:
+        """The current estimates."""
+        return self._params
+
+    @property
+    def h(self) -> float:
+        """The model's hysteresis state h [µm] after the last sample."""
+        return self._h
+
+    @property
+    def status(self) -> Dict[str, Any]:
+        """What the last push did (the keys of ``Identifier.status`` but "refreshed")."""
+        return dict(self._status)
+
+    def push(self, u: float, x: float) -> float:
+        """Takes u [V] and measured x [µm]; returns the prediction [µm] made before using x."""
+        u = _finite("u", u)
+        x = _finite("x", x)
+        p = self._params
+        if self._raw:
+            self._h = advance_h(p, self._h, self._raw[-1].u, u, self.dt)
+        prediction = p.kv * u + p.x0 + self._h
+        newest = _Raw(u, x, self._h)
+
+        self._status["samples"] += 1
+        if len(self._raw) == 2:
+            point = self._complete(self._raw[0], self._raw[1], newest)
+            self._window.append(point)  # the oldest leaves once N are held
+        self._status["window_full"] = len(self._window) == self.window_len
+        self._refit()
+        self._raw = (self._raw + [newest])[-2:]
+        return prediction
+
+    def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
+        """``push`` over arrays; a non-finite value anywhere raises before any sample is used."""
+        u_arr = _samples(u, "u")
+        x_arr = _samples(x, "x")
+        if x_arr.shape != u_arr.shape:
+            raise ValueError(f"x (same length as u): expected length {u_arr.size}, found {x_arr.size}")
+        return np.array([self.push(a, b) for a, b in zip(u_arr.tolist(), x_arr.tolist())])
+
+    # -- the method ---------------------------------------------------------
+
+    def _window_columns(self) -> Dict[str, NDArray[Any]]:
+        pts = list(self._window)
+        cols: Dict[str, NDArray[Any]] = {
+            name: np.array([getattr(q, name) for q in pts], dtype=np.float64)
+            for name in ("u", "x", "y", "udot", "a", "b")
+        }
+        cols["kind"] = np.array([q.kind for q in pts], dtype=object)
+        cols["positive"] = np.array([q.positive for q in pts], dtype=bool)
+        return cols
+
+    def _complete(self, before: _Raw, mid: _Raw, after: _Raw) -> _Point:
+        """The window point of the middle sample, classified with the current estimates
+        and the statistics of the window before it enters."""
+        p = self._params
+        udot = (after.u - before.u) / (2.0 * self.dt)
+        xdot = (after.x - before.x) / (2.0 * self.dt)
+        y = mid.x if self.decomposition == "line" else mid.x - mid.h_model
+        unused = _Point(mid.u, mid.x, y, udot, 0.0, 0.0)
+        if len(self._window) < 2:
+            return unused
+        w = self._window_columns()
+        std_x = float(np.std(w["x"]))
+        rms_rate = math.sqrt(float(np.mean(w["udot"] ** 2)))
+        h_tol = self.h_zero_frac * std_x
+        if abs(udot) <= self.rate_frac * rms_rate or udot == 0.0 or h_tol == 0.0:
+            return unused
+        h = mid.x - p.kv * mid.u - p.x0
+        hdot = xdot - p.kv * udot
+        if udot > 0.0 and abs(h) < h_tol:  # step 2 point: u̇ > 0, h ≈ 0
+            return _Point(mid.u, mid.x, y, udot, xdot, 0.0, _CROSSING)
+        if h > h_tol:
+            # Loading (u̇ > 0): r = (ḣ − δu)/u̇ = A − (β+γ)hⁿ.
+            # Unloading (u̇ < 0): r = (ḣ + δu)/u̇ = A − (γ−β)hⁿ.
+            r = (hdot - p.delta * mid.u) / udot if udot > 0.0 else (hdot + p.delta * mid.u) / udot
+            arg = p.A - r
+            if arg != 0.0 and math.isfinite(arg):
+                kind = _LOADING if udot > 0.0 else _UNLOADING
+                return _Point(mid.u, mid.x, y, udot, math.log(h), math.log(abs(arg)), kind, arg > 0.0)
+        return unused
+
+    def _refit(self) -> None:
+        p = self._params._asdict()
+        st = self._status
+        w = self._window_columns()
+        count = len(self._window)
+
+        # Step 1: kv, x0 = least squares of y on [u, 1] over the full window.
+        st["line_fit"] = "held"
+        excited = count >= 2 and float(np.var(w["u"])) > self.min_u_std_v**2
+        if count == self.window_len and excited:
+            gram = np.array([[np.sum(w["u"] ** 2), np.sum(w["u"])], [np.sum(w["u"]), count]])
+            rhs = np.array([np.sum(w["u"] * w["y"]), np.sum(w["y"])])
+            if np.linalg.det(gram) != 0.0:
+                theta = np.linalg.solve(gram, rhs)
+                if np.all(np.isfinite(theta)):
+                    p["kv"], p["x0"] = float(theta[0]), float(theta[1])
+                    st["line_fit"] = "ran"
+
+        kind = w["kind"]
+
+        # Step 2 (eqs. 8–9): ẋ = (A + kv)·u̇ + δ·u on the crossing points.
+        st["rate_fit"] = "held"
+        sel = kind == _CROSSING
+        d, uu, xd = w["udot"][sel], w["u"][sel], w["a"][sel]
+        c1, c2, c3 = float(np.sum(d * d)), float(np.sum(d * uu)), float(np.sum(uu * uu))
+        if sel.sum() >= self.min_points and c1 > 0.0:
+            c4, c5 = float(np.sum(d * xd)), float(np.sum(uu * xd))
+            det = c1 * c3 - c2 * c2
+            if c3 > 0.0 and det > self.rank_tol * c1 * c3:
+                a_plus_kv = (c4 * c3 - c2 * c5) / det
+                delta = (c1 * c5 - c2 * c4) / det
+                if math.isfinite(delta):
+                    p["delta"] = delta
+                st["rate_fit"] = "ran"
+            else:  # u̇ and u nearly collinear: fit A + kv alone, keep δ
+                a_plus_kv = (c4 - p["delta"] * c2) / c1
+                st["rate_fit"] = "reduced"
+            if math.isfinite(a_plus_kv):
+                p["A"] = a_plus_kv - p["kv"]
+            else:
+                st["rate_fit"] = "held"
+
+        # Step 3 (eqs. 10–12): ln|A − r| = ln|β+γ| + n·ln h on the loading points
+        # of the larger sign group.
+        st["shape_fit"] = "held"
+        sum_bg = p["beta"] + p["gamma"]
+        pos = (kind == _LOADING) & w["positive"]
+        neg = (kind == _LOADING) & ~w["positive"]
+        sel, sign = (pos, 1.0) if pos.sum() >= neg.sum() else (neg, -1.0)
+        if sel.sum() >= self.min_points:
+            z, wv = w["a"][sel], w["b"][sel]
+            var_z = float(np.var(z))
+            var_w = float(np.var(wv))
+            cov = float(np.mean((z - z.mean()) * (wv - wv.mean())))
+            r2 = cov * cov / (var_z * var_w) if var_z > 0.0 and var_w > 0.0 else 0.0
+            if var_z > self.min_log_spread**2 and r2 >= self.min_r2:
+                n = cov / var_z
+                log_mag = min(max(float(wv.mean()) - n * float(z.mean()), -700.0), 700.0)
+                if self.n_bounds[0] <= n <= self.n_bounds[1] and math.isfinite(log_mag):
+                    p["n"] = n
+                    sum_bg = sign * math.exp(log_mag)
+                    st["shape_fit"] = "ran"
+
+        # Step 4 (eqs. 13–14): ln|γ−β| = mean(ln|A − r| − n·ln h) on the unloading points.
+        st["return_fit"] = "held"
+        diff_gb = p["gamma"] - p["beta"]
+        pos = (kind == _UNLOADING) & w["positive"]
+        neg = (kind == _UNLOADING) & ~w["positive"]
+        sel, sign = (pos, 1.0) if pos.sum() >= neg.sum() else (neg, -1.0)
+        m = int(sel.sum())
+        if m >= self.min_points:
+            log_mag = (float(np.sum(w["b"][sel])) - p["n"] * float(np.sum(w["a"][sel]))) / m
+            log_mag = min(max(log_mag, -700.0), 700.0)
+            if math.isfinite(log_mag):
+                diff_gb = sign * math.exp(log_mag)
+                st["return_fit"] = "ran"
+
+        # Step 5 (eqs. 15–16), accepted only where h stays bounded for every
+        # input (β + γ > 0 and β − γ > 0); otherwise β, γ and n are held.
+        beta, gamma = 0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb)
+        if beta + gamma > 0.0 and beta - gamma > 0.0:
+            p["beta"], p["gamma"] = beta, gamma
+        else:
+            st["shape_fit"] = "held"
+            st["return_fit"] = "held"
+            p["n"] = self._params.n
+        new = RefParams(**p)
+        if new.is_valid():
+            self._params = new

@@ -1,0 +1,361 @@
+//! Effects: small physical models around the asymmetric Bouc–Wen core.
+//!
+//! The signal chain, per sample interval `dt` [s]:
+//!
+//! ```text
+//! u (command, V) ─► input_lag ─► u_a (on the stack, V)
+//! u_a ─► Bouc–Wen, eqs. (3)+(5): kv·u_a + x0 + h ─┐
+//! u_a ─► creep: Σ first-order elements ────────────┴─► y (stack, µm)
+//! y ─► resonance (2nd order, unit static gain) ─► z (µm)
+//! z + drift·t ─► delay by d samples ─► x (sensor, µm)
+//! ```
+//!
+//! Each effect is optional; with none, the chain is the base model exactly. The
+//! names of [`EffectSet::NAMES`] (`creep`, `input_lag`, `resonance`, `drift`,
+//! `delay`) are the vocabulary of the diagnosis. Every effect validates its own
+//! parameters ([`Effect::validate`]) with a message that names the parameter.
+//!
+//! The voltage is a straight line between samples; the first-order stages (lag,
+//! creep) and the resonance are stepped exactly for such an input. With a resonance,
+//! the chain runs on [`RESONANCE_SUBSTEPS`] sub-intervals per sample, because the
+//! stack's displacement is not a straight line within a fast voltage step (h bends)
+//! and a lightly damped resonance responds to that shape. Everything starts
+//! at rest in equilibrium with the first sample: u_a = u[0], c_i = g_i·u[0],
+//! z = y[0], ż = 0, no trend, the delay line full of the first value.
+
+pub mod creep;
+pub mod delay;
+pub mod drift;
+pub mod input_lag;
+pub mod resonance;
+
+use nalgebra::Vector2;
+
+pub use creep::Creep;
+pub use delay::Delay;
+pub use drift::Drift;
+pub use input_lag::InputLag;
+pub use resonance::Resonance;
+
+use crate::error::{finite_sample, positive_dt, Error, Result};
+use crate::model::{advance_h, output};
+use crate::params::Params;
+
+use delay::DelayLine;
+use input_lag::LagStage;
+use resonance::ResonanceStage;
+
+/// Sub-intervals per sample interval when a resonance is present.
+pub const RESONANCE_SUBSTEPS: u32 = 4;
+
+/// What every effect shares: a name in the diagnosis vocabulary and a validation.
+pub trait Effect {
+    /// The effect's name in the vocabulary ([`EffectSet::NAMES`]).
+    const NAME: &'static str;
+    /// Checks the parameters; the error names the offending one.
+    fn validate(&self) -> Result<()>;
+}
+
+/// exp(−dt/τ).
+#[inline]
+pub(crate) fn first_order_coefficient(tau: f64, dt: f64) -> f64 {
+    (-dt / tau).exp()
+}
+
+/// Exact step of τ·ẏ = v − y over `dt` while v moves linearly from `v0` to `v1`
+/// (`decay` = exp(−dt/τ)).
+#[inline]
+pub(crate) fn first_order_step(y: f64, v0: f64, v1: f64, tau: f64, decay: f64, dt: f64) -> f64 {
+    let ramp = tau * (v1 - v0) / dt;
+    v1 - ramp + (y - v0 + ramp) * decay
+}
+
+/// Which effects surround the base model, with their parameters.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EffectSet {
+    pub creep: Option<Creep>,
+    pub input_lag: Option<InputLag>,
+    pub resonance: Option<Resonance>,
+    pub drift: Option<Drift>,
+    pub delay: Option<Delay>,
+}
+
+impl EffectSet {
+    /// The vocabulary, in the order of the signal chain.
+    pub const NAMES: [&'static str; 5] =
+        [Creep::NAME, InputLag::NAME, Resonance::NAME, Drift::NAME, Delay::NAME];
+
+    /// No effect: the base model.
+    pub fn none() -> Self {
+        Self::default()
+    }
+
+    /// Names of the effects present, in vocabulary order.
+    pub fn names(&self) -> Vec<&'static str> {
+        let present = [
+            self.creep.is_some(),
+            self.input_lag.is_some(),
+            self.resonance.is_some(),
+            self.drift.is_some(),
+            self.delay.is_some(),
+        ];
+        Self::NAMES.iter().zip(present).filter(|(_, p)| *p).map(|(n, _)| *n).collect()
+    }
+
+    /// Validates every effect present.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(e) = &self.creep {
+            e.validate()?;
+        }
+        if let Some(e) = &self.input_lag {
+            e.validate()?;
+        }
+        if let Some(e) = &self.resonance {
+            e.validate()?;
+        }
+        if let Some(e) = &self.drift {
+            e.validate()?;
+        }
+        if let Some(e) = &self.delay {
+            e.validate()?;
+        }
+        Ok(())
+    }
+}
+
+/// The base model with its effects, one sample at a time: `step(u) -> x`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtendedModel {
+    params: Params,
+    effects: EffectSet,
+    dt: f64,
+    h0: f64,
+    substeps: u32,
+    lag: Option<LagStage>,
+    creep_decays: Vec<f64>,
+    resonance: Option<ResonanceStage>,
+    delay: DelayLine,
+    // state
+    started: bool,
+    samples: u64,
+    u_prev: f64,
+    ua_prev: f64,
+    h: f64,
+    creep_states: Vec<f64>,
+    y_prev: f64,
+    z: Vector2<f64>,
+}
+
+impl ExtendedModel {
+    /// A model with base parameters `params`, effects `effects`, sampling interval
+    /// `dt` [s] and initial hysteresis state `h0` [µm].
+    pub fn new(params: Params, effects: EffectSet, dt: f64, h0: f64) -> Result<Self> {
+        params.validate()?;
+        effects.validate()?;
+        positive_dt(dt)?;
+        finite_sample("h0", h0)?;
+        let substeps = if effects.resonance.is_some() { RESONANCE_SUBSTEPS } else { 1 };
+        let dt_sub = dt / substeps as f64;
+        let resonance = match &effects.resonance {
+            Some(r) => {
+                r.stage(dt)?; // fn below the Nyquist frequency of the samples
+                Some(r.stage(dt_sub)?)
+            }
+            None => None,
+        };
+        let creep_decays = effects.creep.as_ref().map(|c| c.decays(dt_sub)).unwrap_or_default();
+        Ok(ExtendedModel {
+            substeps,
+            lag: effects.input_lag.map(|l| l.stage(dt_sub)),
+            creep_states: vec![0.0; creep_decays.len()],
+            creep_decays,
+            resonance,
+            delay: DelayLine::new(effects.delay.map_or(0, |d| d.samples)),
+            params,
+            effects,
+            dt,
+            h0,
+            started: false,
+            samples: 0,
+            u_prev: 0.0,
+            ua_prev: 0.0,
+            h: h0,
+            y_prev: 0.0,
+            z: Vector2::zeros(),
+        })
+    }
+
+    /// Takes the commanded voltage `u` [V] of the next sample; returns the sensor's
+    /// displacement x [µm]. A non-finite `u` is rejected and the state kept.
+    pub fn step(&mut self, u: f64) -> Result<f64> {
+        finite_sample("u", u)?;
+        let y = if !self.started {
+            self.started = true;
+            if let Some(c) = &self.effects.creep {
+                for (s, g) in self.creep_states.iter_mut().zip(&c.gain_um_per_v) {
+                    *s = g * u;
+                }
+            }
+            self.ua_prev = u;
+            let y = output(&self.params, u, self.h) + self.creep_states.iter().sum::<f64>();
+            self.z = Vector2::new(y, 0.0);
+            y
+        } else {
+            let m = self.substeps;
+            let dt_sub = self.dt / m as f64;
+            let mut y = self.y_prev;
+            for j in 1..=m {
+                let u0 = self.u_prev + (u - self.u_prev) * ((j - 1) as f64 / m as f64);
+                let u1 = if j == m { u } else { self.u_prev + (u - self.u_prev) * (j as f64 / m as f64) };
+                let ua = match &self.lag {
+                    Some(lag) => lag.advance(self.ua_prev, u0, u1, dt_sub),
+                    None => u1,
+                };
+                self.h = advance_h(&self.params, self.h, self.ua_prev, ua, dt_sub);
+                let c = match &self.effects.creep {
+                    Some(creep) => creep.advance(&mut self.creep_states, &self.creep_decays, self.ua_prev, ua, dt_sub),
+                    None => 0.0,
+                };
+                let y_next = output(&self.params, ua, self.h) + c;
+                self.z = match &self.resonance {
+                    Some(r) => r.advance(self.z, y, y_next),
+                    None => Vector2::new(y_next, 0.0),
+                };
+                self.ua_prev = ua;
+                y = y_next;
+            }
+            y
+        };
+        self.u_prev = u;
+        self.y_prev = y;
+        let t = self.samples as f64 * self.dt;
+        self.samples += 1;
+        let trend = self.effects.drift.map_or(0.0, |d| d.at(t));
+        Ok(self.delay.push(self.z[0] + trend))
+    }
+
+    /// Base parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Effects and their parameters.
+    pub fn effects(&self) -> &EffectSet {
+        &self.effects
+    }
+
+    /// Current hysteresis state h [µm].
+    pub fn h(&self) -> f64 {
+        self.h
+    }
+
+    /// Forgets the past (h = h0, no previous sample, t = 0).
+    pub fn reset(&mut self) {
+        self.started = false;
+        self.samples = 0;
+        self.h = self.h0;
+        self.creep_states.iter_mut().for_each(|c| *c = 0.0);
+        self.delay.reset();
+    }
+}
+
+/// Simulates the base model with `effects` over a record of commanded voltages `u`
+/// [V] sampled every `dt` [s], from h = `h0` [µm]; writes x [µm] into `x_out`.
+/// Input with a non-finite value is rejected before anything is computed.
+pub fn simulate_extended_into(
+    params: &Params,
+    effects: &EffectSet,
+    u: &[f64],
+    dt: f64,
+    h0: f64,
+    x_out: &mut [f64],
+) -> Result<()> {
+    if x_out.len() != u.len() {
+        return Err(Error::LengthMismatch { what: "simulate_extended output", expected: u.len(), found: x_out.len() });
+    }
+    let mut model = ExtendedModel::new(*params, effects.clone(), dt, h0)?;
+    for &v in u {
+        finite_sample("u", v)?;
+    }
+    for (x, &v) in x_out.iter_mut().zip(u) {
+        *x = model.step(v)?;
+    }
+    Ok(())
+}
+
+/// Allocating form of [`simulate_extended_into`].
+pub fn simulate_extended(params: &Params, effects: &EffectSet, u: &[f64], dt: f64, h0: f64) -> Result<Vec<f64>> {
+    let mut x = vec![0.0; u.len()];
+    simulate_extended_into(params, effects, u, dt, h0, &mut x)?;
+    Ok(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{paper_input, simulate};
+
+    #[test]
+    fn no_effect_is_the_base_model_exactly() {
+        let dt = 1e-4;
+        let u = paper_input(dt, 0.01);
+        let p = Params::paper_1hz();
+        let (base, _) = simulate(&p, &u, dt, 0.0, None).unwrap();
+        let ext = simulate_extended(&p, &EffectSet::none(), &u, dt, 0.0).unwrap();
+        assert_eq!(base, ext);
+    }
+
+    #[test]
+    fn delay_and_drift_act_on_the_output_only() {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..500).map(|k| 50.0 + 40.0 * (k as f64 * 0.03).sin()).collect();
+        let p = Params::paper_1hz();
+        let base = simulate_extended(&p, &EffectSet::none(), &u, dt, 0.0).unwrap();
+        let effects = EffectSet {
+            delay: Some(Delay { samples: 3 }),
+            drift: Some(Drift { rate_um_per_s: 2.0 }),
+            ..EffectSet::none()
+        };
+        let x = simulate_extended(&p, &effects, &u, dt, 0.0).unwrap();
+        for k in 3..u.len() {
+            let want = base[k - 3] + 2.0 * (k - 3) as f64 * dt;
+            assert!((x[k] - want).abs() < 1e-12);
+        }
+        assert_eq!(x[0], base[0]);
+    }
+
+    #[test]
+    fn slow_lag_and_stiff_resonance_change_little_on_a_slow_input() {
+        let dt = 1e-4;
+        let u = paper_input(dt, 0.0);
+        let u = &u[..20_000];
+        let p = Params::paper_1hz();
+        let base = simulate_extended(&p, &EffectSet::none(), u, dt, 0.0).unwrap();
+        let effects = EffectSet {
+            input_lag: Some(InputLag { fc_hz: 2000.0 }),
+            resonance: Some(Resonance { fn_hz: 3000.0, zeta: 0.7 }),
+            ..EffectSet::none()
+        };
+        let x = simulate_extended(&p, &effects, u, dt, 0.0).unwrap();
+        let worst = x.iter().zip(&base).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        // 1 Hz, 100 V: lag ≈ 2π·1·50/(2π·2000) V ≈ 0.025 V → ≈ 0.005 µm; resonance less.
+        assert!(worst < 0.02, "{worst}");
+    }
+
+    #[test]
+    fn rejects_bad_effects_and_non_finite_input() {
+        let p = Params::paper_1hz();
+        let bad = EffectSet { input_lag: Some(InputLag { fc_hz: -1.0 }), ..EffectSet::none() };
+        let err = simulate_extended(&p, &bad, &[0.0, 1.0], 1e-3, 0.0).unwrap_err();
+        assert!(err.to_string().contains("input_lag.fc_hz"));
+        assert!(simulate_extended(&p, &EffectSet::none(), &[0.0, f64::NAN], 1e-3, 0.0).is_err());
+        let nyquist = EffectSet { resonance: Some(Resonance { fn_hz: 600.0, zeta: 0.1 }), ..EffectSet::none() };
+        assert!(simulate_extended(&p, &nyquist, &[0.0, 1.0], 1e-3, 0.0).is_err());
+    }
+
+    #[test]
+    fn names_follow_the_vocabulary_order() {
+        let e = EffectSet { delay: Some(Delay { samples: 1 }), creep: Creep::log_spaced(0.1, 1.0, 2).ok(), ..EffectSet::none() };
+        assert_eq!(e.names(), vec!["creep", "delay"]);
+    }
+}

@@ -1,0 +1,142 @@
+//! `resonance`: second-order mechanical dynamics between the stack and the sensor.
+//!
+//! ```text
+//! z̈ + 2ζω·ż + ω²·z = ω²·y,     ω = 2π·fn
+//! ```
+//!
+//! y: the stack's displacement (base model + creep) [µm]; z: what the sensor sees [µm];
+//! fn: natural frequency [Hz]; ζ: damping ratio [-]. The static gain is 1.
+//!
+//! y is a straight line between samples. The step is exact for such an input: the
+//! matrix exponential of the augmented system `[z, ż, y, Δy]` over one interval,
+//! computed once per sampling interval, so it is stable for every fn and ζ > 0.
+//! fn must stay below the Nyquist frequency 1/(2·dt) (checked where dt is known).
+
+use nalgebra::{Matrix2, Matrix4, Vector2};
+
+use super::Effect;
+use crate::error::{Error, Result};
+
+/// A second-order low-pass of unit static gain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Resonance {
+    /// Natural frequency fn [Hz] (> 0, below the Nyquist frequency).
+    pub fn_hz: f64,
+    /// Damping ratio ζ [-] (> 0).
+    pub zeta: f64,
+}
+
+impl Effect for Resonance {
+    const NAME: &'static str = "resonance";
+
+    fn validate(&self) -> Result<()> {
+        if !(self.fn_hz.is_finite() && self.fn_hz > 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "resonance.fn_hz",
+                value: self.fn_hz,
+                reason: "the natural frequency must be finite and > 0 Hz",
+            });
+        }
+        if !(self.zeta.is_finite() && self.zeta > 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "resonance.zeta",
+                value: self.zeta,
+                reason: "the damping ratio must be finite and > 0",
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Resonance {
+    /// The exact one-interval map for sampling interval `dt` [s].
+    pub(crate) fn stage(&self, dt: f64) -> Result<ResonanceStage> {
+        self.validate()?;
+        if self.fn_hz >= 0.5 / dt {
+            return Err(Error::InvalidParameter {
+                name: "resonance.fn_hz",
+                value: self.fn_hz,
+                reason: "the natural frequency must be below the Nyquist frequency 1/(2·dt)",
+            });
+        }
+        let w = 2.0 * std::f64::consts::PI * self.fn_hz;
+        // d/dt [z, ż, y, Δy] with ẏ = Δy/dt over the interval.
+        #[rustfmt::skip]
+        let m = Matrix4::new(
+            0.0,    1.0,                    0.0,   0.0,
+            -w * w, -2.0 * self.zeta * w,   w * w, 0.0,
+            0.0,    0.0,                    0.0,   1.0 / dt,
+            0.0,    0.0,                    0.0,   0.0,
+        ) * dt;
+        let e = m.exp();
+        Ok(ResonanceStage {
+            phi: e.fixed_view::<2, 2>(0, 0).into_owned(),
+            from_y: Vector2::new(e[(0, 2)], e[(1, 2)]),
+            from_dy: Vector2::new(e[(0, 3)], e[(1, 3)]),
+        })
+    }
+}
+
+/// `s[k+1] = Φ·s[k] + g_y·y[k] + g_Δ·(y[k+1] − y[k])`, s = [z, ż].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ResonanceStage {
+    phi: Matrix2<f64>,
+    from_y: Vector2<f64>,
+    from_dy: Vector2<f64>,
+}
+
+impl ResonanceStage {
+    #[inline]
+    pub(crate) fn advance(&self, s: Vector2<f64>, y0: f64, y1: f64) -> Vector2<f64> {
+        self.phi * s + self.from_y * y0 + self.from_dy * (y1 - y0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fine_rk4(r: &Resonance, y0: f64, y1: f64, dt: f64, s: [f64; 2]) -> [f64; 2] {
+        let w = 2.0 * std::f64::consts::PI * r.fn_hz;
+        let f = |t: f64, s: [f64; 2]| {
+            let y = y0 + (y1 - y0) * t / dt;
+            [s[1], w * w * (y - s[0]) - 2.0 * r.zeta * w * s[1]]
+        };
+        let m = 20_000;
+        let h = dt / m as f64;
+        let mut s = s;
+        for i in 0..m {
+            let t = i as f64 * h;
+            let k1 = f(t, s);
+            let k2 = f(t + h / 2.0, [s[0] + h / 2.0 * k1[0], s[1] + h / 2.0 * k1[1]]);
+            let k3 = f(t + h / 2.0, [s[0] + h / 2.0 * k2[0], s[1] + h / 2.0 * k2[1]]);
+            let k4 = f(t + h, [s[0] + h * k3[0], s[1] + h * k3[1]]);
+            for j in 0..2 {
+                s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn matches_a_fine_rk4_solution_on_a_ramp() {
+        let r = Resonance { fn_hz: 300.0, zeta: 0.05 };
+        let dt = 1e-3;
+        let stage = r.stage(dt).unwrap();
+        let got = stage.advance(Vector2::new(0.2, -50.0), 0.0, 1.0);
+        let want = fine_rk4(&r, 0.0, 1.0, dt, [0.2, -50.0]);
+        assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-6, "{got:?} {want:?}");
+    }
+
+    #[test]
+    fn settles_at_the_input_and_rejects_bad_values() {
+        let stage = Resonance { fn_hz: 400.0, zeta: 0.01 }.stage(1e-3).unwrap();
+        let mut s = Vector2::new(0.0, 0.0);
+        for _ in 0..200_000 {
+            s = stage.advance(s, 1.0, 1.0);
+        }
+        assert!((s[0] - 1.0).abs() < 1e-9);
+        assert!(Resonance { fn_hz: 500.0, zeta: 0.1 }.stage(1e-3).is_err());
+        assert!(Resonance { fn_hz: 50.0, zeta: 0.0 }.validate().is_err());
+    }
+}

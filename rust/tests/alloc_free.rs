@@ -1,0 +1,172 @@
+//! The per-sample paths do no heap allocation: `PaperIdentifier::push` (after
+//! construction and warm-up) and `Model::step`, proved with a counting global
+//! allocator.
+//!
+//! The counter is thread-local, so allocations made meanwhile by the test harness on
+//! other threads are not charged to the code under test.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use boucwen::identify::{AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfig, PaperIdentifier, SubFit};
+use boucwen::model::paper_input;
+use boucwen::{simulate, Model, Params};
+
+struct CountingAllocator;
+
+thread_local! {
+    // `const` initialisation: reading it never allocates or registers a destructor,
+    // so it is safe to use from inside the allocator.
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn count_one() {
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count_one();
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count_one();
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count_one();
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAllocator = CountingAllocator;
+
+/// Heap allocations made by this thread while `f` runs.
+fn allocations_during<R>(f: impl FnOnce() -> R) -> (u64, R) {
+    let before = ALLOCATIONS.with(|c| c.get());
+    let out = f();
+    let after = ALLOCATIONS.with(|c| c.get());
+    (after - before, out)
+}
+
+const DT: f64 = 1e-4;
+
+/// The paper's input at 10 kHz (1 → 10 → 100 → 200 Hz) and the displacement of the
+/// paper's 1 Hz model plus a deterministic ±2 nm dither, so that every sub-fit sees
+/// realistic, slightly noisy data.
+fn record() -> (Vec<f64>, Vec<f64>) {
+    let u = paper_input(DT, 0.05);
+    let (mut x, _) = simulate(&Params::paper_1hz(), &u, DT, 0.0, None).expect("valid input");
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    for v in &mut x {
+        state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        *v += ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.004;
+    }
+    (u, x)
+}
+
+/// Counts how often each sub-fit ran, to show that the measured pushes exercised them.
+#[derive(Default)]
+struct Coverage {
+    line: u32,
+    rate: u32,
+    shape_or_return: u32,
+    refreshed: u32,
+}
+
+fn push_all(id: &mut impl OnlineIdentifier, u: &[f64], x: &[f64], cov: &mut Coverage) -> f64 {
+    let mut checksum = 0.0;
+    for (&a, &b) in u.iter().zip(x) {
+        checksum += id.push(a, b).expect("finite sample");
+        let s = id.status();
+        cov.line += (s.line_fit == SubFit::Ran) as u32;
+        cov.rate += (s.rate_fit != SubFit::Held) as u32;
+        cov.shape_or_return += (s.shape_fit == SubFit::Ran || s.return_fit == SubFit::Ran) as u32;
+        cov.refreshed += s.refreshed as u32;
+    }
+    // A rejected sample takes the error path, which must not allocate either.
+    assert!(id.push(f64::NAN, 1.0).is_err());
+    assert!(id.push(1.0, f64::INFINITY).is_err());
+    checksum
+}
+
+fn check_identifier(window_len: usize, decomposition: Decomposition) {
+    let (u, x) = record();
+    // The window is full from push N + 2 on; warm up a little past that.
+    let warm = window_len + 102;
+    let config = PaperConfig { decomposition, ..PaperConfig::with_window(window_len) };
+    let mut id = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, config).expect("valid config");
+    for (&a, &b) in u[..warm].iter().zip(&x[..warm]) {
+        id.push(a, b).expect("finite sample");
+    }
+    let mut cov = Coverage::default();
+    let (count, checksum) = allocations_during(|| push_all(&mut id, &u[warm..], &x[warm..], &mut cov));
+    assert!(checksum.is_finite());
+    assert_eq!(
+        count,
+        0,
+        "PaperIdentifier::push allocated {count} times over {} samples (window {window_len}, {decomposition:?})",
+        u.len() - warm
+    );
+    // The pushes measured ran the fits and the exact refresh of the window sums.
+    assert!(cov.line > 0 && cov.shape_or_return > 0, "sub-fits did not run: line {} shape/return {}", cov.line, cov.shape_or_return);
+    assert!(cov.refreshed > 0, "no exact refresh of the window sums happened while counting");
+    if decomposition == Decomposition::Line {
+        assert!(cov.rate > 0, "step 2 never ran");
+    }
+
+    // The same through the run-time dispatch that the Python bindings use.
+    let mut any = AnyIdentifier::Paper(PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, config).expect("valid config"));
+    for (&a, &b) in u[..warm].iter().zip(&x[..warm]) {
+        any.push(a, b).expect("finite sample");
+    }
+    let mut out = vec![0.0; u.len() - warm];
+    let (count, result) = allocations_during(|| any.push_many(&u[warm..], &x[warm..], &mut out));
+    assert!(result.is_ok());
+    assert_eq!(count, 0, "AnyIdentifier::push_many allocated {count} times (window {window_len})");
+}
+
+#[test]
+fn paper_identifier_push_does_not_allocate_window_100() {
+    check_identifier(100, Decomposition::Model);
+    check_identifier(100, Decomposition::Line);
+}
+
+#[test]
+fn paper_identifier_push_does_not_allocate_window_10_000() {
+    check_identifier(10_000, Decomposition::Model);
+    check_identifier(10_000, Decomposition::Line);
+}
+
+#[test]
+fn model_step_does_not_allocate() {
+    let (u, _) = record();
+    let stiff = Params { beta: 5.0, gamma: 4.0, n: 0.6, ..Params::paper_1hz() };
+    let runaway = Params { beta: -0.5, gamma: -0.5, n: 3.0, ..Params::paper_1hz() };
+    // The paper's model (RK4 sub-steps), a stiff one (backward Euler) and one whose h
+    // runs into its bound (clamping).
+    for params in [Params::paper_1hz(), stiff, runaway] {
+        let mut model = Model::new(params, DT, 0.0).expect("valid model");
+        let (count, checksum) = allocations_during(|| {
+            let mut sum = 0.0;
+            for &v in &u {
+                sum += model.step(v).expect("finite sample");
+            }
+            assert!(model.step(f64::NAN).is_err());
+            sum
+        });
+        assert!(checksum.is_finite());
+        assert_eq!(count, 0, "Model::step allocated {count} times over {} samples ({params:?})", u.len());
+    }
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    // Guards the test itself: an allocation made on this thread is counted.
+    let (count, v) = allocations_during(|| vec![1.0f64; 1000]);
+    assert!(count >= 1 && v.len() == 1000);
+}

@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Every test: the Rust unit and integration tests (release), then pytest against the
+# installed extension (which includes the stub check with mypy.stubtest).
+set -euo pipefail
+export BOUCWEN_TEST=1
+. "$(dirname "$0")/setup_env.sh"
+echo "== cargo test --release"
+cargo test --release
+echo "== pytest"
+python -m pytest -q -p no:cacheprovider tests

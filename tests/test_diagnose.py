@@ -1,0 +1,145 @@
+"""Diagnosis on records whose effect is not declared to it, and the CLI.
+
+Each generated record (boucwen.experiments.undeclared) holds one effect of the
+vocabulary, or none, simulated on a grid 8× finer than the sampling with creep time
+constants the diagnosis does not use. The diagnosis is not told what is inside: it
+must name the effect and cut the RMS error against the noise-free signal; on clean
+records it must add nothing. The larger table is printed by
+``python -m boucwen.experiments.undeclared``.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from boucwen import diagnose
+from boucwen.cli import main
+from boucwen.diagnose import residual_evidence
+from boucwen.experiments.undeclared import make_record, test_input
+from boucwen.io import read_csv, write_csv
+
+# (effect, seed, base parameter set, noise [µm]): one record per effect, two clean ones.
+CASES = [
+    ("none", 0, "paper_1hz", 0.005),
+    ("none", 1, "paper_200hz", 0.02),
+    ("creep", 0, "paper_1hz", 0.005),
+    ("input_lag", 1, "paper_100hz", 0.005),
+    ("resonance", 2, "paper_200hz", 0.005),
+    ("drift", 1, "paper_100hz", 0.02),
+    ("delay", 2, "paper_1hz", 0.001),
+]
+
+
+def _rms(v):
+    return float(np.sqrt(np.mean(np.square(v))))
+
+
+@pytest.mark.parametrize("effect, seed, pset, noise", CASES)
+def test_names_the_undeclared_effect_and_cuts_the_error(effect, seed, pset, noise):
+    rec = make_record(effect, seed, pset, noise)
+    d = diagnose(rec.u, rec.x, rec.dt)
+    before = _rms(d.x_base - rec.x_true)
+    after = _rms(d.x_extended - rec.x_true)
+    if effect == "none":
+        assert d.effects == []
+        assert after == before
+        assert d.rms_after == d.rms_before
+    else:
+        assert d.effects == [effect], d.evidence["rounds"]
+        assert after < 0.5 * before, (before, after)
+        assert d.rms_after < d.rms_before
+
+
+def test_result_fields_and_json():
+    rec = make_record("drift", 0, "paper_1hz", 0.005)
+    d = diagnose(rec.u, rec.x, rec.dt)
+    doc = json.loads(json.dumps(d.to_dict()))
+    assert set(doc) == {"effects", "rms_before", "max_before", "rms_after", "max_after",
+                        "params", "evidence"}
+    assert doc["effects"] == ["drift"]
+    assert doc["params"]["drift"]["rate_um_per_s"] == pytest.approx(
+        rec.effects.to_dict()["drift"]["rate_um_per_s"], rel=0.05)
+    assert "base" in doc["params"] and "base_only" in doc["params"]
+    assert doc["evidence"]["rounds"][0]["most_likely"] == "drift"
+    assert d.x_base.shape == d.x_extended.shape == rec.u.shape
+
+
+def test_evidence_points_the_right_way():
+    u = test_input(seed=0)
+    t = np.arange(u.size) * 1e-3
+    xm = 0.2 * u
+    # A trend in time shows in the drift group, not as creep after steps.
+    ev = residual_evidence(u, xm + 0.3 * t, xm, 1e-3)
+    assert ev["drift"]["slope_um_per_s"] == pytest.approx(0.3, rel=1e-6)
+    assert ev["drift"]["variance_share"] > 0.99
+    # A lag of the response: r ≈ −τ·ẋ with τ = 2 ms (smooth input, no steps).
+    u = 50 + 20 * np.sin(2 * np.pi * 3 * t) + 20 * np.sin(2 * np.pi * 17 * t)
+    xm = 0.2 * u
+    lagged = np.interp(t - 0.002, t, xm)
+    ev = residual_evidence(u, lagged, xm, 1e-3)
+    assert ev["input_lag"]["lag_s"] == pytest.approx(0.002, rel=0.2)
+    ratios = [r for _, _, r in ev["input_lag"]["band_ratio"]]
+    assert ratios[-1] > ratios[0]
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(train_fraction=0.1), "train_fraction"),
+    (dict(min_gain=-1), "min_gain"),
+    (dict(max_effects=9), "max_effects"),
+])
+def test_bad_options(kw, words):
+    u = test_input()[:500]
+    with pytest.raises(ValueError, match=words):
+        diagnose(u, 0.2 * u, 1e-3, **kw)
+
+
+def test_bad_data():
+    with pytest.raises(ValueError, match="same length"):
+        diagnose(np.zeros(200), np.zeros(100), 1e-3)
+    with pytest.raises(ValueError, match="constant"):
+        diagnose(np.zeros(200), np.zeros(200), 1e-3)
+    with pytest.raises(ValueError, match="dt"):
+        diagnose(np.arange(200.0), np.arange(200.0), 0.0)
+
+
+def test_cli_writes_report_predictions_and_plot(tmp_path):
+    rec = make_record("delay", 0, "paper_1hz", 0.002)
+    t = np.arange(rec.u.size) * rec.dt
+    data = tmp_path / "data.csv"
+    write_csv(data, {"t": t, "u": rec.u, "x": rec.x, "extra": np.zeros_like(t)})
+    report, pred, fig = tmp_path / "r.json", tmp_path / "p.csv", tmp_path / "f.png"
+    code = main(["diagnose", str(data), "--json", str(report), "--predictions", str(pred),
+                 "--plot", str(fig)])
+    assert code == 0
+    doc = json.loads(report.read_text())
+    assert doc["effects"] == ["delay"]
+    assert doc["rms_after"] < doc["rms_before"]
+    header = pred.read_text().splitlines()[0]
+    assert header == "t,x,x_base,x_extended"
+    table = np.loadtxt(pred, delimiter=",", skiprows=1)
+    assert table.shape == (t.size, 4)
+    np.testing.assert_allclose(table[:, 1], read_csv(data).x, rtol=1e-8)
+    assert fig.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("argv_tail, words", [
+    (["missing.csv"], "no such file"),
+    ([], "exactly one"),
+    (["--dataset", "nope"], "unknown dataset"),
+])
+def test_cli_bad_input_exits_2_with_one_line(tmp_path, capsys, argv_tail, words):
+    argv = ["diagnose", *[str(tmp_path / a) if a.endswith(".csv") else a for a in argv_tail],
+            "--json", str(tmp_path / "r.json"), "--predictions", str(tmp_path / "p.csv")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and "Traceback" not in err
+
+
+def test_cli_bad_csv_exits_2(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,u\n0,1\n1,2\n2,3\n")
+    assert main(["diagnose", str(bad), "--json", str(tmp_path / "r.json"),
+                 "--predictions", str(tmp_path / "p.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("boucwen diagnose: error:") and err.count("\n") == 1

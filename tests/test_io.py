@@ -1,0 +1,258 @@
+"""Reading and writing records (boucwen.io) and the shipped datasets."""
+
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from boucwen import datasets
+from boucwen.io import Record, read_csv, validate_samples, write_csv
+
+
+def _write(tmp_path, text, name="rec.csv", mode="w"):
+    path = tmp_path / name
+    if mode == "wb":
+        path.write_bytes(text)
+    else:
+        path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _rows(n=5, dt=0.001):
+    return "".join(f"{k * dt!r},{k * 0.5},{k * 0.1}\n" for k in range(n))
+
+
+def _expect(path, *words):
+    with pytest.raises(ValueError) as info:
+        read_csv(path)
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert str(path) in msg
+    for word in words:
+        assert word in msg, f"{word!r} not in {msg!r}"
+    return msg
+
+
+# ----------------------------------------------------------------------------- good files
+
+def test_round_trip(tmp_path):
+    dt = 1e-4
+    t = np.arange(2000) * dt
+    u = 50 - 50 * np.cos(2 * np.pi * 10 * t)
+    x = 0.19 * u + 0.015 + 1e-3 * np.sin(t)
+    path = tmp_path / "bench run.csv"
+    write_csv(path, {"x": x, "extra": -t, "u": u, "t": t})
+    rec = read_csv(path)
+    assert isinstance(rec, Record)
+    assert rec.name == "bench run"
+    assert len(rec) == 2000
+    assert rec.dt == pytest.approx(dt, rel=1e-9)
+    assert rec.sample_rate == pytest.approx(1e4, rel=1e-9)
+    for got, want in ((rec.t, t), (rec.u, u), (rec.x, x)):
+        assert got.dtype == np.float64 and got.flags.c_contiguous
+        np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-12)
+    assert rec.meta["columns"] == ["x", "extra", "u", "t"]
+
+
+def test_writes_header_and_9_digits(tmp_path):
+    path = tmp_path / "a.csv"
+    write_csv(path, {"t": [0.0, 0.1, 0.2], "u": [1 / 3, 2.0, 3.0], "x": [1e-12, 2.0, 3.0]})
+    lines = path.read_text().splitlines()
+    assert lines[0] == "t,u,x"
+    assert lines[1] == "0,0.333333333,1e-12"
+
+
+def test_tolerates_spaces_bom_blank_lines_and_small_jitter(tmp_path):
+    text = "\ufeff t , u , x \n0.0, 1, 2\n\n0.0010000005, 2, 3\n0.002, 3, 4\n"
+    rec = read_csv(_write(tmp_path, text))
+    np.testing.assert_array_equal(rec.u, [1, 2, 3])
+    assert rec.dt == pytest.approx(0.001)
+
+
+def test_long_record_with_9_digit_time_stamps(tmp_path):
+    t = 1000.0 + np.arange(500) * 1e-4
+    path = tmp_path / "late.csv"
+    write_csv(path, {"t": t, "u": np.ones(500), "x": np.zeros(500)})
+    assert read_csv(path).dt == pytest.approx(1e-4, rel=1e-3)
+
+
+# ----------------------------------------------------------------------------- bad files
+
+def test_missing_file(tmp_path):
+    path = tmp_path / "nope.csv"
+    with pytest.raises(ValueError, match="no such file") as info:
+        read_csv(path)
+    assert str(path) in str(info.value)
+
+
+def test_directory(tmp_path):
+    _expect(tmp_path, "directory")
+
+
+def test_empty_file(tmp_path):
+    _expect(_write(tmp_path, ""), "empty")
+    _expect(_write(tmp_path, "\n \n", name="blank.csv"), "empty")
+
+
+def test_header_only(tmp_path):
+    _expect(_write(tmp_path, "t,u,x\n"), "header only")
+
+
+def test_missing_column(tmp_path):
+    msg = _expect(_write(tmp_path, "t,u,y\n" + _rows()), "line 1", "missing column 'x'", "found")
+    assert "'y'" in msg
+    _expect(_write(tmp_path, "time,u\n0,1\n", name="b.csv"), "'t'", "'x'", "'time'")
+
+
+def test_duplicate_column(tmp_path):
+    _expect(_write(tmp_path, "t,u,x,u\n" + "0,1,2,3\n1,1,2,3\n2,1,2,3\n"), "'u'", "2 times")
+
+
+@pytest.mark.parametrize("sep,word", [(";", "';'"), ("\t", "tabs"), (" ", "spaces")])
+def test_wrong_delimiter_in_header(tmp_path, sep, word):
+    text = sep.join("tux") + "\n" + _rows().replace(",", sep)
+    _expect(_write(tmp_path, text), "line 1", word, "','")
+
+
+def test_wrong_delimiter_in_rows(tmp_path):
+    _expect(_write(tmp_path, "t,u,x\n0;1;2\n"), "line 2", "expected 3", "';'")
+
+
+def test_wrong_number_of_fields(tmp_path):
+    _expect(_write(tmp_path, "t,u,x\n0,1,2\n0.1,1\n0.2,1,2\n"), "line 3", "expected 3", "found 2")
+
+
+def test_text_in_number_field(tmp_path):
+    text = "t,u,x\n0,1,2\n0.1,abc,2\n0.2,1,2\n"
+    _expect(_write(tmp_path, text), "line 3", "column 'u'", "'abc'", "not a number")
+    text = "t,u,x\n0,1,2\n0.1,1,\n0.2,1,2\n"
+    _expect(_write(tmp_path, text, name="b.csv"), "line 3", "column 'x'", "not a number")
+    text = "t,u,x\n0,1,2\n0.1,1_000,2\n0.2,1,2\n"
+    _expect(_write(tmp_path, text, name="c.csv"), "line 3", "column 'u'", "not a number")
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "-Infinity"])
+def test_non_finite(tmp_path, bad):
+    text = f"t,u,x\n0,1,2\n0.1,1,{bad}\n0.2,1,2\n"
+    _expect(_write(tmp_path, text), "line 3", "column 'x'", "non-finite")
+
+
+def test_too_few_rows(tmp_path):
+    _expect(_write(tmp_path, "t,u,x\n0,1,2\n0.1,1,2\n"), "only 2 data rows", "at least 3")
+
+
+@pytest.mark.parametrize("times,line", [((0, 0.1, 0.1, 0.3), 4), ((0, 0.1, 0.05, 0.3), 4)])
+def test_time_not_increasing(tmp_path, times, line):
+    text = "t,u,x\n" + "".join(f"{t},1,2\n" for t in times)
+    _expect(_write(tmp_path, text), f"line {line}", "strictly increasing")
+
+
+def test_non_uniform_sampling(tmp_path):
+    text = "t,u,x\n" + "".join(f"{t},1,2\n" for t in (0, 0.1, 0.2, 0.35, 0.4))
+    _expect(_write(tmp_path, text), "non-uniform", "line 5", "tolerance")
+
+
+def test_not_utf8(tmp_path):
+    _expect(_write(tmp_path, b"t,u,x\n0,1,\xff\n", mode="wb"), "UTF-8")
+
+
+# ----------------------------------------------------------------------------- writing
+
+def test_write_csv_rejects_bad_input(tmp_path):
+    path = tmp_path / "w.csv"
+    with pytest.raises(ValueError, match="same length"):
+        write_csv(path, {"t": [0, 1, 2], "u": [0, 1]})
+    with pytest.raises(ValueError, match="column name"):
+        write_csv(path, {"a,b": [0, 1]})
+    with pytest.raises(ValueError, match="1-D"):
+        write_csv(path, {"t": np.zeros((2, 2))})
+    with pytest.raises(ValueError, match="at least one"):
+        write_csv(path, {})
+    with pytest.raises(TypeError, match="real numbers"):
+        write_csv(path, {"t": ["a", "b"]})
+
+
+# ----------------------------------------------------------------------------- arrays
+
+def test_validate_samples_converts():
+    u_in = np.arange(10, dtype=np.int32)
+    x_in = np.linspace(0, 1, 20)[::2]
+    u, x = validate_samples(u_in, x_in, 1e-3)
+    assert u.dtype == np.float64 and x.dtype == np.float64
+    assert u.flags.c_contiguous and x.flags.c_contiguous
+    np.testing.assert_array_equal(u, u_in)
+    np.testing.assert_array_equal(x, x_in)
+    u2, _ = validate_samples([1.0, 2.0], (3, 4))
+    np.testing.assert_array_equal(u2, [1.0, 2.0])
+
+
+@pytest.mark.parametrize("u,x,dt,exc,words", [
+    (["a", "b"], [1, 2], None, TypeError, "u must hold real numbers"),
+    ([1, 2], [1 + 1j, 2], None, TypeError, "x must hold real numbers"),
+    ([True, False], [1, 2], None, TypeError, "u must hold real numbers"),
+    (1.0, [1.0], None, ValueError, "u must be 1-D, got a scalar"),
+    (np.zeros((2, 3)), np.zeros(6), None, ValueError, "shape (2, 3)"),
+    ([], [], None, ValueError, "u is empty"),
+    ([1, 2, 3], [1, 2], None, ValueError, "same length, got 3 and 2"),
+    ([1, np.nan, 3], [1, 2, 3], None, ValueError, "u[1] is nan"),
+    ([1, 2, 3], [1, 2, np.inf], None, ValueError, "x[2] is inf"),
+    ([1, 2], [1, 2], 0.0, ValueError, "dt must be finite and > 0"),
+    ([1, 2], [1, 2], -1e-3, ValueError, "dt must be finite and > 0"),
+    ([1, 2], [1, 2], float("nan"), ValueError, "dt must be finite"),
+    ([1, 2], [1, 2], "0.1", TypeError, "dt must be a real number"),
+    ([1, 2], [1, 2], True, TypeError, "dt must be a real number"),
+])
+def test_validate_samples_rejects(u, x, dt, exc, words):
+    with pytest.raises(exc) as info:
+        validate_samples(u, x, dt)
+    assert words in str(info.value)
+
+
+def test_record_checks_lengths():
+    with pytest.raises(ValueError, match="t has 2 samples"):
+        Record(t=[0.0, 1.0], u=[1.0, 2.0, 3.0], x=[1.0, 2.0, 3.0], dt=1.0)
+
+
+# ----------------------------------------------------------------------------- datasets
+
+def test_dataset_names():
+    assert datasets.names() == ["micromanipulator", "micromanipulator_compensated"]
+
+
+def test_unknown_dataset_lists_names():
+    with pytest.raises(ValueError, match="micromanipulator, micromanipulator_compensated"):
+        datasets.load("piezo")
+
+
+def test_data_files_are_package_resources():
+    root = resources.files("boucwen.datasets") / datasets.DATA_DIR
+    for name in ("Model_Vi_Do.dat", "Test_Vi_Do_Di.dat", "LICENSE", "README.md"):
+        assert (root / name).is_file(), name
+
+
+def test_micromanipulator():
+    rec = datasets.load("micromanipulator")
+    assert len(rec) == 8027
+    assert rec.dt == 0.005
+    assert rec.t[0] == 0.0 and rec.t[-1] == pytest.approx(8026 * 0.005)
+    assert rec.u.min() == pytest.approx(0.0, abs=1e-9)
+    assert rec.u.max() == pytest.approx(3.6, abs=1e-6)
+    assert -124 < rec.x.min() < -122 and -75 < rec.x.max() < -73  # µm
+    assert rec.u[0] == pytest.approx(1.8) and rec.x[0] == pytest.approx(-123.059139)
+    meta = rec.meta
+    assert "MIT" in meta["licence"] and "MIT License" in meta["licence_text"]
+    assert "Aye" in meta["citation"] and "2018" in meta["citation"]
+    assert meta["units"]["x"].startswith("µm") and meta["units"]["u"].startswith("V")
+    assert "DiscreteBacklashOperator" in meta["source"]
+
+
+def test_micromanipulator_compensated():
+    rec = datasets.load("micromanipulator_compensated")
+    assert len(rec) == 14155
+    assert rec.dt == 0.005
+    desired = rec.meta["desired"]
+    assert desired.shape == (14155,)
+    assert desired[1] == pytest.approx(0.628215)
+    assert 19 < np.abs(desired).max() < 21  # µm
+    assert rec.u[0] == pytest.approx(1.830003) and rec.x[0] == pytest.approx(-121.662284)
+    assert rec.meta["units"]["desired"] == "µm"

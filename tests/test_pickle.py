@@ -1,0 +1,128 @@
+"""State survives a restart: Identifier, Model and Params pickle, and a restored
+object continues bit for bit like the original."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+
+import numpy as np
+import pytest
+
+import boucwen
+from boucwen import Identifier, Model, Params
+
+DT = 1e-4
+
+
+def _record(n: int = 12_000) -> tuple[np.ndarray, np.ndarray]:
+    u = np.asarray(boucwen.paper_input(DT, 0.05))[:n]
+    x, _ = boucwen.simulate(Params.paper_1hz(), u, DT)
+    rng = np.random.default_rng(3)
+    return u, x + 1e-3 * rng.standard_normal(u.size)
+
+
+def _methods() -> list[str]:
+    """The online methods this build offers (probing keeps the test valid as methods are added)."""
+    found = []
+    for method in ("paper", "rpem"):
+        try:
+            Identifier(DT, 64, Params.paper_1hz(), method=method)
+        except ValueError:
+            continue
+        found.append(method)
+    return found
+
+
+def _picklable(method: str) -> bool:
+    try:
+        pickle.dumps(Identifier(DT, 64, Params.paper_1hz(), method=method))
+    except ValueError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("cut", [0, 1, 2, 3, 500, 1001, 1002, 2003, 9_999])
+def test_unpickled_identifier_continues_bit_for_bit(cut: int) -> None:
+    u, x = _record()
+    original = Identifier(DT, 1000, Params.paper_1hz(), h0=0.05)
+    original.push_many(u[:cut], x[:cut])
+    data = pickle.dumps(original, protocol=pickle.HIGHEST_PROTOCOL)
+    restored = pickle.loads(data)
+    assert isinstance(restored, Identifier)
+    assert restored.params == original.params
+    assert restored.h == original.h
+    assert restored.status == original.status
+    # One-by-one on the original, in one call on the copy: identical bits.
+    a = np.array([original.push(float(uk), float(xk)) for uk, xk in zip(u[cut:], x[cut:])])
+    b = restored.push_many(u[cut:], x[cut:])
+    np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64))
+    assert restored.params == original.params
+    assert pickle.dumps(restored) == pickle.dumps(original)
+
+
+@pytest.mark.parametrize("method", _methods())
+def test_copy_and_deepcopy_are_independent(method: str) -> None:
+    u, x = _record(3000)
+    original = Identifier(DT, 500, Params.paper_1hz(), method=method)
+    original.push_many(u[:1500], x[:1500])
+    for clone in (copy.copy(original), copy.deepcopy(original)):
+        assert clone is not original
+        y1 = clone.push_many(u[1500:], x[1500:])
+        assert original.status["samples"] == 1500
+        y2 = copy.copy(original).push_many(u[1500:], x[1500:])
+        np.testing.assert_array_equal(y1, y2)
+
+
+@pytest.mark.parametrize("method", [m for m in _methods() if not _picklable(m)])
+def test_unpicklable_method_says_so(method: str) -> None:
+    with pytest.raises(ValueError, match="not supported"):
+        pickle.dumps(Identifier(DT, 64, Params.paper_1hz(), method=method))
+
+
+def test_model_pickle_continues_bit_for_bit() -> None:
+    u, _ = _record(5000)
+    original = Model(Params.paper_1hz(), DT, h0=0.2)
+    for v in u[:2500]:
+        original.step(float(v))
+    restored = pickle.loads(pickle.dumps(original))
+    assert restored.h == original.h and restored.dt == original.dt and restored.params == original.params
+    for v in u[2500:]:
+        assert original.step(float(v)) == restored.step(float(v))
+    fresh = pickle.loads(pickle.dumps(Model(Params.paper_1hz(), DT)))
+    assert fresh.step(10.0) == Model(Params.paper_1hz(), DT).step(10.0)
+
+
+def test_params_pickle_round_trips() -> None:
+    p = Params(0.2, -0.01, -0.07, 0.02, -0.019, 1.5, 0.0075)
+    assert pickle.loads(pickle.dumps(p)) == p
+
+
+@pytest.mark.parametrize(
+    "garbage",
+    [b"", b"BWSN", b"not a snapshot at all", b"BWSN\x01\x02" + b"\x00" * 10, b"BWSN\x09\x02" + b"\x00" * 400],
+)
+def test_corrupt_snapshot_is_a_value_error(garbage: bytes) -> None:
+    with pytest.raises(ValueError, match="snapshot"):
+        Identifier._from_snapshot(garbage)
+
+
+def test_truncated_and_flipped_snapshots_never_crash() -> None:
+    u, x = _record(2000)
+    ident = Identifier(DT, 300, Params.paper_1hz())
+    ident.push_many(u, x)
+    restore, (data,) = ident.__reduce__()
+    assert restore(data).params == ident.params
+    for end in range(0, len(data), 37):
+        with pytest.raises(ValueError):
+            restore(data[:end])
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        flipped = bytearray(data)
+        flipped[int(rng.integers(len(data)))] ^= 1 << int(rng.integers(8))
+        try:
+            restore(bytes(flipped))  # a flipped bit in a float is a valid, different state
+        except ValueError:
+            pass
+    with pytest.raises(TypeError):
+        restore("a string")
