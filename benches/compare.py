@@ -188,9 +188,9 @@ def main(argv: list[str] | None = None) -> int:
 
         def rhs(t: float, h: np.ndarray) -> np.ndarray:
             k = min(int(t / DT), m - 2)
-            udot = slopes[k]
-            uu = us[k] + udot * (t - k * DT)
-            hh = h[0]
+            udot = float(slopes[k])
+            uu = float(us[k]) + udot * (t - k * DT)
+            hh = float(h[0])
             hn = abs(hh) ** p.n
             sh = (hh > 0) - (hh < 0)
             su = (udot > 0) - (udot < 0)

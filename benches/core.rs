@@ -90,5 +90,28 @@ fn model_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, push, push_many, simulate, model_step);
+/// One warmed push of the output-error method ("rpem"), past the first 1 Hz period.
+fn rpem_push(c: &mut Criterion) {
+    use boucwen::identify::{OutputErrorConfig, OutputErrorIdentifier};
+    let (u, x) = record();
+    let mut id =
+        OutputErrorIdentifier::new(DT, Params::paper_1hz(), 0.0, OutputErrorConfig::default()).expect("valid config");
+    let mut k = 0usize;
+    for _ in 0..12_000 {
+        id.push(u[k], x[k]).expect("finite");
+        k = (k + 1) % u.len();
+    }
+    let mut group = c.benchmark_group("rpem_push");
+    group.throughput(Throughput::Elements(1));
+    group.bench_function("paper_1hz", |b| {
+        b.iter(|| {
+            let y = id.push(black_box(u[k]), black_box(x[k])).expect("finite");
+            k = (k + 1) % u.len();
+            y
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, push, push_many, simulate, model_step, rpem_push);
 criterion_main!(benches);

@@ -30,7 +30,7 @@ pub const VERSION: u8 = 1;
 /// Largest window [samples] a snapshot may declare (and the Python binding
 /// accepts): 10⁷ samples, about 0.6 GB of window points. A corrupt length must
 /// not turn into an allocation the process cannot survive.
-pub const MAX_WINDOW_LEN: usize = 10_000_000;
+pub const MAX_WINDOW_LEN: usize = crate::identify::PaperConfig::MAX_WINDOW;
 
 /// Kind byte of a [`Model`] snapshot.
 pub(crate) const KIND_MODEL: u8 = 1;

@@ -16,7 +16,8 @@ import pytest
 from boucwen import diagnose
 from boucwen.cli import main
 from boucwen.diagnose import residual_evidence
-from boucwen.experiments.undeclared import make_record, test_input
+from boucwen.experiments.undeclared import make_record
+from boucwen.experiments.undeclared import test_input as make_input  # not a test
 from boucwen.io import read_csv, write_csv
 
 # (effect, seed, base parameter set, noise [µm]): one record per effect, two clean ones.
@@ -66,7 +67,7 @@ def test_result_fields_and_json():
 
 
 def test_evidence_points_the_right_way():
-    u = test_input(seed=0)
+    u = make_input(seed=0)
     t = np.arange(u.size) * 1e-3
     xm = 0.2 * u
     # A trend in time shows in the drift group, not as creep after steps.
@@ -89,7 +90,7 @@ def test_evidence_points_the_right_way():
     (dict(max_effects=9), "max_effects"),
 ])
 def test_bad_options(kw, words):
-    u = test_input()[:500]
+    u = make_input()[:500]
     with pytest.raises(ValueError, match=words):
         diagnose(u, 0.2 * u, 1e-3, **kw)
 

@@ -203,7 +203,11 @@ class Identifier:
     [0.2]; ``min_points``: fewest points for a sub-fit [8]; ``rank_tol``: step 2
     fits δ only when 1 − corr²(u̇, u) exceeds it [1e-3]; ``min_log_spread``:
     fewest std(ln h) for fitting n [0.05]; ``min_r2``: least squared correlation
-    of the log–log points [0.9]; ``n_bounds``: accepted range of n [(0.5, 4.0)].
+    of the log–log points [0.9]; ``min_arg_frac``: steps 3–4 use a point only when
+    |A − r| ≥ this fraction of |A| [0.05]; ``min_delta_t``: δ is updated only when
+    resolved to this many standard errors [3.0]; ``min_u_std_v``: step 1 runs only
+    while std(u) over the window exceeds this [1e-6 V]; ``n_bounds``: accepted
+    range of n [(0.5, 4.0)].
     """
 
     def __new__(
@@ -221,6 +225,9 @@ class Identifier:
         rank_tol: Optional[float] = None,
         min_log_spread: Optional[float] = None,
         min_r2: Optional[float] = None,
+        min_arg_frac: Optional[float] = None,
+        min_delta_t: Optional[float] = None,
+        min_u_std_v: Optional[float] = None,
         n_bounds: Optional[Tuple[float, float]] = None,
     ) -> "Identifier": ...
     def push(self, u: float, x: float) -> float:

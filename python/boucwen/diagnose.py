@@ -311,8 +311,16 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
                     xs = simulate_chain(current.params, s, u_tr, dt, current.h0)
                     costs.append(math.inf if xs is None else _rms(xs - x_tr))
                 starts = [starts[int(np.argmin(costs))]]
+            p0, h0 = current.params, current.h0
+            if name == "delay":
+                # The base fit has bent itself to follow the lag; a delay of d samples is
+                # the base model fitted to the record shifted by d, which starts it right.
+                d = int(starts[0].to_dict()["delay"]["samples"])
+                shifted = fit(u_tr[:-d], x_tr[d:], dt, init=current.params, seed=seed,
+                              workers=workers)
+                p0, h0 = shifted.params, shifted.h0
             try:
-                fr = fit_extended(u_tr, x_tr, dt, current.params, starts[0], current.h0,
+                fr = fit_extended(u_tr, x_tr, dt, p0, starts[0], h0,
                                   max_nfev=TRIAL_NFEV, workers=workers)
             except ValueError as exc:
                 trials[name] = {"error": str(exc)}

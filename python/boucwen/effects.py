@@ -375,6 +375,9 @@ def candidate_starts(name: str, u: np.ndarray, x: np.ndarray, dt: float, params:
         pairs.append((FN_MAX_NYQUIST_FRACTION * 0.98 / dt, 0.7))  # the mildest resonance
         return [_starts_from(effects, {"resonance": {"fn_hz": f, "zeta": z}}) for f, z in pairs]
     if name == "delay":
+        # Every whole-sample delay, the best-aligning shift first (the caller keeps the
+        # start of least error).
         d, _ = best_delay(u, x, dt, params, effects, h0, max_delay)
-        return [_starts_from(effects, {"delay": {"samples": max(d, 1)}})]
+        order = [max(d, 1)] + [k for k in range(1, max_delay + 1) if k != max(d, 1)]
+        return [_starts_from(effects, {"delay": {"samples": k}}) for k in order]
     raise ValueError(f"unknown effect {name!r}; expected one of {list(VOCABULARY)}")

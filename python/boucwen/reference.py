@@ -510,7 +510,7 @@ class PaperIdentifier:
 
     Mirrors ``boucwen.Identifier(method="paper")``: ``push(u, x)`` predicts
     x̂ = kv·u + x0 + h [µm] with the estimates from before the sample and the
-    model's own simulated h, then completes the previous sample (central
+    model's own simulated h, then completes the sample two back (five-point central
     differences), lets it enter the window of the newest ``window`` points and
     refits steps 1–5. Options and their defaults are those of the Rust
     ``PaperConfig``.
@@ -530,6 +530,8 @@ class PaperIdentifier:
         rank_tol: float = 1e-3,
         min_log_spread: float = 0.05,
         min_r2: float = 0.9,
+        min_arg_frac: float = 0.05,
+        min_delta_t: float = 3.0,
         min_u_std_v: float = 1e-6,
         n_bounds: Tuple[float, float] = (0.5, 4.0),
     ) -> None:
@@ -551,6 +553,8 @@ class PaperIdentifier:
             ("rank_tol", rank_tol),
             ("min_log_spread", min_log_spread),
             ("min_r2", min_r2),
+            ("min_delta_t", min_delta_t),
+            ("min_arg_frac", min_arg_frac),
             ("min_u_std_v", min_u_std_v),
         ]:
             if not (math.isfinite(v) and v >= 0.0):
@@ -563,6 +567,8 @@ class PaperIdentifier:
         self.rank_tol = float(rank_tol)
         self.min_log_spread = float(min_log_spread)
         self.min_r2 = float(min_r2)
+        self.min_delta_t = float(min_delta_t)
+        self.min_arg_frac = float(min_arg_frac)
         self.min_u_std_v = float(min_u_std_v)
         self.n_bounds = (float(lo), float(hi))
         self.reset()
@@ -573,7 +579,7 @@ class PaperIdentifier:
         """Back to the state right after construction."""
         self._params = self.init
         self._h = self.h0
-        self._raw: List[_Raw] = []  # the two latest raw samples, oldest first
+        self._raw: List[_Raw] = []  # the four raw samples before the newest, oldest first
         self._window: Deque[_Point] = deque(maxlen=self.window_len)
         self._status: Dict[str, Any] = {
             "samples": 0,
@@ -610,12 +616,12 @@ class PaperIdentifier:
         newest = _Raw(u, x, self._h)
 
         self._status["samples"] += 1
-        if len(self._raw) == 2:
-            point = self._complete(self._raw[0], self._raw[1], newest)
+        if len(self._raw) == 4:
+            point = self._complete(self._raw + [newest])
             self._window.append(point)  # the oldest leaves once N are held
         self._status["window_full"] = len(self._window) == self.window_len
         self._refit()
-        self._raw = (self._raw + [newest])[-2:]
+        self._raw = (self._raw + [newest])[-4:]
         return prediction
 
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
@@ -638,12 +644,14 @@ class PaperIdentifier:
         cols["positive"] = np.array([q.positive for q in pts], dtype=bool)
         return cols
 
-    def _complete(self, before: _Raw, mid: _Raw, after: _Raw) -> _Point:
-        """The window point of the middle sample, classified with the current estimates
-        and the statistics of the window before it enters."""
+    def _complete(self, s: List[_Raw]) -> _Point:
+        """The window point of the middle one of five samples, classified with the current
+        estimates and the statistics of the window before it enters. Derivatives by the
+        five-point central difference."""
         p = self._params
-        udot = (after.u - before.u) / (2.0 * self.dt)
-        xdot = (after.x - before.x) / (2.0 * self.dt)
+        mid = s[2]
+        udot = (s[0].u - 8.0 * s[1].u + 8.0 * s[3].u - s[4].u) / (12.0 * self.dt)
+        xdot = (s[0].x - 8.0 * s[1].x + 8.0 * s[3].x - s[4].x) / (12.0 * self.dt)
         y = mid.x if self.decomposition == "line" else mid.x - mid.h_model
         unused = _Point(mid.u, mid.x, y, udot, 0.0, 0.0)
         if len(self._window) < 2:
@@ -657,13 +665,17 @@ class PaperIdentifier:
         h = mid.x - p.kv * mid.u - p.x0
         hdot = xdot - p.kv * udot
         if udot > 0.0 and abs(h) < h_tol:  # step 2 point: u̇ > 0, h ≈ 0
-            return _Point(mid.u, mid.x, y, udot, xdot, 0.0, _CROSSING)
+            # ẋ less the small |h|^n terms of eq. (5) at this h (current β, γ, n).
+            hn = 0.0 if h == 0.0 else _pow(abs(h), p.n)
+            xdot_c = xdot + (p.beta * abs(udot) * _sgn(h) + p.gamma * udot) * hn
+            return _Point(mid.u, mid.x, y, udot, xdot_c, 0.0, _CROSSING)
         if h > h_tol:
             # Loading (u̇ > 0): r = (ḣ − δu)/u̇ = A − (β+γ)hⁿ.
             # Unloading (u̇ < 0): r = (ḣ + δu)/u̇ = A − (γ−β)hⁿ.
             r = (hdot - p.delta * mid.u) / udot if udot > 0.0 else (hdot + p.delta * mid.u) / udot
             arg = p.A - r
-            if arg != 0.0 and math.isfinite(arg):
+            # |A − r| far below |A| is a difference of nearly equal numbers: left out.
+            if math.isfinite(arg) and arg != 0.0 and abs(arg) >= self.min_arg_frac * abs(p.A):
                 kind = _LOADING if udot > 0.0 else _UNLOADING
                 return _Point(mid.u, mid.x, y, udot, math.log(h), math.log(abs(arg)), kind, arg > 0.0)
         return unused
@@ -694,15 +706,19 @@ class PaperIdentifier:
         d, uu, xd = w["udot"][sel], w["u"][sel], w["a"][sel]
         c1, c2, c3 = float(np.sum(d * d)), float(np.sum(d * uu)), float(np.sum(uu * uu))
         if sel.sum() >= self.min_points and c1 > 0.0:
-            c4, c5 = float(np.sum(d * xd)), float(np.sum(uu * xd))
+            c4, c5, c6 = float(np.sum(d * xd)), float(np.sum(uu * xd)), float(np.sum(xd * xd))
             det = c1 * c3 - c2 * c2
-            if c3 > 0.0 and det > self.rank_tol * c1 * c3:
-                a_plus_kv = (c4 * c3 - c2 * c5) / det
-                delta = (c1 * c5 - c2 * c4) / det
-                if math.isfinite(delta):
-                    p["delta"] = delta
+            well_posed = c3 > 0.0 and det > self.rank_tol * c1 * c3
+            full_a, full_delta = ((c4 * c3 - c2 * c5) / det, (c1 * c5 - c2 * c4) / det) if well_posed else (0.0, 0.0)
+            # δ only where resolved: |δ| ≥ min_delta_t standard errors of the two-column fit.
+            dof = sel.sum() - 2.0
+            rss = max(c6 - full_a * c4 - full_delta * c5, 0.0)
+            se_delta = math.sqrt(rss / dof * c1 / det) if well_posed and dof > 0.0 else math.inf
+            if well_posed and math.isfinite(full_delta) and abs(full_delta) >= self.min_delta_t * se_delta:
+                a_plus_kv = full_a
+                p["delta"] = full_delta
                 st["rate_fit"] = "ran"
-            else:  # u̇ and u nearly collinear: fit A + kv alone, keep δ
+            else:  # u̇ and u nearly collinear, or δ not resolved: fit A + kv alone, keep δ
                 a_plus_kv = (c4 - p["delta"] * c2) / c1
                 st["rate_fit"] = "reduced"
             if math.isfinite(a_plus_kv):

@@ -50,14 +50,21 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::{OnlineIdentifier, PushStatus, SubFit};
+use crate::effects::{first_order_coefficient, first_order_step, Creep, EffectSet, InputLag};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::model::{advance_h, output, sgn, H_LIMIT_UM, IMPLICIT_SUBSTEPS, MAX_SUBSTEPS, MIN_SUBSTEPS, STIFFNESS_STEP};
 use crate::params::Params;
 
-/// Number of identified parameters (kv, x0, A, β, γ, n, δ).
-pub const NUM_PARAMS: usize = 7;
+/// Number of base parameters (kv, x0, A, β, γ, n, δ).
+pub const NUM_BASE: usize = 7;
+/// Most creep elements identified online.
+pub const MAX_CREEP: usize = 4;
+/// Length of θ = (kv, x0, A, β, γ, n, δ, ln fc, g₁ … g₄): the base parameters in
+/// the order of [`Params::to_array`], the input lag's corner frequency (as ln fc,
+/// fc in Hz) and the creep gains [µm/V]. The slots of absent effects stay unused.
+pub const NUM_PARAMS: usize = NUM_BASE + 1 + MAX_CREEP;
 
-/// Parameter vector, in the order of [`Params::to_array`].
+/// Parameter vector θ (see [`NUM_PARAMS`]).
 pub type ParamVector = SVector<f64, NUM_PARAMS>;
 /// Covariance of the scaled parameters.
 pub type Covariance = SMatrix<f64, NUM_PARAMS, NUM_PARAMS>;
@@ -70,6 +77,8 @@ const I_BETA: usize = 3;
 const I_GAMMA: usize = 4;
 const I_N: usize = 5;
 const I_DELTA: usize = 6;
+const I_LN_FC: usize = 7;
+const I_CREEP: usize = 8;
 
 /// Tuning of [`OutputErrorIdentifier`], with documented defaults ([`Default`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -95,6 +104,9 @@ pub struct OutputErrorConfig {
     /// the offset follows what the model cannot explain within a few samples,
     /// which makes the prediction one step ahead sharp; 0 makes x0 a constant.
     pub offset_walk_um: f64,
+    /// Initial covariance of the effects' scaled parameters (ln fc, gᵢ/scale), which
+    /// usually start from a guess rather than a fit. Default 0.3.
+    pub p0_effects: f64,
     /// R: expected variance of the prediction error [µm²]. Default 1e-4 µm²
     /// (0.01 µm: sensor noise plus what the model cannot explain).
     pub noise_um2: f64,
@@ -111,8 +123,17 @@ pub struct OutputErrorConfig {
     pub margin: f64,
     /// Scale of each parameter (kv, x0, A, β, γ, n, δ, in their units): the
     /// identifier works on θᵢ/scaleᵢ. Default (0.2, 0.1, 0.07, 0.02, 0.02, 1.5, 0.007):
-    /// the paper's Table 2 magnitudes, with 0.1 µm for the offset.
-    pub scales: [f64; NUM_PARAMS],
+    /// the paper's Table 2 magnitudes, with 0.1 µm for the offset. The lag's
+    /// ln fc has scale 1 (a step of `max_step` = 1 % of fc).
+    pub scales: [f64; NUM_BASE],
+    /// Scale of the creep gains [µm/V]. Default 0.002 µm/V.
+    pub creep_gain_scale_um_per_v: f64,
+    /// Each creep gain is held within [0, this] [µm/V] (creep follows the voltage;
+    /// the slow elements are nearly collinear with x0 over short records and would
+    /// otherwise drift against it). Default 0.02 µm/V.
+    pub creep_gain_max_um_per_v: f64,
+    /// The lag's corner frequency is held within these bounds [Hz]. Default (10, 1e5) Hz.
+    pub fc_bounds_hz: (f64, f64),
 }
 
 impl Default for OutputErrorConfig {
@@ -122,6 +143,7 @@ impl Default for OutputErrorConfig {
             memory_travel_v: 400.0,
             offset_walk_um: 0.05,
             p0: 1e-3,
+            p0_effects: 0.3,
             noise_um2: 1e-4,
             max_trace: 1.0,
             max_step: 0.01,
@@ -129,6 +151,9 @@ impl Default for OutputErrorConfig {
             n_bounds: (1.0, 4.0),
             margin: 1e-6,
             scales: [0.2, 0.1, 0.07, 0.02, 0.02, 1.5, 0.007],
+            creep_gain_scale_um_per_v: 0.002,
+            creep_gain_max_um_per_v: 0.02,
+            fc_bounds_hz: (10.0, 1e5),
         }
     }
 }
@@ -145,7 +170,10 @@ impl OutputErrorConfig {
                 return bad(name, v, "must be finite and > 0");
             }
         }
-        if self.p0 * NUM_PARAMS as f64 > self.max_trace {
+        if !(self.p0_effects.is_finite() && self.p0_effects > 0.0) {
+            return bad("p0_effects", self.p0_effects, "must be finite and > 0");
+        }
+        if self.p0 * NUM_BASE as f64 > self.max_trace {
             return bad("p0", self.p0, "the initial covariance trace (7·p0) must not exceed max_trace");
         }
         let (lo, hi) = self.n_bounds;
@@ -160,6 +188,16 @@ impl OutputErrorConfig {
         }
         if !(self.margin.is_finite() && self.margin >= 0.0) {
             return bad("margin", self.margin, "must be finite and >= 0");
+        }
+        if !(self.creep_gain_scale_um_per_v.is_finite() && self.creep_gain_scale_um_per_v > 0.0) {
+            return bad("creep_gain_scale_um_per_v", self.creep_gain_scale_um_per_v, "must be finite and > 0");
+        }
+        if !(self.creep_gain_max_um_per_v.is_finite() && self.creep_gain_max_um_per_v >= 0.0) {
+            return bad("creep_gain_max_um_per_v", self.creep_gain_max_um_per_v, "must be finite and >= 0");
+        }
+        let (lo, hi) = self.fc_bounds_hz;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
+            return bad("fc_bounds_hz", lo, "need 0 < fc_min <= fc_max, both finite");
         }
         for v in self.scales {
             if !(v.is_finite() && v > 0.0) {
@@ -214,8 +252,9 @@ fn rate_partials(p: &Params, h: f64, u: f64, udot: f64) -> RatePartials {
     let (hn, hn_1, ln_a) = if a == 0.0 {
         (0.0, 0.0, 0.0)
     } else {
-        let hn = a.powf(p.n);
-        (hn, hn / a, a.ln())
+        let ln_a = a.ln();
+        let hn = (p.n * ln_a).exp();
+        (hn, hn / a, ln_a)
     };
     let w = p.beta * udot.abs() * sh + p.gamma * udot;
     let value = p.a * udot - w * hn + p.delta * u * su;
@@ -386,18 +425,154 @@ fn model_rate_slope(p: &Params, h: f64, udot: f64) -> f64 {
     -(p.beta * udot.abs() + p.gamma * udot * sgn(h)) * p.n * a.powf(p.n - 1.0)
 }
 
+/// Current estimates: the base parameters and those of the effects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Estimates {
+    params: Params,
+    /// Corner frequency of the input lag [Hz] (unused without the lag).
+    fc_hz: f64,
+    /// Creep gains g_i [µm/V] (the first `n_creep` are used).
+    creep_gain: [f64; MAX_CREEP],
+}
+
+impl Estimates {
+    fn to_theta(self) -> ParamVector {
+        let mut t = ParamVector::zeros();
+        for (i, v) in self.params.to_array().into_iter().enumerate() {
+            t[i] = v;
+        }
+        t[I_LN_FC] = self.fc_hz.ln();
+        for i in 0..MAX_CREEP {
+            t[I_CREEP + i] = self.creep_gain[i];
+        }
+        t
+    }
+
+    fn from_theta(t: &ParamVector, lag: bool, before: &Estimates) -> Result<Self> {
+        let params = Params::from_array([t[0], t[1], t[2], t[3], t[4], t[5], t[6]])?;
+        let fc_hz = if lag { t[I_LN_FC].exp() } else { before.fc_hz };
+        let mut creep_gain = [0.0; MAX_CREEP];
+        for (i, g) in creep_gain.iter_mut().enumerate() {
+            *g = t[I_CREEP + i];
+        }
+        Ok(Estimates { params, fc_hz, creep_gain })
+    }
+}
+
+/// Which effects are in the chain, with their fixed constants.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Shape {
+    lag: bool,
+    n_creep: usize,
+    creep_tau: [f64; MAX_CREEP],
+    creep_decay: [f64; MAX_CREEP],
+}
+
+/// The model's state and its sensitivities ∂/∂θ (unscaled).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Chain {
+    h: f64,
+    dh: ParamVector,
+    /// Voltage on the stack u_a [V] (= u without the lag).
+    ua: f64,
+    dua: ParamVector,
+    creep: [f64; MAX_CREEP],
+    dcreep: [ParamVector; MAX_CREEP],
+}
+
+impl Chain {
+    fn new(h0: f64) -> Self {
+        Chain {
+            h: h0,
+            dh: ParamVector::zeros(),
+            ua: 0.0,
+            dua: ParamVector::zeros(),
+            creep: [0.0; MAX_CREEP],
+            dcreep: [ParamVector::zeros(); MAX_CREEP],
+        }
+    }
+
+    fn is_finite(&self) -> bool {
+        self.dh.iter().chain(self.dua.iter()).all(|v| v.is_finite())
+            && self.dcreep.iter().all(|d| d.iter().all(|v| v.is_finite()))
+    }
+
+    /// Advances the chain to the sample `u` (the first sample when `u_prev` is None),
+    /// in the order of [`crate::effects::ExtendedModel::step`]: lag, h, creep. Returns
+    /// x̂ = kv·u_a + x0 + h + Σcᵢ [µm] and ψ = ∂x̂/∂θ.
+    #[inline]
+    fn step(&mut self, est: &Estimates, shape: &Shape, u_prev: Option<f64>, u: f64, dt: f64) -> (f64, ParamVector) {
+        let p = &est.params;
+        match u_prev {
+            None => {
+                self.ua = u;
+                self.dua = ParamVector::zeros();
+                for i in 0..shape.n_creep {
+                    self.creep[i] = est.creep_gain[i] * u;
+                    self.dcreep[i] = ParamVector::zeros();
+                    self.dcreep[i][I_CREEP + i] = u;
+                }
+            }
+            Some(u0) => {
+                let (ua0, dua0) = (self.ua, self.dua);
+                if shape.lag {
+                    let tau = InputLag { fc_hz: est.fc_hz }.tau_s();
+                    let decay = first_order_coefficient(tau, dt);
+                    self.ua = first_order_step(ua0, u0, u, tau, decay, dt);
+                    // ∂/∂τ of the exact step, then τ = 1/(2π·fc) gives ∂τ/∂ln fc = −τ.
+                    let slope = (u - u0) / dt;
+                    let d_tau = -slope + slope * decay + (ua0 - u0 + tau * slope) * decay * dt / (tau * tau);
+                    self.dua = dua0 * decay;
+                    self.dua[I_LN_FC] += -tau * d_tau;
+                } else {
+                    self.ua = u;
+                }
+                let h_old = self.h;
+                self.h = advance_h(p, h_old, ua0, self.ua, dt);
+                self.dh = advance_h_with_gradient(p, h_old, &self.dh, (ua0, &dua0), (self.ua, &self.dua), dt).1;
+                for i in 0..shape.n_creep {
+                    let (tau, decay, g) = (shape.creep_tau[i], shape.creep_decay[i], est.creep_gain[i]);
+                    self.creep[i] = first_order_step(self.creep[i], g * ua0, g * self.ua, tau, decay, dt);
+                    // The step is linear in (c, v0, v1), v = g·u_a.
+                    let spread = tau / dt * (1.0 - decay);
+                    let (w0, w1) = (spread - decay, 1.0 - spread);
+                    let mut dv0 = dua0 * g;
+                    dv0[I_CREEP + i] += ua0;
+                    let mut dv1 = self.dua * g;
+                    dv1[I_CREEP + i] += self.ua;
+                    self.dcreep[i] = self.dcreep[i] * decay + dv0 * w0 + dv1 * w1;
+                }
+            }
+        }
+        let mut x = output(p, self.ua, self.h);
+        let mut psi = self.dh + self.dua * p.kv;
+        psi[I_KV] += self.ua;
+        psi[I_X0] += 1.0;
+        if shape.n_creep > 0 {
+            let mut c = 0.0;
+            for i in 0..shape.n_creep {
+                c += self.creep[i];
+                psi += self.dcreep[i];
+            }
+            x += c;
+        }
+        (x, psi)
+    }
+}
+
 /// The output-error online identifier (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct OutputErrorIdentifier {
     config: OutputErrorConfig,
     dt: f64,
-    init: Params,
+    init: Estimates,
     h0: f64,
-    params: Params,
+    est: Estimates,
+    shape: Shape,
     scales: ParamVector,
-    h: f64,
-    /// ∂h/∂θ (unscaled).
-    dh: ParamVector,
+    /// 1 for identified parameters, 0 for the slots of absent effects.
+    active: ParamVector,
+    chain: Chain,
     u_prev: Option<f64>,
     /// Covariance of the scaled parameters θ/scales (dimensionless).
     p: Covariance,
@@ -405,26 +580,73 @@ pub struct OutputErrorIdentifier {
 }
 
 impl OutputErrorIdentifier {
-    /// An identifier for samples every `dt` [s], starting from `init` with model
-    /// state `h0` [µm]. `init` is projected into the admissible region first
-    /// (n within `n_bounds`, β ± γ ≥ `margin`).
+    /// An identifier of the base model for samples every `dt` [s], starting from
+    /// `init` with model state `h0` [µm]. `init` is projected into the admissible
+    /// region first (n within `n_bounds`, β ± γ ≥ `margin`).
     pub fn new(dt: f64, init: Params, h0: f64, config: OutputErrorConfig) -> Result<Self> {
+        Self::with_effects(dt, init, &EffectSet::none(), h0, config)
+    }
+
+    /// As [`OutputErrorIdentifier::new`], with the base model extended by `effects`,
+    /// whose parameters are identified too: `input_lag` (fc, starting from the value
+    /// given) and `creep` (the gains gᵢ, starting from the values given; the time
+    /// constants τᵢ stay fixed; at most [`MAX_CREEP`] elements). Other effects are
+    /// not identified online and are rejected.
+    pub fn with_effects(dt: f64, init: Params, effects: &EffectSet, h0: f64, config: OutputErrorConfig) -> Result<Self> {
         positive_dt(dt)?;
         init.validate()?;
         config.validate()?;
+        effects.validate()?;
         finite_sample("h0", h0)?;
-        let (init, _) = project(init, &config);
+        if effects.resonance.is_some() || effects.drift.is_some() || effects.delay.is_some() {
+            return Err(Error::InvalidConfig {
+                name: "effects",
+                value: f64::NAN,
+                reason: "the rpem method identifies input_lag and creep only (resonance, drift and delay are not supported)",
+            });
+        }
+        let mut shape = Shape { lag: false, n_creep: 0, creep_tau: [1.0; MAX_CREEP], creep_decay: [0.0; MAX_CREEP] };
+        let mut est = Estimates { params: project_params(init, &config), fc_hz: 1.0, creep_gain: [0.0; MAX_CREEP] };
+        let mut active = ParamVector::from_element(0.0);
+        let mut scales = ParamVector::from_element(1.0);
+        for i in 0..NUM_BASE {
+            active[i] = 1.0;
+            scales[i] = config.scales[i];
+        }
+        if let Some(lag) = effects.input_lag {
+            shape.lag = true;
+            est.fc_hz = lag.fc_hz.clamp(config.fc_bounds_hz.0, config.fc_bounds_hz.1);
+            active[I_LN_FC] = 1.0;
+        }
+        if let Some(creep) = &effects.creep {
+            if creep.tau_s.len() > MAX_CREEP {
+                return Err(Error::InvalidConfig {
+                    name: "creep.tau_s",
+                    value: creep.tau_s.len() as f64,
+                    reason: "the rpem method identifies at most 4 creep elements",
+                });
+            }
+            shape.n_creep = creep.tau_s.len();
+            for (i, (&tau, &g)) in creep.tau_s.iter().zip(&creep.gain_um_per_v).enumerate() {
+                shape.creep_tau[i] = tau;
+                shape.creep_decay[i] = first_order_coefficient(tau, dt);
+                est.creep_gain[i] = g.clamp(0.0, config.creep_gain_max_um_per_v);
+                active[I_CREEP + i] = 1.0;
+                scales[I_CREEP + i] = config.creep_gain_scale_um_per_v;
+            }
+        }
         Ok(OutputErrorIdentifier {
             config,
             dt,
-            init,
+            init: est,
             h0,
-            params: init,
-            scales: ParamVector::from(config.scales),
-            h: h0,
-            dh: ParamVector::zeros(),
+            est,
+            shape,
+            scales,
+            active,
+            chain: Chain::new(h0),
             u_prev: None,
-            p: Covariance::identity() * config.p0,
+            p: initial_covariance(&active, &config),
             status: OutputErrorStatus::default(),
         })
     }
@@ -439,20 +661,47 @@ impl OutputErrorIdentifier {
         self.status
     }
 
-    /// Covariance P of the scaled parameters θᵢ/scaleᵢ (dimensionless).
+    /// Covariance P of the scaled parameters θᵢ/scaleᵢ (dimensionless), θ =
+    /// (kv, x0, A, β, γ, n, δ, ln fc, g₁ … g₄); the rows of absent effects are zero.
     pub fn covariance(&self) -> &Covariance {
         &self.p
     }
 
-    /// ∂h/∂θ after the last sample [µm per unit of each parameter].
+    /// ∂h/∂θ after the last sample [µm per unit of each parameter], θ as in
+    /// [`OutputErrorIdentifier::covariance`].
     pub fn sensitivities(&self) -> [f64; NUM_PARAMS] {
-        self.dh.into()
+        self.chain.dh.into()
+    }
+
+    /// The effects in the model with their current estimates (allocates; not for
+    /// the per-sample path).
+    pub fn effects(&self) -> EffectSet {
+        let mut e = EffectSet::none();
+        if self.shape.lag {
+            e.input_lag = Some(InputLag { fc_hz: self.est.fc_hz });
+        }
+        if self.shape.n_creep > 0 {
+            let n = self.shape.n_creep;
+            e.creep = Some(Creep {
+                tau_s: self.shape.creep_tau[..n].to_vec(),
+                gain_um_per_v: self.est.creep_gain[..n].to_vec(),
+            });
+        }
+        e
     }
 }
 
-/// Projects `p` into the admissible region; returns it and whether it moved.
-fn project(mut p: Params, cfg: &OutputErrorConfig) -> (Params, bool) {
-    let before = p;
+/// P₀: `p0` on the base parameters, `p0_effects` on the effects' (zero where absent).
+fn initial_covariance(active: &ParamVector, cfg: &OutputErrorConfig) -> Covariance {
+    let mut d = *active * cfg.p0;
+    for i in NUM_BASE..NUM_PARAMS {
+        d[i] = active[i] * cfg.p0_effects;
+    }
+    Covariance::from_diagonal(&d)
+}
+
+/// Projects `p` into the admissible region.
+fn project_params(mut p: Params, cfg: &OutputErrorConfig) -> Params {
     p.n = p.n.clamp(cfg.n_bounds.0, cfg.n_bounds.1);
     // β + γ ≥ margin and β − γ ≥ margin: two orthogonal half-planes in (β, γ).
     let sum = p.beta + p.gamma;
@@ -467,7 +716,7 @@ fn project(mut p: Params, cfg: &OutputErrorConfig) -> (Params, bool) {
         p.beta += shift;
         p.gamma -= shift;
     }
-    (p, p != before)
+    p
 }
 
 impl OnlineIdentifier for OutputErrorIdentifier {
@@ -475,34 +724,20 @@ impl OnlineIdentifier for OutputErrorIdentifier {
         finite_sample("u", u)?;
         finite_sample("x", x)?;
         let cfg = self.config;
-        let zero = ParamVector::zeros();
 
         // 1. Predict with the estimates from before the sample: h by the model
-        // itself, ∂h/∂θ alongside.
-        let (h, dh) = match self.u_prev {
-            Some(u0) => {
-                let h = advance_h(&self.params, self.h, u0, u, self.dt);
-                let (_, dh) = advance_h_with_gradient(&self.params, self.h, &self.dh, (u0, &zero), (u, &zero), self.dt);
-                (h, dh)
-            }
-            None => (self.h, self.dh),
-        };
-        let prediction = output(&self.params, u, h);
+        // itself, the sensitivities alongside.
+        let (prediction, psi) = self.chain.step(&self.est, &self.shape, self.u_prev, u, self.dt);
         let mut status = OutputErrorStatus { samples: self.status.samples + 1, ..Default::default() };
         let e = x - prediction;
         status.innovation_um = e;
-        self.h = h;
-        self.dh = dh;
         let travel = self.u_prev.map_or(0.0, |u0| (u - u0).abs());
         let first = self.u_prev.is_none();
         self.u_prev = Some(u);
 
         // 2. Gauss–Newton step in scaled coordinates.
         if !first {
-            let mut psi = dh;
-            psi[I_KV] += u;
-            psi[I_X0] += 1.0;
-            let psi = psi.component_mul(&self.scales);
+            let psi = psi.component_mul(&self.scales).component_mul(&self.active);
             let p_psi = self.p * psi;
             let s = cfg.noise_um2 + psi.dot(&p_psi);
             let gain = p_psi / s;
@@ -510,47 +745,56 @@ impl OnlineIdentifier for OutputErrorIdentifier {
             // Trust region: every parameter but the offset moves by at most
             // max_step of its scale (the step scaled down as a whole); the offset x0,
             // which tracks slow disturbances, by at most max_offset_step_um.
-            let offset_step = step[I_X0] * cfg.scales[I_X0];
+            let offset_step = step[I_X0] * self.scales[I_X0];
             step[I_X0] = 0.0;
             let largest = step.amax();
             if largest > cfg.max_step {
                 step *= cfg.max_step / largest;
                 status.step_limited = true;
             }
-            step[I_X0] = offset_step.clamp(-cfg.max_offset_step_um, cfg.max_offset_step_um) / cfg.scales[I_X0];
-            if step[I_X0] * cfg.scales[I_X0] != offset_step {
-                status.step_limited = true;
-            }
+            let offset_capped = offset_step.clamp(-cfg.max_offset_step_um, cfg.max_offset_step_um);
+            status.step_limited |= offset_capped != offset_step;
+            step[I_X0] = offset_capped / self.scales[I_X0];
             let lambda = cfg.forgetting * (-travel / cfg.memory_travel_v).exp();
             let mut new_p = (self.p - gain * p_psi.transpose()) / lambda;
             new_p = (new_p + new_p.transpose()) * 0.5;
-            new_p[(I_X0, I_X0)] += (cfg.offset_walk_um / cfg.scales[I_X0]).powi(2);
+            new_p[(I_X0, I_X0)] += (cfg.offset_walk_um / self.scales[I_X0]).powi(2);
             let trace = new_p.trace();
             if trace > cfg.max_trace {
                 new_p *= cfg.max_trace / trace;
                 status.trace_capped = true;
             }
-            let theta = ParamVector::from(self.params.to_array()) + step.component_mul(&self.scales);
-            let candidate = Params::from_array(theta.into());
+            let theta = self.est.to_theta() + step.component_mul(&self.scales);
+            let candidate = Estimates::from_theta(&theta, self.shape.lag, &self.est);
             let finite = step.iter().all(|v| v.is_finite())
                 && new_p.iter().all(|v| v.is_finite())
-                && new_p.diagonal().iter().all(|&v| v > 0.0);
+                && new_p.diagonal().iter().all(|&v| v >= 0.0);
             match candidate {
-                Ok(candidate) if finite => {
-                    let (projected, moved) = project(candidate, &cfg);
-                    self.params = projected;
+                Ok(raw) if finite => {
+                    let mut candidate = raw;
+                    candidate.params = project_params(raw.params, &cfg);
+                    if self.shape.lag {
+                        candidate.fc_hz = raw.fc_hz.clamp(cfg.fc_bounds_hz.0, cfg.fc_bounds_hz.1);
+                    }
+                    for g in candidate.creep_gain.iter_mut().take(self.shape.n_creep) {
+                        *g = g.clamp(0.0, cfg.creep_gain_max_um_per_v);
+                    }
+                    status.projected = candidate != raw;
+                    self.est = candidate;
                     self.p = new_p;
-                    status.projected = moved;
                     status.updated = true;
                 }
                 _ => {
-                    self.p = Covariance::identity() * cfg.p0;
+                    self.p = initial_covariance(&self.active, &cfg);
                     status.restarted = true;
                 }
             }
         }
-        if !(self.dh.iter().all(|v| v.is_finite())) {
-            self.dh = ParamVector::zeros();
+        if !self.chain.is_finite() {
+            let h = self.chain.h;
+            let ua = self.chain.ua;
+            let creep = self.chain.creep;
+            self.chain = Chain { h, ua, creep, ..Chain::new(h) };
             status.restarted = true;
         }
         status.trace = self.p.trace();
@@ -559,11 +803,11 @@ impl OnlineIdentifier for OutputErrorIdentifier {
     }
 
     fn params(&self) -> Params {
-        self.params
+        self.est.params
     }
 
     fn h(&self) -> f64 {
-        self.h
+        self.chain.h
     }
 
     /// `samples` as counted; `window_full` is always false (no window); every
@@ -582,11 +826,10 @@ impl OnlineIdentifier for OutputErrorIdentifier {
     }
 
     fn reset(&mut self) {
-        self.params = self.init;
-        self.h = self.h0;
-        self.dh = ParamVector::zeros();
+        self.est = self.init;
+        self.chain = Chain::new(self.h0);
         self.u_prev = None;
-        self.p = Covariance::identity() * self.config.p0;
+        self.p = initial_covariance(&self.active, &self.config);
         self.status = OutputErrorStatus::default();
     }
 }
@@ -594,7 +837,7 @@ impl OnlineIdentifier for OutputErrorIdentifier {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{paper_input, simulate};
+    use crate::model::{advance_h, paper_input, simulate};
 
     /// h and ∂h/∂θ over a whole record (`forced`: fixed number of RK4 sub-steps).
     fn run_gradient(p: &Params, u: &[f64], dt: f64, forced: Option<u32>) -> (Vec<f64>, Vec<ParamVector>) {
@@ -694,8 +937,9 @@ mod tests {
         let eps = 1e-4;
         let (hp, hm) = (sim(eps), sim(-eps));
         for k in 1..u.len() {
-            let d0 = ParamVector::from([v[k - 1], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
-            let d1 = ParamVector::from([v[k], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+            let (mut d0, mut d1) = (ParamVector::zeros(), ParamVector::zeros());
+            d0[0] = v[k - 1];
+            d1[0] = v[k];
             (h, g) = advance_with_substeps(&p, h, &g, (u[k - 1], &d0), (u[k], &d1), dt, Some(3));
             let fd = (hp[k] - hm[k]) / (2.0 * eps);
             worst = worst.max((fd - g[0]).abs());
@@ -703,6 +947,107 @@ mod tests {
         }
         assert!(largest > 0.0);
         assert!(worst <= 1e-6 * largest, "worst {worst}, largest {largest}");
+    }
+
+    fn lag_and_creep() -> EffectSet {
+        EffectSet {
+            input_lag: Some(InputLag { fc_hz: 500.0 }),
+            creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0], gain_um_per_v: vec![0.0015, 0.002, 0.0015] }),
+            ..EffectSet::none()
+        }
+    }
+
+    /// x̂ and ψ of the effect chain over a record, with estimates frozen.
+    fn run_chain(id: &OutputErrorIdentifier, est: &Estimates, u: &[f64]) -> (Vec<f64>, Vec<ParamVector>) {
+        let mut chain = Chain::new(id.h0);
+        let mut prev = None;
+        let mut xs = Vec::new();
+        let mut psis = Vec::new();
+        for &v in u {
+            let (x, psi) = chain.step(est, &id.shape, prev, v, id.dt);
+            prev = Some(v);
+            xs.push(x);
+            psis.push(psi);
+        }
+        (xs, psis)
+    }
+
+    #[test]
+    fn effect_chain_reproduces_simulate_extended() {
+        let dt = 1e-4;
+        let u: Vec<f64> = paper_input(dt, 0.05);
+        let p = Params::paper_1hz();
+        let effects = lag_and_creep();
+        let id = OutputErrorIdentifier::with_effects(dt, p, &effects, 0.0, OutputErrorConfig::default()).unwrap();
+        let (xs, _) = run_chain(&id, &id.est, &u);
+        let reference = crate::effects::simulate_extended(&p, &effects, &u, dt, 0.0).unwrap();
+        // Same operations in the same order; only the sum of the creep elements may
+        // associate differently (a few ulps of ≈ 20 µm).
+        let worst = xs.iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(worst <= 1e-12, "{worst}");
+    }
+
+    #[test]
+    fn effect_sensitivities_match_central_finite_differences() {
+        // 1 Hz then 10 Hz. h is advanced by the model's own rule here, whose number
+        // of sub-steps can change when fc moves u_a; such a jump is an RK4 local
+        // error difference (< 1e-9 µm at these rates), so ε is taken large enough
+        // (1e-3 of the scale) that jumps contribute < 1e-9/2e-3·… ≪ the tolerance,
+        // and small enough that the O(ε²) truncation stays below 1e-5 relative.
+        let dt = 1e-4;
+        let u: Vec<f64> = paper_input(dt, 0.0)[..31_000].to_vec();
+        let id = OutputErrorIdentifier::with_effects(dt, Params::paper_1hz(), &lag_and_creep(), 0.0, OutputErrorConfig::default())
+            .unwrap();
+        let (_, psis) = run_chain(&id, &id.est, &u);
+        for i in [I_KV, I_X0, I_A, I_DELTA, I_LN_FC, I_CREEP, I_CREEP + 1, I_CREEP + 2] {
+            let eps = 1e-3 * id.scales[i];
+            let shifted = |sign: f64| {
+                let mut theta = id.est.to_theta();
+                theta[i] += sign * eps;
+                Estimates::from_theta(&theta, true, &id.est).unwrap()
+            };
+            let (xp, _) = run_chain(&id, &shifted(1.0), &u);
+            let (xm, _) = run_chain(&id, &shifted(-1.0), &u);
+            let largest = psis.iter().map(|g| g[i].abs()).fold(0.0, f64::max);
+            assert!(largest > 0.0, "parameter {i}");
+            let mut worst = 0.0f64;
+            for k in (0..u.len()).step_by(7) {
+                worst = worst.max(((xp[k] - xm[k]) / (2.0 * eps) - psis[k][i]).abs());
+            }
+            assert!(worst <= 1e-4 * largest, "parameter {i}: worst {worst}, largest {largest}");
+        }
+    }
+
+    #[test]
+    fn identifies_lag_and_creep_from_noise_free_data() {
+        let dt = 1e-4;
+        let truth = Params::paper_1hz();
+        let effects = lag_and_creep();
+        let u = rich_input(dt, 6.0);
+        let x = crate::effects::simulate_extended(&truth, &effects, &u, dt, 0.0).unwrap();
+        let start = EffectSet {
+            input_lag: Some(InputLag { fc_hz: 800.0 }),
+            creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0], gain_um_per_v: vec![0.0; 3] }),
+            ..EffectSet::none()
+        };
+        let cfg = OutputErrorConfig { offset_walk_um: 0.0, memory_travel_v: f64::INFINITY, ..Default::default() };
+        let mut id = OutputErrorIdentifier::with_effects(dt, truth, &start, 0.0, cfg).unwrap();
+        let mut last_err = 0.0f64;
+        let last_second = u.len() - 10_000;
+        for (k, (&u, &x)) in u.iter().zip(&x).enumerate() {
+            let pred = id.push(u, x).unwrap();
+            if k >= last_second {
+                last_err = last_err.max((pred - x).abs());
+            }
+        }
+        let got = id.effects();
+        let fc = got.input_lag.unwrap().fc_hz;
+        let gains = got.creep.unwrap().gain_um_per_v;
+        eprintln!("fc {fc} gains {gains:?} err {last_err} params {:?}", id.params());
+        assert!(last_err < 0.01, "output error in the last second {last_err} µm");
+        assert!((fc / 500.0 - 1.0).abs() < 0.1, "fc {fc}");
+        let total: f64 = gains.iter().sum();
+        assert!((total - 0.005).abs() < 0.002, "creep gains {gains:?}");
     }
 
     fn perturbed() -> Params {
@@ -806,7 +1151,7 @@ mod tests {
             OutputErrorConfig { noise_um2: -1.0, ..Default::default() },
             OutputErrorConfig { max_step: f64::NAN, ..Default::default() },
             OutputErrorConfig { n_bounds: (0.5, 3.0), ..Default::default() },
-            OutputErrorConfig { scales: [0.0; NUM_PARAMS], ..Default::default() },
+            OutputErrorConfig { scales: [0.0; NUM_BASE], ..Default::default() },
         ];
         for cfg in bad {
             assert!(OutputErrorIdentifier::new(1e-4, Params::paper_1hz(), 0.0, cfg).is_err(), "{cfg:?}");
@@ -837,21 +1182,33 @@ mod scratch {
     #[test]
     #[ignore]
     fn explore() {
+        use crate::effects::{Creep, InputLag};
         let dt = 1e-4;
         let truth = Params::paper_1hz();
-        let u = super::tests::rich_input(dt, std::env::var("SECS").ok().and_then(|v| v.parse().ok()).unwrap_or(6.0));
-        let (x, _) = simulate(&truth, &u, dt, 0.0, None).unwrap();
-        let t = Params::paper_1hz();
-        let start = Params { kv: t.kv * 1.1, x0: t.x0 + 0.05, a: t.a * 0.9, beta: t.beta * 1.1, gamma: t.gamma * 0.9, n: 1.6, delta: t.delta * 1.2 };
-        let cfg = cfg_from_env();
-        let mut id = OutputErrorIdentifier::new(dt, start, 0.0, cfg).unwrap();
+        let effects = EffectSet {
+            input_lag: Some(InputLag { fc_hz: 500.0 }),
+            creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0], gain_um_per_v: vec![0.0015, 0.002, 0.0015] }),
+            ..EffectSet::none()
+        };
+        let u = super::tests::rich_input(dt, 6.0);
+        let x = crate::effects::simulate_extended(&truth, &effects, &u, dt, 0.0).unwrap();
+        let fc0 = std::env::var("FC0").ok().and_then(|v| v.parse().ok()).unwrap_or(800.0);
+        let start = EffectSet {
+            input_lag: Some(InputLag { fc_hz: fc0 }),
+            creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0], gain_um_per_v: vec![0.0; 3] }),
+            ..EffectSet::none()
+        };
+        let mut cfg = cfg_from_env();
+        if let Some(v) = std::env::var("PE").ok().and_then(|v| v.parse().ok()) { cfg.p0_effects = v; }
+        let mut id = OutputErrorIdentifier::with_effects(dt, truth, &start, 0.0, cfg).unwrap();
         let mut worst = 0.0f64;
         for (k, (&u, &x)) in u.iter().zip(&x).enumerate() {
             let pred = id.push(u, x).unwrap();
             worst = worst.max((pred - x).abs());
-            if (k + 1) % 5000 == 0 {
+            if (k + 1) % 2500 == 0 {
                 let p = id.params();
-                eprintln!("{:6} maxerr {:.4} kv {:.4} x0 {:.4} A {:.4} b {:.4} g {:.4} n {:.3} d {:.4} tr {:.3e}", k + 1, worst, p.kv, p.x0, p.a, p.beta, p.gamma, p.n, p.delta, id.detail().trace);
+                let e = id.effects();
+                eprintln!("{:6} maxerr {:.4} kv {:.4} x0 {:.4} A {:.4} b {:.4} g {:.4} n {:.3} d {:.4} fc {:.1} g {:?}", k + 1, worst, p.kv, p.x0, p.a, p.beta, p.gamma, p.n, p.delta, e.input_lag.unwrap().fc_hz, e.creep.unwrap().gain_um_per_v);
                 worst = 0.0;
             }
         }

@@ -5,8 +5,9 @@
 //! Per sample k:
 //! 1. **Predict** x̂ₖ = kv·uₖ + x0 + hₖ with the estimates from before the sample, h
 //!    integrated by the model itself ([`crate::model::advance_h`]).
-//! 2. **Window.** Sample k−1 is completed (central differences u̇, ẋ need sample k)
-//!    and enters the window of the newest N samples; the oldest leaves.
+//! 2. **Window.** Sample k−2 is completed (five-point central differences u̇, ẋ
+//!    need samples up to k) and enters the window of the newest N samples; the
+//!    oldest leaves.
 //! 3. **Step 1, kv and x0** (eqs. 6–7): limited-memory recursive least squares of
 //!    y on [u, 1]: a rank-one update for the entering sample and a rank-one downdate
 //!    (Sherman–Morrison) for the leaving one, started from the batch fit of the first
@@ -19,7 +20,8 @@
 //!    each sample is classified once, when it enters, with the estimates of that
 //!    moment; h = x − kv·u − x0 there.
 //!    - step 2 (eqs. 8–9): u̇ > 0 and |h| < `h_zero_frac`·std(x): least squares of ẋ
-//!      on [u̇, u] gives A + kv and δ. If the two columns are nearly collinear (one
+//!      on [u̇, u] gives A + kv and δ (ẋ is first corrected by the small
+//!      |h|^n terms of eq. (5) at the point's h, with the current β, γ, n). If the two columns are nearly collinear (one
 //!      frequency puts every such point at the same (u, u̇)), only A + kv is fitted
 //!      and δ is kept.
 //!    - step 3 (eqs. 10–12): u̇ > 0 and h above the tolerance: r = (ḣ − δu)/u̇,
@@ -30,6 +32,8 @@
 //!    - step 5: β, γ from β+γ and γ−β, accepted only where h stays bounded for
 //!      every input (β + γ > 0 and β − γ > 0, as in the paper's Table 2);
 //!      otherwise β, γ and n are held.
+//!    Steps 3–4 leave out points whose |A − r| is below `min_arg_frac`·|A| (a
+//!    small difference of nearly equal numbers: its logarithm is mostly error).
 //!    Points with |u̇| below `rate_frac`·rms(u̇) are left out of steps 2–4 (the
 //!    ratios divide by u̇, and finite differences of noisy x are unreliable there).
 //!    A sub-fit with too few points or too little spread keeps its previous estimate.
@@ -72,6 +76,13 @@ pub struct PaperConfig {
     pub rank_tol: f64,
     /// Step 3 fits n only when std(ln h) over its points exceeds this. Default 0.05.
     pub min_log_spread: f64,
+    /// Steps 3–4 use a point only when |A − r| is at least this fraction of |A|:
+    /// smaller values are a difference of two nearly equal numbers, dominated by
+    /// the error of A and of the finite differences. Default 0.05.
+    pub min_arg_frac: f64,
+    /// Step 2 updates δ only when |δ| is at least this many standard errors of
+    /// its estimate (else it fits A + kv alone). Default 3.
+    pub min_delta_t: f64,
     /// Step 3 fits n only when the log–log points lie on a line: squared
     /// correlation of ln h and ln|A − r| at least this. Default 0.9.
     pub min_r2: f64,
@@ -84,6 +95,8 @@ pub struct PaperConfig {
 impl PaperConfig {
     /// Smallest accepted window.
     pub const MIN_WINDOW: usize = 16;
+    /// Largest accepted window (the points are held in memory, 56 bytes each).
+    pub const MAX_WINDOW: usize = 10_000_000;
 
     /// Defaults with window N = `window_len`.
     pub fn with_window(window_len: usize) -> Self {
@@ -96,6 +109,8 @@ impl PaperConfig {
             rank_tol: 1e-3,
             min_log_spread: 0.05,
             min_r2: 0.9,
+            min_arg_frac: 0.05,
+            min_delta_t: 3.0,
             min_u_std_v: 1e-6,
             n_bounds: (0.5, 4.0),
         }
@@ -107,6 +122,9 @@ impl PaperConfig {
         if self.window_len < Self::MIN_WINDOW {
             return bad("window", self.window_len as f64, "the window must hold at least 16 samples");
         }
+        if self.window_len > Self::MAX_WINDOW {
+            return bad("window", self.window_len as f64, "the window may hold at most 10 000 000 samples");
+        }
         if self.min_points < 2 || self.min_points > self.window_len {
             return bad("min_points", self.min_points as f64, "must be between 2 and the window length");
         }
@@ -116,6 +134,8 @@ impl PaperConfig {
             ("rank_tol", self.rank_tol),
             ("min_log_spread", self.min_log_spread),
             ("min_r2", self.min_r2),
+            ("min_delta_t", self.min_delta_t),
+            ("min_arg_frac", self.min_arg_frac),
             ("min_u_std_v", self.min_u_std_v),
         ];
         for (name, v) in fractions {
@@ -168,12 +188,15 @@ const SUY: usize = 4;
 const SX: usize = 5;
 const SXX: usize = 6;
 const SDD: usize = 7; // Σ u̇²
-const C_CNT: usize = 8; // step 2: count, Σu̇², Σu̇u, Σu², Σu̇ẋ, Σuẋ
-const L_POS: usize = 14; // step 3 (+): count, Σz, Σz², Σw, Σzw, Σw²
-const L_NEG: usize = 20; // step 3 (−)
-const U_POS: usize = 26; // step 4 (+): count, Σz, Σw
-const U_NEG: usize = 29; // step 4 (−)
-const NSUMS: usize = 32;
+const C_CNT: usize = 8; // step 2: count, Σu̇², Σu̇u, Σu², Σu̇ẋ, Σuẋ, Σẋ²
+const L_POS: usize = 15; // step 3 (+): count, Σz, Σz², Σw, Σzw, Σw²
+const L_NEG: usize = 21; // step 3 (−)
+const U_POS: usize = 27; // step 4 (+): count, Σz, Σw
+const U_NEG: usize = 30; // step 4 (−)
+const NSUMS: usize = 33;
+
+/// Raw samples kept for the derivative stencil besides the newest one.
+const RAW_HISTORY: usize = 4;
 
 impl Point {
     /// Contribution of the point to every running sum (a pure function of the point,
@@ -192,7 +215,7 @@ impl Point {
             Class::Unused => {}
             Class::Crossing => {
                 let (d, u, xd) = (self.udot, self.u, self.a);
-                c[C_CNT..C_CNT + 6].copy_from_slice(&[1.0, d * d, d * u, u * u, d * xd, u * xd]);
+                c[C_CNT..C_CNT + 7].copy_from_slice(&[1.0, d * d, d * u, u * u, d * xd, u * xd, xd * xd]);
             }
             Class::Loading { positive } => {
                 let at = if positive { L_POS } else { L_NEG };
@@ -208,7 +231,7 @@ impl Point {
     }
 }
 
-/// A raw sample waiting for its successor (central differences).
+/// A raw sample waiting for its successors (derivative stencil).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Raw {
     u: f64,
@@ -260,8 +283,8 @@ pub struct PaperIdentifier {
     h0: f64,
     params: Params,
     h_model: f64,
-    /// The two latest raw samples, oldest first.
-    raw: [Option<Raw>; 2],
+    /// The latest raw samples before the newest, oldest first.
+    raw: [Option<Raw>; RAW_HISTORY],
     window: Ring<Point>,
     sums: WindowSums<NSUMS>,
     rls: LineRls,
@@ -282,7 +305,7 @@ impl PaperIdentifier {
             h0,
             params: init,
             h_model: h0,
-            raw: [None, None],
+            raw: [None; RAW_HISTORY],
             window: Ring::with_capacity(config.window_len),
             sums: WindowSums::new(config.window_len),
             rls: LineRls { theta: Vector2::new(init.kv, init.x0), p: Matrix2::zeros(), active: false },
@@ -320,11 +343,15 @@ impl PaperIdentifier {
     }
 
     /// Builds the window point for the middle sample, classified with the current estimates.
-    fn complete(&self, before: Raw, mid: Raw, after: Raw) -> Point {
+    /// `s` holds samples k−2, k−1, k, k+1, k+2; the point is sample k. Derivatives
+    /// by the five-point central difference (error O(Δt⁴): about 1e-5 relative at
+    /// 50 samples per period, where the three-point one errs by 3e-3).
+    fn complete(&self, s: [Raw; 5]) -> Point {
         let p = &self.params;
-        let two_dt = 2.0 * self.dt;
-        let udot = (after.u - before.u) / two_dt;
-        let xdot = (after.x - before.x) / two_dt;
+        let mid = s[2];
+        let twelve_dt = 12.0 * self.dt;
+        let udot = (s[0].u - 8.0 * s[1].u + 8.0 * s[3].u - s[4].u) / twelve_dt;
+        let xdot = (s[0].x - 8.0 * s[1].x + 8.0 * s[3].x - s[4].x) / twelve_dt;
         let y = match self.config.decomposition {
             Decomposition::Line => mid.x,
             Decomposition::Model => mid.x - mid.h_model,
@@ -346,12 +373,15 @@ impl PaperIdentifier {
         let h = mid.x - p.kv * mid.u - p.x0;
         let hdot = xdot - p.kv * udot;
         if udot > 0.0 && h.abs() < h_tol {
+            // ẋ less the small |h|^n terms of eq. (5) at this h (current β, γ, n),
+            // so that ẋ = (A + kv)·u̇ + δ·u holds at the point, not only at h = 0.
+            let hn = if h == 0.0 { 0.0 } else { h.abs().powf(p.n) };
             point.class = Class::Crossing;
-            point.a = xdot;
+            point.a = xdot + (p.beta * udot.abs() * crate::model::sgn(h) + p.gamma * udot) * hn;
         } else if h > h_tol {
             let r = if udot > 0.0 { (hdot - p.delta * mid.u) / udot } else { (hdot + p.delta * mid.u) / udot };
             let arg = p.a - r;
-            if arg != 0.0 && arg.is_finite() {
+            if arg.is_finite() && arg != 0.0 && arg.abs() >= self.config.min_arg_frac * p.a.abs() {
                 let positive = arg > 0.0;
                 point.a = h.ln();
                 point.b = arg.abs().ln();
@@ -391,16 +421,21 @@ impl PaperIdentifier {
 
         // Step 2.
         status.rate_fit = SubFit::Held;
-        let c = &s[C_CNT..C_CNT + 6];
+        let c = &s[C_CNT..C_CNT + 7];
         if c[0] >= cfg.min_points as f64 && c[1] > 0.0 {
             let det = c[1] * c[3] - c[2] * c[2];
+            let well_posed = c[3] > 0.0 && det > cfg.rank_tol * c[1] * c[3];
+            let (full_a_plus_kv, full_delta) =
+                if well_posed { ((c[4] * c[3] - c[2] * c[5]) / det, (c[1] * c[5] - c[2] * c[4]) / det) } else { (0.0, 0.0) };
+            // δ is kept only where the data resolve it: |δ| at least `min_delta_t`
+            // standard errors, from the residual of the two-column fit.
+            let dof = c[0] - 2.0;
+            let rss = (c[6] - full_a_plus_kv * c[4] - full_delta * c[5]).max(0.0);
+            let se_delta = if dof > 0.0 { (rss / dof * c[1] / det).sqrt() } else { f64::INFINITY };
             let a_plus_kv;
-            if c[3] > 0.0 && det > cfg.rank_tol * c[1] * c[3] {
-                a_plus_kv = (c[4] * c[3] - c[2] * c[5]) / det;
-                let delta = (c[1] * c[5] - c[2] * c[4]) / det;
-                if delta.is_finite() {
-                    p.delta = delta;
-                }
+            if well_posed && full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta {
+                a_plus_kv = full_a_plus_kv;
+                p.delta = full_delta;
                 status.rate_fit = SubFit::Ran;
             } else {
                 a_plus_kv = (c[4] - p.delta * c[2]) / c[1];
@@ -474,7 +509,7 @@ impl OnlineIdentifier for PaperIdentifier {
         finite_sample("x", x)?;
 
         // Predict with the estimates from before this sample.
-        if let Some(prev) = self.raw[1] {
+        if let Some(prev) = self.raw[RAW_HISTORY - 1] {
             self.h_model = advance_h(&self.params, self.h_model, prev.u, u, self.dt);
         }
         let prediction = output(&self.params, u, self.h_model);
@@ -483,8 +518,8 @@ impl OnlineIdentifier for PaperIdentifier {
         let mut status = self.status;
         status.samples += 1;
         status.refreshed = false;
-        if let [Some(before), Some(mid)] = self.raw {
-            let point = self.complete(before, mid, newest);
+        if let [Some(a), Some(b), Some(c), Some(d)] = self.raw {
+            let point = self.complete([a, b, c, d, newest]);
             let leaving = self.window.push(point);
             status.refreshed = self.sums.slide(&point.contribution(), leaving.map(|l| l.contribution()).as_ref());
             if self.rls.active {
@@ -499,7 +534,8 @@ impl OnlineIdentifier for PaperIdentifier {
         let (params, status) = self.refit();
         self.params = params;
         self.status = status;
-        self.raw = [self.raw[1], Some(newest)];
+        self.raw.rotate_left(1);
+        self.raw[RAW_HISTORY - 1] = Some(newest);
         Ok(prediction)
     }
 
@@ -518,7 +554,7 @@ impl OnlineIdentifier for PaperIdentifier {
     fn reset(&mut self) {
         self.params = self.init;
         self.h_model = self.h0;
-        self.raw = [None, None];
+        self.raw = [None; RAW_HISTORY];
         self.window.clear();
         self.sums.clear();
         self.rls = LineRls { theta: Vector2::new(self.init.kv, self.init.x0), p: Matrix2::zeros(), active: false };
@@ -604,7 +640,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         });
         w.f64s(&[c.h_zero_frac, c.rate_frac]);
         w.u64(c.min_points as u64);
-        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
+        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_arg_frac, c.min_delta_t, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
         w.f64(self.dt);
         w.params(&self.init);
         w.f64(self.h0);
@@ -664,7 +700,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_u_std_v, n_lo, n_hi] = r.f64s::<6>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_delta_t, min_u_std_v, n_lo, n_hi] = r.f64s::<8>()?;
         let config = PaperConfig {
             window_len,
             decomposition,
@@ -674,6 +710,8 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
             rank_tol,
             min_log_spread,
             min_r2,
+            min_arg_frac,
+            min_delta_t,
             min_u_std_v,
             n_bounds: (n_lo, n_hi),
         };
@@ -684,7 +722,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         let mut id = PaperIdentifier::new(dt, init, h0, config)?;
         id.params = r.params()?;
         id.h_model = r.finite()?;
-        for slot in 0..2 {
+        for slot in 0..RAW_HISTORY {
             id.raw[slot] = if r.bool()? {
                 Some(Raw { u: r.finite()?, x: r.finite()?, h_model: r.finite()? })
             } else {
@@ -732,9 +770,9 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
 
         // One window point per push from the third on; the shadow sum holds the
         // newest `slides mod N` of them.
-        let slides = samples.saturating_sub(2);
+        let slides = samples.saturating_sub(RAW_HISTORY as u64);
         let raws = id.raw.iter().filter(|r| r.is_some()).count() as u64;
-        if points != slides.min(window_len as u64) || raws != samples.min(2) {
+        if points != slides.min(window_len as u64) || raws != samples.min(RAW_HISTORY as u64) {
             return Err(corrupt(at, "sample count does not match the stored window"));
         }
         let count = (slides % window_len as u64) as usize;

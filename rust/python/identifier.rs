@@ -25,7 +25,8 @@ use crate::identify::{
 /// `method` "paper" (the paper's limited-memory RLS and sub-fits). Options of the
 /// paper method (defaults in brackets): `decomposition` "model" or "line" ["model"],
 /// `h_zero_frac` [0.005], `rate_frac` [0.2], `min_points` [8], `rank_tol` [1e-3],
-/// `min_log_spread` [0.05], `min_r2` [0.9], `n_bounds` [(0.5, 4.0)].
+/// `min_log_spread` [0.05], `min_r2` [0.9], `min_arg_frac` [0.05], `min_delta_t` [3.0],
+/// `min_u_std_v` [1e-6 V], `n_bounds` [(0.5, 4.0)] (see `PaperConfig` in the Rust docs).
 ///
 /// `method="rpem"`: recursive prediction-error method on the model's output
 /// (simulation) error, sensitivities ∂h/∂θ propagated through the integrator;
@@ -38,8 +39,8 @@ use crate::identify::{
 /// β + γ and β − γ [1e-6]; `offset_walk_um` random walk of x0 per sample
 /// (creep, drift) [0.05 µm]; `max_offset_step_um` largest change of x0 per
 /// sample [0.5 µm].
-/// Largest window [samples] the binding accepts (56 bytes per sample are kept).
-const MAX_WINDOW: usize = crate::snapshot::MAX_WINDOW_LEN;
+/// Largest window [samples] accepted (the window is held in memory).
+const MAX_WINDOW: usize = PaperConfig::MAX_WINDOW;
 
 /// An integer argument; a too-large int is a ValueError (not OverflowError), a non-int a TypeError.
 fn count_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
@@ -66,7 +67,7 @@ impl PyIdentifier {
     #[new]
     #[pyo3(signature = (dt, window, init, h0 = 0.0, method = "paper", *, decomposition = "model",
         h_zero_frac = None, rate_frac = None, min_points = None, rank_tol = None,
-        min_log_spread = None, min_r2 = None, n_bounds = None, forgetting = None, memory_travel_v = None,
+        min_log_spread = None, min_r2 = None, min_arg_frac = None, min_delta_t = None, min_u_std_v = None, n_bounds = None, forgetting = None, memory_travel_v = None,
         p0 = None, noise_um2 = None, max_trace = None, max_step = None, margin = None, offset_walk_um = None, max_offset_step_um = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -82,6 +83,9 @@ impl PyIdentifier {
         rank_tol: Option<f64>,
         min_log_spread: Option<f64>,
         min_r2: Option<f64>,
+        min_arg_frac: Option<f64>,
+        min_delta_t: Option<f64>,
+        min_u_std_v: Option<f64>,
         n_bounds: Option<(f64, f64)>,
         forgetting: Option<f64>,
         memory_travel_v: Option<f64>,
@@ -160,6 +164,15 @@ impl PyIdentifier {
         }
         if let Some(v) = min_r2 {
             cfg.min_r2 = v;
+        }
+        if let Some(v) = min_arg_frac {
+            cfg.min_arg_frac = v;
+        }
+        if let Some(v) = min_delta_t {
+            cfg.min_delta_t = v;
+        }
+        if let Some(v) = min_u_std_v {
+            cfg.min_u_std_v = v;
         }
         if let Some(v) = n_bounds {
             cfg.n_bounds = v;
