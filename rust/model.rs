@@ -124,12 +124,18 @@ fn substeps(p: &Params, h: f64, k1: f64, hn: f64, udot: f64, dt: f64) -> Option<
     // MIN_SUBSTEPS sub-steps, the others one, unless stiffness asks for more.
     let may_cross = h == 0.0 || h_end * h <= 0.0;
     let floor = if may_cross { MIN_SUBSTEPS } else { 1 };
-    let wanted = (stiffness_dt / STIFFNESS_STEP).ceil();
-    if wanted.is_nan() || wanted > MAX_SUBSTEPS as f64 {
-        None
+    let wanted = stiffness_dt / STIFFNESS_STEP;
+    // ceil(wanted), with the usual cases decided by comparisons (no libm call).
+    let m = if wanted <= 1.0 {
+        1
+    } else if wanted <= 2.0 {
+        2
+    } else if wanted.is_nan() || wanted > MAX_SUBSTEPS as f64 {
+        return None;
     } else {
-        Some((wanted as u32).max(floor))
-    }
+        wanted.ceil() as u32
+    };
+    Some(m.max(floor))
 }
 
 /// dh/dt of eq. (5) and |h|^n, at the start of an interval.
@@ -200,7 +206,12 @@ pub fn advance_h(p: &Params, h: f64, u0: f64, u1: f64, dt: f64) -> f64 {
         }
         return h;
     };
-    let step = dt / m as f64;
+    // dt/1 and dt/2 are exact: skip the division on the usual intervals.
+    let step = match m {
+        1 => dt,
+        2 => 0.5 * dt,
+        _ => dt / m as f64,
+    };
     let half = 0.5 * step;
     let near = NearPower::new(p.n, h, hn);
     let rate = |h: f64, u: f64| {

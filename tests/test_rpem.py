@@ -117,6 +117,13 @@ def test_method_name_options_and_bad_options():
                 dict(offset_walk_um=-1.0)]:
         with pytest.raises(ValueError):
             Identifier(DT, 16, TRUTH, 0.0, "rpem", **bad)
+    # Options of one method given to the other are an error, not silently ignored.
+    with pytest.raises(ValueError, match="rpem"):
+        Identifier(DT, 16, TRUTH, 0.0, "paper", forgetting=0.99)
+    with pytest.raises(ValueError, match="paper"):
+        Identifier(DT, 16, TRUTH, 0.0, "rpem", decomposition="line")
+    with pytest.raises(ValueError, match="rpem"):
+        Identifier(DT, 16, TRUTH, 0.0, "lms")
 
 
 def test_reset_returns_to_construction_state():

@@ -156,7 +156,7 @@ class Model:
 
 # ---------------------------------------------------------------- online identification
 
-_IdentifierMethod = Literal["paper"]
+_IdentifierMethod = Literal["paper", "rpem"]
 """Names accepted by ``Identifier(method=...)``."""
 
 _SubFitOutcome = Literal["ran", "reduced", "held"]
@@ -204,10 +204,24 @@ class Identifier:
     fits δ only when 1 − corr²(u̇, u) exceeds it [1e-3]; ``min_log_spread``:
     fewest std(ln h) for fitting n [0.05]; ``min_r2``: least squared correlation
     of the log–log points [0.9]; ``min_arg_frac``: steps 3–4 use a point only when
-    |A − r| ≥ this fraction of |A| [0.05]; ``min_delta_t``: δ is updated only when
+    |A − r| ≥ this fraction of |A| [0.05]; ``min_line_t``: kv, x0 are updated only
+    when |kv| is at least this many standard errors [10]; ``min_delta_t``: δ is updated only when
     resolved to this many standard errors [3.0]; ``min_u_std_v``: step 1 runs only
     while std(u) over the window exceeds this [1e-6 V]; ``n_bounds``: accepted
     range of n [(0.5, 4.0)].
+
+    Options of ``method="rpem"`` (recursive prediction-error method on the
+    model's output error, sensitivities ∂h/∂θ propagated through the
+    integrator; ``window`` is not used): ``forgetting`` λ per sample [1.0];
+    ``memory_travel_v`` memory in input travel [2000 V = ten periods of a
+    0–100 V sine]; ``p0`` initial covariance of θᵢ/scaleᵢ [1e-3];
+    ``noise_um2`` expected prediction-error variance R [1e-4 µm²];
+    ``max_trace`` bound on tr P [1.0]; ``max_step`` largest change per sample
+    as a fraction of each parameter's scale [0.01]; ``max_offset_step_um``
+    largest change of x0 per sample [0.5 µm]; ``offset_walk_um`` random walk
+    of x0 per sample [0.05 µm]; ``n_bounds`` [(1.0, 4.0)]; ``margin`` least
+    β + γ and β − γ [1e-6]. Options of one method given to the other raise
+    ``ValueError``.
     """
 
     def __new__(
@@ -226,9 +240,19 @@ class Identifier:
         min_log_spread: Optional[float] = None,
         min_r2: Optional[float] = None,
         min_arg_frac: Optional[float] = None,
+        min_line_t: Optional[float] = None,
         min_delta_t: Optional[float] = None,
         min_u_std_v: Optional[float] = None,
         n_bounds: Optional[Tuple[float, float]] = None,
+        forgetting: Optional[float] = None,
+        memory_travel_v: Optional[float] = None,
+        p0: Optional[float] = None,
+        noise_um2: Optional[float] = None,
+        max_trace: Optional[float] = None,
+        max_step: Optional[float] = None,
+        margin: Optional[float] = None,
+        offset_walk_um: Optional[float] = None,
+        max_offset_step_um: Optional[float] = None,
     ) -> "Identifier": ...
     def push(self, u: float, x: float) -> float:
         """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""

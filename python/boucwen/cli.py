@@ -49,6 +49,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     from .fit import fit
     from .io import read_csv
 
+    _prepare_output(args.json)
     rec = read_csv(args.data)
     result = fit(rec.u, rec.x, rec.dt, n_starts=args.starts, seed=args.seed,
                  progress=args.progress)
@@ -117,8 +118,19 @@ def _add_reproduce(sub) -> None:
 
 # --------------------------------------------------------------------------- diagnose
 
+def _prepare_output(path: str | None) -> None:
+    """Creates the folder of an output file, before any long work (OSError if it cannot)."""
+    if path:
+        from pathlib import Path
+
+        Path(path).expanduser().resolve().parent.mkdir(parents=True, exist_ok=True)
+
+
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     from .diagnose import diagnose, plot_diagnosis, write_predictions, write_report
+
+    for path in (args.json, args.predictions, args.plot):
+        _prepare_output(path)
 
     if (args.data is None) == (args.dataset is None):
         raise ValueError("give either DATA.csv or --dataset NAME (exactly one)")

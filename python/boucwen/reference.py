@@ -531,6 +531,7 @@ class PaperIdentifier:
         min_log_spread: float = 0.05,
         min_r2: float = 0.9,
         min_arg_frac: float = 0.05,
+        min_line_t: float = 10.0,
         min_delta_t: float = 3.0,
         min_u_std_v: float = 1e-6,
         n_bounds: Tuple[float, float] = (0.5, 4.0),
@@ -555,6 +556,7 @@ class PaperIdentifier:
             ("min_r2", min_r2),
             ("min_delta_t", min_delta_t),
             ("min_arg_frac", min_arg_frac),
+            ("min_line_t", min_line_t),
             ("min_u_std_v", min_u_std_v),
         ]:
             if not (math.isfinite(v) and v >= 0.0):
@@ -569,6 +571,7 @@ class PaperIdentifier:
         self.min_r2 = float(min_r2)
         self.min_delta_t = float(min_delta_t)
         self.min_arg_frac = float(min_arg_frac)
+        self.min_line_t = float(min_line_t)
         self.min_u_std_v = float(min_u_std_v)
         self.n_bounds = (float(lo), float(hi))
         self.reset()
@@ -694,8 +697,13 @@ class PaperIdentifier:
             rhs = np.array([np.sum(w["u"] * w["y"]), np.sum(w["y"])])
             if np.linalg.det(gram) != 0.0:
                 theta = np.linalg.solve(gram, rhs)
-                if np.all(np.isfinite(theta)):
-                    p["kv"], p["x0"] = float(theta[0]), float(theta[1])
+                kv, x0 = float(theta[0]), float(theta[1])
+                # kv must be resolved: |kv| ≥ min_line_t standard errors.
+                rss = max(float(np.sum(w["y"] ** 2)) - kv * float(rhs[0]) - x0 * float(rhs[1]), 0.0)
+                var_u = float(np.mean(w["u"] ** 2)) - float(np.mean(w["u"])) ** 2
+                se_kv = math.sqrt(rss / (count - 2.0) / (count * var_u)) if count > 2 else math.inf
+                if np.all(np.isfinite(theta)) and abs(kv) >= self.min_line_t * se_kv:
+                    p["kv"], p["x0"] = kv, x0
                     st["line_fit"] = "ran"
 
         kind = w["kind"]

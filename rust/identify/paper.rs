@@ -16,6 +16,7 @@
 //!    loop. With [`Decomposition::Model`] (default) y = x − h_model: the line that the
 //!    model's own h leaves, which is the model's kv rather than the loop's centre line
 //!    (the two differ when A ≠ 0: about 0.16 vs 0.19 µm/V with the paper's values).
+//!    kv and x0 are taken only while the window resolves kv (`min_line_t`).
 //! 4. **Steps 2–5** from running sums of the points in the window (O(1) per sample):
 //!    each sample is classified once, when it enters, with the estimates of that
 //!    moment; h = x − kv·u − x0 there.
@@ -86,6 +87,9 @@ pub struct PaperConfig {
     /// Step 3 fits n only when the log–log points lie on a line: squared
     /// correlation of ln h and ln|A − r| at least this. Default 0.9.
     pub min_r2: f64,
+    /// Step 1 updates kv, x0 only when |kv| is at least this many standard errors
+    /// of its window estimate. Default 10.
+    pub min_line_t: f64,
     /// Step 1 runs only while std(u) over the window exceeds this [V]. Default 1e-6 V.
     pub min_u_std_v: f64,
     /// A slope outside these bounds is taken as a failed fit and n is kept. Default 0.5 to 4.
@@ -110,6 +114,7 @@ impl PaperConfig {
             min_log_spread: 0.05,
             min_r2: 0.9,
             min_arg_frac: 0.05,
+            min_line_t: 10.0,
             min_delta_t: 3.0,
             min_u_std_v: 1e-6,
             n_bounds: (0.5, 4.0),
@@ -136,6 +141,7 @@ impl PaperConfig {
             ("min_r2", self.min_r2),
             ("min_delta_t", self.min_delta_t),
             ("min_arg_frac", self.min_arg_frac),
+            ("min_line_t", self.min_line_t),
             ("min_u_std_v", self.min_u_std_v),
         ];
         for (name, v) in fractions {
@@ -188,12 +194,13 @@ const SUY: usize = 4;
 const SX: usize = 5;
 const SXX: usize = 6;
 const SDD: usize = 7; // Σ u̇²
-const C_CNT: usize = 8; // step 2: count, Σu̇², Σu̇u, Σu², Σu̇ẋ, Σuẋ, Σẋ²
-const L_POS: usize = 15; // step 3 (+): count, Σz, Σz², Σw, Σzw, Σw²
-const L_NEG: usize = 21; // step 3 (−)
-const U_POS: usize = 27; // step 4 (+): count, Σz, Σw
-const U_NEG: usize = 30; // step 4 (−)
-const NSUMS: usize = 33;
+const SYY: usize = 8;
+const C_CNT: usize = 9; // step 2: count, Σu̇², Σu̇u, Σu², Σu̇ẋ, Σuẋ, Σẋ²
+const L_POS: usize = 16; // step 3 (+): count, Σz, Σz², Σw, Σzw, Σw²
+const L_NEG: usize = 22; // step 3 (−)
+const U_POS: usize = 28; // step 4 (+): count, Σz, Σw
+const U_NEG: usize = 31; // step 4 (−)
+const NSUMS: usize = 34;
 
 /// Raw samples kept for the derivative stencil besides the newest one.
 const RAW_HISTORY: usize = 4;
@@ -211,6 +218,7 @@ impl Point {
         c[SX] = self.x;
         c[SXX] = self.x * self.x;
         c[SDD] = self.udot * self.udot;
+        c[SYY] = self.y * self.y;
         match self.class {
             Class::Unused => {}
             Class::Crossing => {
@@ -274,6 +282,125 @@ impl LineRls {
     }
 }
 
+/// Bits of [`PaperIdentifier::touched`]: which point classes entered or left.
+const TOUCH_CROSSING: u8 = 1;
+const TOUCH_LOADING: u8 = 2;
+const TOUCH_UNLOADING: u8 = 4;
+const TOUCH_ALL: u8 = 7;
+
+impl Class {
+    fn touch_bit(self) -> u8 {
+        match self {
+            Class::Unused => 0,
+            Class::Crossing => TOUCH_CROSSING,
+            Class::Loading { .. } => TOUCH_LOADING,
+            Class::Unloading { .. } => TOUCH_UNLOADING,
+        }
+    }
+}
+
+/// Result of step 2 for given sums and previous δ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct RateFit {
+    delta_in: f64,
+    a_plus_kv: f64,
+    delta_out: f64,
+    status: SubFit,
+}
+
+/// Result of step 3 for given sums.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ShapeFit {
+    n: f64,
+    sum_bg: f64,
+    status: SubFit,
+}
+
+/// Result of step 4 for given sums and n.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ReturnFit {
+    n_in: f64,
+    diff_gb: f64,
+    status: SubFit,
+}
+
+/// The sub-fit results of the last refit, reused while their inputs are unchanged
+/// (most samples add and remove points of at most one class). A pure cache: it is
+/// not saved in snapshots, and dropping it changes no result.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct SubFitCache {
+    rate: Option<RateFit>,
+    shape: Option<ShapeFit>,
+    ret: Option<ReturnFit>,
+}
+
+/// Step 2 (eqs. 8–9): A + kv and δ from the crossing points.
+fn rate_fit(cfg: &PaperConfig, s: &[f64; NSUMS], delta: f64) -> RateFit {
+    let held = RateFit { delta_in: delta, a_plus_kv: 0.0, delta_out: delta, status: SubFit::Held };
+    let c = &s[C_CNT..C_CNT + 7];
+    if !(c[0] >= cfg.min_points as f64 && c[1] > 0.0) {
+        return held;
+    }
+    let det = c[1] * c[3] - c[2] * c[2];
+    let well_posed = c[3] > 0.0 && det > cfg.rank_tol * c[1] * c[3];
+    let (full_a_plus_kv, full_delta) =
+        if well_posed { ((c[4] * c[3] - c[2] * c[5]) / det, (c[1] * c[5] - c[2] * c[4]) / det) } else { (0.0, 0.0) };
+    // δ is kept only where the data resolve it: |δ| at least `min_delta_t`
+    // standard errors, from the residual of the two-column fit.
+    let dof = c[0] - 2.0;
+    let rss = (c[6] - full_a_plus_kv * c[4] - full_delta * c[5]).max(0.0);
+    let se_delta = if dof > 0.0 { (rss / dof * c[1] / det).sqrt() } else { f64::INFINITY };
+    let fit = if well_posed && full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta {
+        RateFit { delta_in: delta, a_plus_kv: full_a_plus_kv, delta_out: full_delta, status: SubFit::Ran }
+    } else {
+        RateFit { delta_in: delta, a_plus_kv: (c[4] - delta * c[2]) / c[1], delta_out: delta, status: SubFit::Reduced }
+    };
+    if fit.a_plus_kv.is_finite() {
+        fit
+    } else {
+        held
+    }
+}
+
+/// Step 3 (eqs. 10–12): n and β + γ from the loading points of the larger sign group.
+fn shape_fit(cfg: &PaperConfig, s: &[f64; NSUMS]) -> ShapeFit {
+    let held = ShapeFit { n: 0.0, sum_bg: 0.0, status: SubFit::Held };
+    let (at, sign) = if s[L_POS] >= s[L_NEG] { (L_POS, 1.0) } else { (L_NEG, -1.0) };
+    let m = s[at];
+    if m < cfg.min_points as f64 {
+        return held;
+    }
+    let mean_z = s[at + 1] / m;
+    let var_z = s[at + 2] / m - mean_z * mean_z;
+    let mean_w = s[at + 3] / m;
+    let cov = s[at + 4] / m - mean_z * mean_w;
+    let var_w = s[at + 5] / m - mean_w * mean_w;
+    let r2 = if var_z > 0.0 && var_w > 0.0 { cov * cov / (var_z * var_w) } else { 0.0 };
+    if !(var_z > cfg.min_log_spread * cfg.min_log_spread && r2 >= cfg.min_r2) {
+        return held;
+    }
+    let n = cov / var_z;
+    let log_mag = (mean_w - n * mean_z).clamp(-700.0, 700.0);
+    if n >= cfg.n_bounds.0 && n <= cfg.n_bounds.1 && log_mag.is_finite() {
+        ShapeFit { n, sum_bg: sign * log_mag.exp(), status: SubFit::Ran }
+    } else {
+        held
+    }
+}
+
+/// Step 4 (eqs. 13–14): γ − β from the unloading points of the larger sign group.
+fn return_fit(cfg: &PaperConfig, s: &[f64; NSUMS], n: f64) -> ReturnFit {
+    let (at, sign) = if s[U_POS] >= s[U_NEG] { (U_POS, 1.0) } else { (U_NEG, -1.0) };
+    let m = s[at];
+    if m >= cfg.min_points as f64 {
+        let log_mag = ((s[at + 2] - n * s[at + 1]) / m).clamp(-700.0, 700.0);
+        if log_mag.is_finite() {
+            return ReturnFit { n_in: n, diff_gb: sign * log_mag.exp(), status: SubFit::Ran };
+        }
+    }
+    ReturnFit { n_in: n, diff_gb: 0.0, status: SubFit::Held }
+}
+
 /// The paper's online identifier (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PaperIdentifier {
@@ -289,6 +416,9 @@ pub struct PaperIdentifier {
     sums: WindowSums<NSUMS>,
     rls: LineRls,
     status: PushStatus,
+    /// Point classes that entered or left since the last refit ([`TOUCH_ALL`] after a refresh).
+    touched: u8,
+    cache: SubFitCache,
 }
 
 impl PaperIdentifier {
@@ -310,6 +440,8 @@ impl PaperIdentifier {
             sums: WindowSums::new(config.window_len),
             rls: LineRls { theta: Vector2::new(init.kv, init.x0), p: Matrix2::zeros(), active: false },
             status: PushStatus::default(),
+            touched: TOUCH_ALL,
+            cache: SubFitCache::default(),
         })
     }
 
@@ -410,80 +542,49 @@ impl PaperIdentifier {
                     self.rls = fresh;
                 }
             }
-            if self.rls.active {
-                p.kv = self.rls.theta[0];
-                p.x0 = self.rls.theta[1];
+            // The window must resolve kv: |kv| at least `min_line_t` standard errors
+            // (a short window where u barely moves, e.g. at a turning point, does not).
+            let (kv, x0) = (self.rls.theta[0], self.rls.theta[1]);
+            let rss = (s[SYY] - kv * s[SUY] - x0 * s[SY]).max(0.0);
+            let se_kv = if count > 2.0 { (rss / (count - 2.0) / (count * var_u)).sqrt() } else { f64::INFINITY };
+            if self.rls.active && kv.abs() >= cfg.min_line_t * se_kv {
+                p.kv = kv;
+                p.x0 = x0;
                 status.line_fit = SubFit::Ran;
             }
         } else {
             self.rls.active = false;
         }
 
-        // Step 2.
-        status.rate_fit = SubFit::Held;
-        let c = &s[C_CNT..C_CNT + 7];
-        if c[0] >= cfg.min_points as f64 && c[1] > 0.0 {
-            let det = c[1] * c[3] - c[2] * c[2];
-            let well_posed = c[3] > 0.0 && det > cfg.rank_tol * c[1] * c[3];
-            let (full_a_plus_kv, full_delta) =
-                if well_posed { ((c[4] * c[3] - c[2] * c[5]) / det, (c[1] * c[5] - c[2] * c[4]) / det) } else { (0.0, 0.0) };
-            // δ is kept only where the data resolve it: |δ| at least `min_delta_t`
-            // standard errors, from the residual of the two-column fit.
-            let dof = c[0] - 2.0;
-            let rss = (c[6] - full_a_plus_kv * c[4] - full_delta * c[5]).max(0.0);
-            let se_delta = if dof > 0.0 { (rss / dof * c[1] / det).sqrt() } else { f64::INFINITY };
-            let a_plus_kv;
-            if well_posed && full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta {
-                a_plus_kv = full_a_plus_kv;
-                p.delta = full_delta;
-                status.rate_fit = SubFit::Ran;
-            } else {
-                a_plus_kv = (c[4] - p.delta * c[2]) / c[1];
-                status.rate_fit = SubFit::Reduced;
-            }
-            if a_plus_kv.is_finite() {
-                p.a = a_plus_kv - p.kv;
-            } else {
-                status.rate_fit = SubFit::Held;
-            }
+        // Steps 2–4, each recomputed only when its inputs changed.
+        let touched = std::mem::take(&mut self.touched);
+        if touched & TOUCH_CROSSING != 0 || self.cache.rate.is_some_and(|r| r.delta_in != p.delta) {
+            self.cache.rate = None;
+        }
+        let rate = *self.cache.rate.get_or_insert_with(|| rate_fit(&cfg, &s, p.delta));
+        status.rate_fit = rate.status;
+        if rate.status != SubFit::Held {
+            p.a = rate.a_plus_kv - p.kv;
+            p.delta = rate.delta_out;
         }
 
-        // Step 3.
-        status.shape_fit = SubFit::Held;
+        if touched & TOUCH_LOADING != 0 {
+            self.cache.shape = None;
+        }
+        let shape = *self.cache.shape.get_or_insert_with(|| shape_fit(&cfg, &s));
+        status.shape_fit = shape.status;
         let mut sum_bg = p.beta + p.gamma;
-        let (at, sign) = if s[L_POS] >= s[L_NEG] { (L_POS, 1.0) } else { (L_NEG, -1.0) };
-        let m = s[at];
-        if m >= cfg.min_points as f64 {
-            let mean_z = s[at + 1] / m;
-            let var_z = s[at + 2] / m - mean_z * mean_z;
-            let mean_w = s[at + 3] / m;
-            let cov = s[at + 4] / m - mean_z * mean_w;
-            let var_w = s[at + 5] / m - mean_w * mean_w;
-            let r2 = if var_z > 0.0 && var_w > 0.0 { cov * cov / (var_z * var_w) } else { 0.0 };
-            if var_z > cfg.min_log_spread * cfg.min_log_spread && r2 >= cfg.min_r2 {
-                let n = cov / var_z;
-                let log_mag = (mean_w - n * mean_z).clamp(-700.0, 700.0);
-                let in_bounds = n >= cfg.n_bounds.0 && n <= cfg.n_bounds.1;
-                if in_bounds && log_mag.is_finite() {
-                    p.n = n;
-                    sum_bg = sign * log_mag.exp();
-                    status.shape_fit = SubFit::Ran;
-                }
-            }
+        if shape.status == SubFit::Ran {
+            p.n = shape.n;
+            sum_bg = shape.sum_bg;
         }
 
-        // Step 4.
-        status.return_fit = SubFit::Held;
-        let mut diff_gb = p.gamma - p.beta;
-        let (at, sign) = if s[U_POS] >= s[U_NEG] { (U_POS, 1.0) } else { (U_NEG, -1.0) };
-        let m = s[at];
-        if m >= cfg.min_points as f64 {
-            let log_mag = ((s[at + 2] - p.n * s[at + 1]) / m).clamp(-700.0, 700.0);
-            if log_mag.is_finite() {
-                diff_gb = sign * log_mag.exp();
-                status.return_fit = SubFit::Ran;
-            }
+        if touched & TOUCH_UNLOADING != 0 || self.cache.ret.is_some_and(|r| r.n_in != p.n) {
+            self.cache.ret = None;
         }
+        let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, &s, p.n));
+        status.return_fit = ret.status;
+        let diff_gb = if ret.status == SubFit::Ran { ret.diff_gb } else { p.gamma - p.beta };
 
         // Step 5, kept only inside the region where h stays bounded for every
         // input (β + γ > 0 and β − γ > 0); otherwise β and γ are held.
@@ -522,6 +623,10 @@ impl OnlineIdentifier for PaperIdentifier {
             let point = self.complete([a, b, c, d, newest]);
             let leaving = self.window.push(point);
             status.refreshed = self.sums.slide(&point.contribution(), leaving.map(|l| l.contribution()).as_ref());
+            self.touched |= point.class.touch_bit() | leaving.map_or(0, |l| l.class.touch_bit());
+            if status.refreshed {
+                self.touched = TOUCH_ALL;
+            }
             if self.rls.active {
                 self.rls.rank_one(point.u, point.y, 1.0);
                 if let Some(old) = leaving {
@@ -559,6 +664,8 @@ impl OnlineIdentifier for PaperIdentifier {
         self.sums.clear();
         self.rls = LineRls { theta: Vector2::new(self.init.kv, self.init.x0), p: Matrix2::zeros(), active: false };
         self.status = PushStatus::default();
+        self.touched = TOUCH_ALL;
+        self.cache = SubFitCache::default();
     }
 }
 
@@ -640,7 +747,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         });
         w.f64s(&[c.h_zero_frac, c.rate_frac]);
         w.u64(c.min_points as u64);
-        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_arg_frac, c.min_delta_t, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
+        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_arg_frac, c.min_line_t, c.min_delta_t, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
         w.f64(self.dt);
         w.params(&self.init);
         w.f64(self.h0);
@@ -700,7 +807,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_delta_t, min_u_std_v, n_lo, n_hi] = r.f64s::<8>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, min_delta_t, min_u_std_v, n_lo, n_hi] = r.f64s::<9>()?;
         let config = PaperConfig {
             window_len,
             decomposition,
@@ -711,6 +818,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
             min_log_spread,
             min_r2,
             min_arg_frac,
+            min_line_t,
             min_delta_t,
             min_u_std_v,
             n_bounds: (n_lo, n_hi),

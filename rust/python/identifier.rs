@@ -25,14 +25,14 @@ use crate::identify::{
 /// `method` "paper" (the paper's limited-memory RLS and sub-fits). Options of the
 /// paper method (defaults in brackets): `decomposition` "model" or "line" ["model"],
 /// `h_zero_frac` [0.005], `rate_frac` [0.2], `min_points` [8], `rank_tol` [1e-3],
-/// `min_log_spread` [0.05], `min_r2` [0.9], `min_arg_frac` [0.05], `min_delta_t` [3.0],
+/// `min_log_spread` [0.05], `min_r2` [0.9], `min_arg_frac` [0.05], `min_line_t` [10], `min_delta_t` [3.0],
 /// `min_u_std_v` [1e-6 V], `n_bounds` [(0.5, 4.0)] (see `PaperConfig` in the Rust docs).
 ///
 /// `method="rpem"`: recursive prediction-error method on the model's output
 /// (simulation) error, sensitivities ∂h/∂θ propagated through the integrator;
 /// `window` is not used. Options (defaults in brackets): `forgetting` λ per
-/// sample [1.0]; `memory_travel_v` memory in input travel [400 V = two periods
-/// of a 0–100 V sine]; `p0` initial covariance of θᵢ/scaleᵢ [1e-2];
+/// sample [1.0]; `memory_travel_v` memory in input travel [2000 V = ten periods
+/// of a 0–100 V sine]; `p0` initial covariance of θᵢ/scaleᵢ [1e-3];
 /// `noise_um2` expected prediction-error variance R [1e-4 µm²]; `max_trace`
 /// bound on tr P [1.0]; `max_step` largest change per sample as a fraction of
 /// each parameter's scale [0.01]; `n_bounds` [(1.0, 4.0)]; `margin` least
@@ -67,7 +67,7 @@ impl PyIdentifier {
     #[new]
     #[pyo3(signature = (dt, window, init, h0 = 0.0, method = "paper", *, decomposition = "model",
         h_zero_frac = None, rate_frac = None, min_points = None, rank_tol = None,
-        min_log_spread = None, min_r2 = None, min_arg_frac = None, min_delta_t = None, min_u_std_v = None, n_bounds = None, forgetting = None, memory_travel_v = None,
+        min_log_spread = None, min_r2 = None, min_arg_frac = None, min_line_t = None, min_delta_t = None, min_u_std_v = None, n_bounds = None, forgetting = None, memory_travel_v = None,
         p0 = None, noise_um2 = None, max_trace = None, max_step = None, margin = None, offset_walk_um = None, max_offset_step_um = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -84,6 +84,7 @@ impl PyIdentifier {
         min_log_spread: Option<f64>,
         min_r2: Option<f64>,
         min_arg_frac: Option<f64>,
+        min_line_t: Option<f64>,
         min_delta_t: Option<f64>,
         min_u_std_v: Option<f64>,
         n_bounds: Option<(f64, f64)>,
@@ -98,6 +99,15 @@ impl PyIdentifier {
         max_offset_step_um: Option<f64>,
     ) -> PyResult<Self> {
         if method == "rpem" {
+            let paper_only =
+                [h_zero_frac, rate_frac, rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, min_delta_t, min_u_std_v];
+            if decomposition != "model" || min_points.is_some() || paper_only.iter().any(Option::is_some) {
+                return Err(PyValueError::new_err(
+                    "decomposition, h_zero_frac, rate_frac, min_points, rank_tol, min_log_spread, min_r2, \
+                     min_arg_frac, min_line_t, min_delta_t and min_u_std_v are \
+                     options of method=\"paper\", not of method=\"rpem\"",
+                ));
+            }
             let mut cfg = OutputErrorConfig::default();
             let options = [
                 (&mut cfg.forgetting, forgetting),
@@ -126,6 +136,13 @@ impl PyIdentifier {
             return Err(PyValueError::new_err(format!(
                 "invalid window = {window}: at most {MAX_WINDOW} samples (the window is held in memory)"
             )));
+        }
+        let rpem_only = [forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um, max_offset_step_um];
+        if method == "paper" && rpem_only.iter().any(Option::is_some) {
+            return Err(PyValueError::new_err(
+                "forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um and \
+                 max_offset_step_um are options of method=\"rpem\", not of method=\"paper\"",
+            ));
         }
         if window < PaperConfig::MIN_WINDOW as i64 {
             return Err(PyValueError::new_err(format!(
@@ -167,6 +184,9 @@ impl PyIdentifier {
         }
         if let Some(v) = min_arg_frac {
             cfg.min_arg_frac = v;
+        }
+        if let Some(v) = min_line_t {
+            cfg.min_line_t = v;
         }
         if let Some(v) = min_delta_t {
             cfg.min_delta_t = v;
