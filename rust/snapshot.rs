@@ -36,6 +36,8 @@ pub const MAX_WINDOW_LEN: usize = crate::identify::PaperConfig::MAX_WINDOW;
 pub(crate) const KIND_MODEL: u8 = 1;
 /// Kind byte of a [`crate::identify::PaperIdentifier`] snapshot.
 pub(crate) const KIND_PAPER: u8 = 2;
+/// Kind byte of a [`crate::identify::OutputErrorIdentifier`] ("rpem") snapshot.
+pub(crate) const KIND_RPEM: u8 = 3;
 
 /// Objects that can be saved to bytes and restored bit for bit.
 pub trait Snapshot: Sized {
@@ -247,6 +249,7 @@ impl AnyIdentifier {
         #[allow(unreachable_patterns)]
         match self {
             AnyIdentifier::Paper(id) => Ok(id.to_bytes()),
+            AnyIdentifier::OutputError(id) => Ok(id.to_bytes()),
             _ => Err(Error::InvalidConfig {
                 name: "method",
                 value: f64::NAN,
@@ -260,6 +263,9 @@ impl AnyIdentifier {
     pub fn from_snapshot(bytes: &[u8]) -> Result<Self> {
         match bytes.get(5) {
             Some(&KIND_PAPER) => Ok(AnyIdentifier::Paper(crate::identify::PaperIdentifier::from_bytes(bytes)?)),
+            Some(&KIND_RPEM) => {
+                Ok(AnyIdentifier::OutputError(crate::identify::OutputErrorIdentifier::from_bytes(bytes)?))
+            }
             _ => Err(corrupt(5, "not a snapshot of an online identifier")),
         }
     }

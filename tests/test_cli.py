@@ -64,7 +64,15 @@ def test_fit_missing_file(tmp_path):
 
 
 def test_fit_json_unwritable(good_csv, tmp_path):
-    assert_one_line_error(run_cli("fit", good_csv, "--json", tmp_path / "no" / "dir" / "x.json"))
+    # The output's folder cannot be created: a regular file stands in its path.
+    (tmp_path / "file").write_text("")
+    assert_one_line_error(run_cli("fit", good_csv, "--json", tmp_path / "file" / "dir" / "x.json"))
+
+
+def test_missing_output_folders_are_created(good_csv, tmp_path):
+    out = tmp_path / "new" / "dir" / "x.json"
+    proc = run_cli("fit", good_csv, "--json", out)
+    assert proc.returncode in (0, 1) and out.exists(), proc.stderr
 
 
 @pytest.mark.parametrize("argv", [[], ["frobnicate"], ["fit"], ["fit", "a.csv", "--bogus"],

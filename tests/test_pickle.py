@@ -61,6 +61,61 @@ def test_unpickled_identifier_continues_bit_for_bit(cut: int) -> None:
     assert pickle.dumps(restored) == pickle.dumps(original)
 
 
+@pytest.mark.parametrize("cut", [0, 1, 2, 3, 1001, 9_999])
+def test_unpickled_rpem_identifier_continues_bit_for_bit(cut: int) -> None:
+    u, x = _record()
+    original = Identifier(DT, 16, Params.paper_1hz().replace(n=1.7), h0=0.05, method="rpem",
+                          memory_travel_v=800.0, offset_walk_um=0.02, noise_um2=2e-4)
+    original.push_many(u[:cut], x[:cut])
+    data = pickle.dumps(original, protocol=pickle.HIGHEST_PROTOCOL)
+    restored = pickle.loads(data)
+    assert isinstance(restored, Identifier) and restored.method == "rpem"
+    assert restored.params == original.params
+    assert restored.h == original.h
+    assert restored.status == original.status
+    a = np.array([original.push(float(uk), float(xk)) for uk, xk in zip(u[cut:], x[cut:])])
+    b = restored.push_many(u[cut:], x[cut:])
+    np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64))
+    assert restored.params == original.params
+    assert pickle.dumps(restored) == pickle.dumps(original)
+
+
+def test_rpem_snapshot_keeps_the_configuration() -> None:
+    # A restored identifier with another tuning would drift apart from the original.
+    u, x = _record(4000)
+    tuned = Identifier(DT, 16, Params.paper_1hz(), method="rpem", max_step=0.002, p0=1e-4)
+    tuned.push_many(u[:2000], x[:2000])
+    restored = pickle.loads(pickle.dumps(tuned))
+    default = Identifier(DT, 16, Params.paper_1hz(), method="rpem")
+    default.push_many(u[:2000], x[:2000])
+    assert pickle.dumps(default) != pickle.dumps(tuned)
+    y_tuned, y_restored = tuned.push_many(u[2000:], x[2000:]), restored.push_many(u[2000:], x[2000:])
+    np.testing.assert_array_equal(y_tuned, y_restored)
+    assert not np.array_equal(y_restored, default.push_many(u[2000:], x[2000:]))
+
+
+def test_rpem_truncated_and_flipped_snapshots_never_crash() -> None:
+    u, x = _record(2000)
+    ident = Identifier(DT, 16, Params.paper_1hz(), method="rpem")
+    ident.push_many(u, x)
+    restore, (data,) = ident.__reduce__()
+    assert restore(data).params == ident.params
+    for end in range(0, len(data), 13):
+        with pytest.raises(ValueError, match="snapshot"):
+            restore(data[:end])
+    with pytest.raises(ValueError, match="snapshot"):
+        restore(data + b"\x00")
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        flipped = bytearray(data)
+        flipped[int(rng.integers(len(data)))] ^= 1 << int(rng.integers(8))
+        try:
+            restored = restore(bytes(flipped))
+        except ValueError:
+            continue
+        restored.push_many(u[:50], x[:50])  # a valid, different state keeps running
+
+
 @pytest.mark.parametrize("method", _methods())
 def test_copy_and_deepcopy_are_independent(method: str) -> None:
     u, x = _record(3000)

@@ -33,6 +33,8 @@ __all__ = [
     "paper_input",
     "Model",
     "Identifier",
+    "EffectSet",
+    "simulate_extended",
 ]
 
 # ---------------------------------------------------------------- module constants
@@ -272,6 +274,10 @@ class Identifier:
     @property
     def status(self) -> _IdentifierStatus:
         """What the last push did (a new dict at each read)."""
+    def __copy__(self) -> "Identifier":
+        """An independent copy that continues exactly like this one."""
+    def __deepcopy__(self, _memo: Dict[int, object], /) -> "Identifier":
+        """As ``__copy__``."""
     def reset(self) -> None:
         """Back to the state right after construction."""
 
@@ -283,15 +289,15 @@ class EffectSet:
     resonance={"fn_hz": Hz, "zeta": -}, drift={"rate_um_per_s": µm/s},
     delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError."""
     vocabulary: ClassVar[List[str]]
-    def __init__(
-        self,
+    def __new__(
+        cls,
         *,
         creep: Optional[Dict[str, object]] = None,
         input_lag: Optional[Dict[str, float]] = None,
         resonance: Optional[Dict[str, float]] = None,
         drift: Optional[Dict[str, float]] = None,
         delay: Optional[Dict[str, int]] = None,
-    ) -> None: ...
+    ) -> "EffectSet": ...
     @property
     def names(self) -> List[str]:
         """Names of the effects present, in vocabulary order."""
@@ -299,7 +305,7 @@ class EffectSet:
     @staticmethod
     def from_dict(d: Dict[str, Dict[str, object]]) -> EffectSet: ...
     def __len__(self) -> int: ...
-    def __contains__(self, name: object) -> bool: ...
+    def __contains__(self, key: object, /) -> bool: ...
 
 def simulate_extended(
     params: Params, effects: Optional[EffectSet], u: ArrayLike, dt: float, h0: float = 0.0

@@ -119,8 +119,13 @@ pub struct OutputErrorConfig {
     /// the offset follows what the model cannot explain within a few samples,
     /// which makes the prediction one step ahead sharp; 0 makes x0 a constant.
     pub offset_walk_um: f64,
-    /// Initial covariance of the effects' scaled parameters (ln fc, gᵢ/scale), which
-    /// usually start from a guess rather than a fit. Default 0.3.
+    /// Initial covariance of the effects' coordinates: ln fc of the input lag and
+    /// the logistic coordinate η = ln(g/(gmax − g)) of each creep gain, which near
+    /// the usual gains (g ≪ gmax) is ln g. Both are relative: √p0_effects is the
+    /// prior relative standard deviation of fc and of each gain. Default 0.01
+    /// (10 %): the effects are meant to start from an offline extended fit
+    /// (`fit_extended`, `diagnose`); larger values let fc and the slow gains trade
+    /// places with x0 and kv over the first periods.
     pub p0_effects: f64,
     /// R: expected variance of the prediction error [µm²]. Default 1e-4 µm²
     /// (0.01 µm: sensor noise plus what the model cannot explain).
@@ -158,7 +163,7 @@ impl Default for OutputErrorConfig {
             memory_travel_v: 2000.0,
             offset_walk_um: 0.05,
             p0: 1e-3,
-            p0_effects: 0.3,
+            p0_effects: 0.01,
             noise_um2: 1e-4,
             max_trace: 1.0,
             max_step: 0.01,
@@ -207,8 +212,8 @@ impl OutputErrorConfig {
         if !(self.creep_gain_scale_um_per_v.is_finite() && self.creep_gain_scale_um_per_v > 0.0) {
             return bad("creep_gain_scale_um_per_v", self.creep_gain_scale_um_per_v, "must be finite and > 0");
         }
-        if !(self.creep_gain_max_um_per_v.is_finite() && self.creep_gain_max_um_per_v >= 0.0) {
-            return bad("creep_gain_max_um_per_v", self.creep_gain_max_um_per_v, "must be finite and >= 0");
+        if !(self.creep_gain_max_um_per_v.is_finite() && self.creep_gain_max_um_per_v > 0.0) {
+            return bad("creep_gain_max_um_per_v", self.creep_gain_max_um_per_v, "must be finite and > 0");
         }
         let (lo, hi) = self.fc_bounds_hz;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
@@ -450,6 +455,7 @@ struct Estimates {
     creep_gain: [f64; MAX_CREEP],
 }
 
+#[cfg(test)]
 impl Estimates {
     fn to_theta(self) -> ParamVector {
         let mut t = ParamVector::zeros();
@@ -513,6 +519,32 @@ impl Chain {
     fn is_finite(&self) -> bool {
         self.dh.iter().chain(self.dua.iter()).all(|v| v.is_finite())
             && self.dcreep.iter().all(|d| d.iter().all(|v| v.is_finite()))
+    }
+
+    /// [`Chain::step`] without effects (u_a = u, no creep), with ∂x̂/∂θ over the
+    /// base parameters only: the same values, without the work on the effect slots.
+    #[inline]
+    fn step_base(&mut self, p: &Params, u_prev: Option<f64>, u: f64, dt: f64) -> (f64, SVector<f64, NUM_BASE>) {
+        match u_prev {
+            None => {
+                self.ua = u;
+                self.dua = ParamVector::zeros();
+            }
+            Some(_) => {
+                let ua0 = self.ua;
+                self.ua = u;
+                let h_old = self.h;
+                self.h = advance_h(p, h_old, ua0, u, dt);
+                let zero = SVector::<f64, NUM_BASE>::zeros();
+                let dh: SVector<f64, NUM_BASE> = self.dh.fixed_rows::<NUM_BASE>(0).into_owned();
+                let dh = advance_h_with_gradient(p, h_old, &dh, (ua0, &zero), (u, &zero), dt).1;
+                self.dh.fixed_rows_mut::<NUM_BASE>(0).copy_from(&dh);
+            }
+        }
+        let mut psi: SVector<f64, NUM_BASE> = self.dh.fixed_rows::<NUM_BASE>(0).into_owned();
+        psi[I_KV] += self.ua;
+        psi[I_X0] += 1.0;
+        (output(p, self.ua, self.h), psi)
     }
 
     /// Advances the chain to the sample `u` (the first sample when `u_prev` is None),
@@ -654,7 +686,10 @@ impl OutputErrorIdentifier {
             for (i, (&tau, &g)) in creep.tau_s.iter().zip(&creep.gain_um_per_v).enumerate() {
                 shape.creep_tau[i] = tau;
                 shape.creep_decay[i] = first_order_coefficient(tau, dt);
-                est.creep_gain[i] = g.clamp(0.0, config.creep_gain_max_um_per_v);
+                // The logistic coordinate cannot reach 0 or gmax: a gain given below
+                // `START_GAIN_FRACTION`·scale starts there, one near gmax just below it.
+                let lowest = (START_GAIN_FRACTION * config.creep_gain_scale_um_per_v).min(0.5 * config.creep_gain_max_um_per_v);
+                est.creep_gain[i] = g.clamp(lowest, (1.0 - START_GAIN_FRACTION) * config.creep_gain_max_um_per_v);
                 active[I_CREEP + i] = 1.0;
                 scales[I_CREEP + i] = config.creep_gain_scale_um_per_v;
             }
@@ -715,6 +750,9 @@ impl OutputErrorIdentifier {
     }
 }
 
+/// Creep gains start from at least this fraction of `creep_gain_scale_um_per_v`.
+const START_GAIN_FRACTION: f64 = 0.05;
+
 /// P₀: `p0` on the base parameters, `p0_effects` on the effects' (zero where absent).
 fn initial_covariance(active: &ParamVector, cfg: &OutputErrorConfig) -> Covariance {
     let mut d = *active * cfg.p0;
@@ -743,78 +781,169 @@ fn project_params(mut p: Params, cfg: &OutputErrorConfig) -> Params {
     p
 }
 
-impl OnlineIdentifier for OutputErrorIdentifier {
-    fn push(&mut self, u: f64, x: f64) -> Result<f64> {
-        finite_sample("u", u)?;
-        finite_sample("x", x)?;
-        let cfg = self.config;
+/// Creep gain from its logistic coordinate: g = gmax·σ(η) ∈ [0, gmax] [µm/V].
+#[inline]
+fn gain_from_logit(eta: f64, gmax: f64) -> f64 {
+    gmax / (1.0 + (-eta).exp())
+}
 
-        // 1. Predict with the estimates from before the sample: h by the model
-        // itself, the sensitivities alongside.
-        let (prediction, psi) = self.chain.step(&self.est, &self.shape, self.u_prev, u, self.dt);
+/// Logistic coordinate of a creep gain: η = ln(g / (gmax − g)).
+#[inline]
+fn logit_of_gain(g: f64, gmax: f64) -> f64 {
+    (g / (gmax - g)).ln()
+}
+
+/// aᵀb summed in the order nalgebra uses for a [`NUM_PARAMS`]-vector whose slots
+/// M.. are zero, so that the base path (M = [`NUM_BASE`]) gives the bits of the
+/// full-width computation it replaces.
+#[inline(always)]
+fn dot_as_full<const M: usize>(a: &SVector<f64, M>, b: &SVector<f64, M>) -> f64 {
+    if M == NUM_PARAMS {
+        return a.dot(b);
+    }
+    let mut acc = [0.0f64; 8];
+    for (i, slot) in acc.iter_mut().enumerate().take(M.min(8)) {
+        *slot = a[i] * b[i];
+    }
+    let mut res = 0.0;
+    res += acc[0] + acc[4];
+    res += acc[1] + acc[5];
+    res += acc[2] + acc[6];
+    res += acc[3] + acc[7];
+    for k in 8..M {
+        res += a[k] * b[k];
+    }
+    res
+}
+
+impl OutputErrorIdentifier {
+    /// Steps 2 and 3 of the module docs on the first M slots of θ: M = [`NUM_BASE`]
+    /// without effects (the effect slots are then zero and are skipped: a 7 × 7
+    /// covariance update instead of 12 × 12, same results), [`NUM_PARAMS`] with them.
+    ///
+    /// Coordinates of the step: θᵢ/scaleᵢ for the base parameters, ln fc for the
+    /// lag, and for each creep gain its logistic coordinate η = ln(g/(gmax − g)),
+    /// gmax = `creep_gain_max_um_per_v`: the gains stay within (0, gmax) without
+    /// clipping, so no bound works against the covariance (near a bound the
+    /// sensitivity ∂x̂/∂η = ∂x̂/∂g·g(1 − g/gmax) fades instead). Should fc reach
+    /// `fc_bounds_hz`, it is held there and its covariance is decoupled from the
+    /// other parameters (the off-diagonal terms of ln fc are zeroed), so that the
+    /// others no longer move to make up for it.
+    #[inline(always)]
+    fn update<const M: usize>(&mut self, prediction: f64, u: f64, x: f64, psi: SVector<f64, M>) -> OutputErrorStatus {
+        let cfg = self.config;
         let mut status = OutputErrorStatus { samples: self.status.samples + 1, ..Default::default() };
         let e = x - prediction;
         status.innovation_um = e;
         let travel = self.u_prev.map_or(0.0, |u0| (u - u0).abs());
         let first = self.u_prev.is_none();
         self.u_prev = Some(u);
-
-        // 2. Gauss–Newton step in scaled coordinates.
-        if !first {
-            let psi = psi.component_mul(&self.scales).component_mul(&self.active);
-            let p_psi = self.p * psi;
-            let s = cfg.noise_um2 + psi.dot(&p_psi);
-            let gain = p_psi / s;
-            let mut step = gain * e;
-            // Trust region: every parameter but the offset moves by at most
-            // max_step of its scale (the step scaled down as a whole); the offset x0,
-            // which tracks slow disturbances, by at most max_offset_step_um.
-            let offset_step = step[I_X0] * self.scales[I_X0];
-            step[I_X0] = 0.0;
-            let largest = step.amax();
-            if largest > cfg.max_step {
-                step *= cfg.max_step / largest;
-                status.step_limited = true;
-            }
-            let offset_capped = offset_step.clamp(-cfg.max_offset_step_um, cfg.max_offset_step_um);
-            status.step_limited |= offset_capped != offset_step;
-            step[I_X0] = offset_capped / self.scales[I_X0];
-            let lambda = cfg.forgetting * (-travel / cfg.memory_travel_v).exp();
-            let mut new_p = (self.p - gain * p_psi.transpose()) / lambda;
-            new_p = (new_p + new_p.transpose()) * 0.5;
-            new_p[(I_X0, I_X0)] += (cfg.offset_walk_um / self.scales[I_X0]).powi(2);
-            let trace = new_p.trace();
-            if trace > cfg.max_trace {
-                new_p *= cfg.max_trace / trace;
-                status.trace_capped = true;
-            }
-            let theta = self.est.to_theta() + step.component_mul(&self.scales);
-            let candidate = Estimates::from_theta(&theta, self.shape.lag, &self.est);
-            let finite = step.iter().all(|v| v.is_finite())
-                && new_p.iter().all(|v| v.is_finite())
-                && new_p.diagonal().iter().all(|&v| v >= 0.0);
-            match candidate {
-                Ok(raw) if finite => {
-                    let mut candidate = raw;
-                    candidate.params = project_params(raw.params, &cfg);
-                    if self.shape.lag {
-                        candidate.fc_hz = raw.fc_hz.clamp(cfg.fc_bounds_hz.0, cfg.fc_bounds_hz.1);
+        if first {
+            return status;
+        }
+        let gmax = cfg.creep_gain_max_um_per_v;
+        let n_creep = if M == NUM_PARAMS { self.shape.n_creep } else { 0 };
+        // ∂θ/∂(step coordinates): the scales, and g(1 − g/gmax) for the gains.
+        let mut jac: SVector<f64, M> = self.scales.fixed_rows::<M>(0).into_owned();
+        for i in 0..n_creep {
+            let g = self.est.creep_gain[i];
+            jac[I_CREEP + i] = g * (1.0 - g / gmax);
+        }
+        let active: SVector<f64, M> = self.active.fixed_rows::<M>(0).into_owned();
+        let psi = psi.component_mul(&jac).component_mul(&active);
+        let p: SMatrix<f64, M, M> = self.p.fixed_view::<M, M>(0, 0).into_owned();
+        let p_psi = p * psi;
+        let s = cfg.noise_um2 + dot_as_full(&psi, &p_psi);
+        let gain = p_psi / s;
+        let mut step = gain * e;
+        // Trust region: every parameter but the offset moves by at most
+        // max_step of its scale (the step scaled down as a whole); the offset x0,
+        // which tracks slow disturbances, by at most max_offset_step_um.
+        let offset_step = step[I_X0] * self.scales[I_X0];
+        step[I_X0] = 0.0;
+        let largest = step.amax();
+        if largest > cfg.max_step {
+            step *= cfg.max_step / largest;
+            status.step_limited = true;
+        }
+        let offset_capped = offset_step.clamp(-cfg.max_offset_step_um, cfg.max_offset_step_um);
+        status.step_limited |= offset_capped != offset_step;
+        step[I_X0] = offset_capped / self.scales[I_X0];
+        let lambda = cfg.forgetting * (-travel / cfg.memory_travel_v).exp();
+        let mut new_p = (p - gain * p_psi.transpose()) / lambda;
+        new_p = (new_p + new_p.transpose()) * 0.5;
+        new_p[(I_X0, I_X0)] += (cfg.offset_walk_um / self.scales[I_X0]).powi(2);
+        let trace = new_p.trace();
+        if trace > cfg.max_trace {
+            new_p *= cfg.max_trace / trace;
+            status.trace_capped = true;
+        }
+        let mut theta = self.est.params.to_array();
+        for (i, t) in theta.iter_mut().enumerate() {
+            *t += step[i] * self.scales[i];
+        }
+        let finite = step.iter().all(|v| v.is_finite())
+            && new_p.iter().all(|v| v.is_finite())
+            && new_p.diagonal().iter().all(|&v| v >= 0.0);
+        match Params::from_array(theta) {
+            Ok(params) if finite => {
+                let mut raw = Estimates { params, ..self.est };
+                let mut candidate = raw;
+                candidate.params = project_params(raw.params, &cfg);
+                if M == NUM_PARAMS && self.shape.lag {
+                    raw.fc_hz = (self.est.fc_hz.ln() + step[I_LN_FC] * self.scales[I_LN_FC]).exp();
+                    candidate.fc_hz = raw.fc_hz.clamp(cfg.fc_bounds_hz.0, cfg.fc_bounds_hz.1);
+                    if candidate.fc_hz != raw.fc_hz {
+                        for j in 0..M {
+                            if j != I_LN_FC {
+                                new_p[(I_LN_FC, j)] = 0.0;
+                                new_p[(j, I_LN_FC)] = 0.0;
+                            }
+                        }
                     }
-                    for g in candidate.creep_gain.iter_mut().take(self.shape.n_creep) {
-                        *g = g.clamp(0.0, cfg.creep_gain_max_um_per_v);
-                    }
-                    status.projected = candidate != raw;
-                    self.est = candidate;
-                    self.p = new_p;
-                    status.updated = true;
                 }
-                _ => {
-                    self.p = initial_covariance(&self.active, &cfg);
-                    status.restarted = true;
+                for i in 0..n_creep {
+                    let eta = logit_of_gain(self.est.creep_gain[i], gmax) + step[I_CREEP + i];
+                    let g = gain_from_logit(eta, gmax);
+                    raw.creep_gain[i] = g;
+                    // Kept off the end points, where η would be infinite.
+                    candidate.creep_gain[i] = g.clamp(GAIN_FLOOR * gmax, (1.0 - GAIN_FLOOR) * gmax);
                 }
+                status.projected = candidate != raw;
+                self.est = candidate;
+                self.p.fixed_view_mut::<M, M>(0, 0).copy_from(&new_p);
+                status.updated = true;
+            }
+            _ => {
+                self.p = initial_covariance(&self.active, &cfg);
+                status.restarted = true;
             }
         }
-        if !self.chain.is_finite() {
+        status
+    }
+}
+
+/// Creep gains are held within [`GAIN_FLOOR`·gmax, (1 − `GAIN_FLOOR`)·gmax].
+const GAIN_FLOOR: f64 = 1e-9;
+
+impl OnlineIdentifier for OutputErrorIdentifier {
+    fn push(&mut self, u: f64, x: f64) -> Result<f64> {
+        finite_sample("u", u)?;
+        finite_sample("x", x)?;
+
+        // 1. Predict with the estimates from before the sample: h by the model
+        // itself, the sensitivities alongside. 2–3. Update (see `update`).
+        let (prediction, mut status, finite) = if self.shape.lag || self.shape.n_creep > 0 {
+            let (prediction, psi) = self.chain.step(&self.est, &self.shape, self.u_prev, u, self.dt);
+            let status = self.update::<NUM_PARAMS>(prediction, u, x, psi);
+            (prediction, status, self.chain.is_finite())
+        } else {
+            let (prediction, psi) = self.chain.step_base(&self.est.params, self.u_prev, u, self.dt);
+            let status = self.update::<NUM_BASE>(prediction, u, x, psi);
+            // Without effects only ∂h/∂θ moves (∂u_a/∂θ and the creep rows stay zero).
+            (prediction, status, self.chain.dh.iter().all(|v| v.is_finite()))
+        };
+        if !finite {
             let h = self.chain.h;
             let ua = self.chain.ua;
             let creep = self.chain.creep;
@@ -1148,6 +1277,316 @@ mod tests {
         ];
         for cfg in bad {
             assert!(OutputErrorIdentifier::new(1e-4, Params::paper_1hz(), 0.0, cfg).is_err(), "{cfg:?}");
+        }
+    }
+}
+
+// Save and restore (see `crate::snapshot`): every field the identifier carries
+// between samples, written as it is held. The constants derived from the
+// configuration and the effects (parameter scales, active slots, the creep
+// elements' decay factors) are rebuilt by the constructor from the same values,
+// with the same bits. The struct patterns below are exhaustive on purpose: a
+// field added to any of these types stops the build here until it is saved.
+mod snapshot_impl {
+    use super::*;
+    use crate::snapshot::{corrupt, Reader, Snapshot, Writer, KIND_RPEM};
+
+    fn write_estimates(w: &mut Writer, e: &Estimates) {
+        let Estimates { params, fc_hz, creep_gain } = e;
+        w.params(params);
+        w.f64(*fc_hz);
+        w.f64s(creep_gain);
+    }
+
+    fn read_estimates(r: &mut Reader<'_>) -> Result<Estimates> {
+        let params = r.params()?;
+        let at = r.offset();
+        let fc_hz = r.finite()?;
+        if fc_hz <= 0.0 {
+            return Err(corrupt(at, "snapshot holds a corner frequency <= 0 Hz"));
+        }
+        let mut creep_gain = [0.0; MAX_CREEP];
+        for g in creep_gain.iter_mut() {
+            *g = r.finite()?;
+        }
+        Ok(Estimates { params, fc_hz, creep_gain })
+    }
+
+    fn read_vector(r: &mut Reader<'_>) -> Result<ParamVector> {
+        let mut v = ParamVector::zeros();
+        for x in v.iter_mut() {
+            *x = r.finite()?;
+        }
+        Ok(v)
+    }
+
+    impl Snapshot for OutputErrorIdentifier {
+        fn to_bytes(&self) -> Vec<u8> {
+            let OutputErrorIdentifier { config, dt, init, h0, est, shape, scales: _, active: _, chain, u_prev, p, status } =
+                self;
+            let mut w = Writer::new(KIND_RPEM);
+            let OutputErrorConfig {
+                forgetting,
+                memory_travel_v,
+                p0,
+                offset_walk_um,
+                p0_effects,
+                noise_um2,
+                max_trace,
+                max_step,
+                max_offset_step_um,
+                n_bounds,
+                margin,
+                scales,
+                creep_gain_scale_um_per_v,
+                creep_gain_max_um_per_v,
+                fc_bounds_hz,
+            } = *config;
+            w.f64s(&[
+                forgetting,
+                memory_travel_v,
+                p0,
+                offset_walk_um,
+                p0_effects,
+                noise_um2,
+                max_trace,
+                max_step,
+                max_offset_step_um,
+                n_bounds.0,
+                n_bounds.1,
+                margin,
+                creep_gain_scale_um_per_v,
+                creep_gain_max_um_per_v,
+                fc_bounds_hz.0,
+                fc_bounds_hz.1,
+            ]);
+            w.f64s(&scales);
+            w.f64(*dt);
+            w.f64(*h0);
+            let Shape { lag, n_creep, creep_tau, creep_decay: _ } = *shape;
+            w.u8(lag as u8);
+            w.u64(n_creep as u64);
+            w.f64s(&creep_tau[..n_creep.min(MAX_CREEP)]);
+            write_estimates(&mut w, init);
+            write_estimates(&mut w, est);
+            let Chain { h, dh, ua, dua, creep, dcreep } = chain;
+            w.f64(*h);
+            w.f64s(dh.as_slice());
+            w.f64(*ua);
+            w.f64s(dua.as_slice());
+            w.f64s(creep);
+            for d in dcreep {
+                w.f64s(d.as_slice());
+            }
+            w.opt_f64(*u_prev);
+            w.f64s(p.as_slice());
+            let OutputErrorStatus { samples, updated, step_limited, projected, trace_capped, restarted, innovation_um, trace } =
+                *status;
+            w.u64(samples);
+            for flag in [updated, step_limited, projected, trace_capped, restarted] {
+                w.u8(flag as u8);
+            }
+            w.f64(innovation_um);
+            w.f64(trace);
+            w.finish()
+        }
+
+        fn from_bytes(bytes: &[u8]) -> Result<Self> {
+            let mut r = Reader::new(bytes, KIND_RPEM)?;
+            let config_at = r.offset();
+            let c = r.f64s::<16>()?;
+            let scales = r.f64s::<NUM_BASE>()?;
+            let config = OutputErrorConfig {
+                forgetting: c[0],
+                memory_travel_v: c[1],
+                p0: c[2],
+                offset_walk_um: c[3],
+                p0_effects: c[4],
+                noise_um2: c[5],
+                max_trace: c[6],
+                max_step: c[7],
+                max_offset_step_um: c[8],
+                n_bounds: (c[9], c[10]),
+                margin: c[11],
+                creep_gain_scale_um_per_v: c[12],
+                creep_gain_max_um_per_v: c[13],
+                fc_bounds_hz: (c[14], c[15]),
+                scales,
+            };
+            let dt = r.f64()?;
+            let h0 = r.finite()?;
+            let lag = r.bool()?;
+            let at = r.offset();
+            let n_creep = r.u64()?;
+            if n_creep > MAX_CREEP as u64 {
+                return Err(corrupt(at, "snapshot declares more creep elements than the method identifies"));
+            }
+            let n_creep = n_creep as usize;
+            let mut creep_tau = [1.0; MAX_CREEP];
+            for tau in creep_tau.iter_mut().take(n_creep) {
+                *tau = r.finite()?;
+            }
+            let init = read_estimates(&mut r)?;
+            let est = read_estimates(&mut r)?;
+
+            // The constructor validates dt, h0, the configuration and the effects,
+            // and rebuilds the derived constants; its error is reported as a corrupt
+            // snapshot (the values were valid when they were written).
+            let effects = EffectSet {
+                input_lag: lag.then_some(InputLag { fc_hz: init.fc_hz }),
+                creep: (n_creep > 0).then(|| Creep {
+                    tau_s: creep_tau[..n_creep].to_vec(),
+                    gain_um_per_v: init.creep_gain[..n_creep].to_vec(),
+                }),
+                ..EffectSet::none()
+            };
+            let mut id = OutputErrorIdentifier::with_effects(dt, init.params, &effects, h0, config)
+                .map_err(|_| corrupt(config_at, "snapshot holds an invalid configuration, time step or effect"))?;
+            // Stored as they were held (the constructor's projection of the starting
+            // values is not repeated: projecting twice may move a rounding bit).
+            id.init = init;
+            id.est = est;
+
+            let h = r.finite()?;
+            let dh = read_vector(&mut r)?;
+            let ua = r.finite()?;
+            let dua = read_vector(&mut r)?;
+            let mut creep = [0.0; MAX_CREEP];
+            for s in creep.iter_mut() {
+                *s = r.finite()?;
+            }
+            let mut dcreep = [ParamVector::zeros(); MAX_CREEP];
+            for d in dcreep.iter_mut() {
+                *d = read_vector(&mut r)?;
+            }
+            id.chain = Chain { h, dh, ua, dua, creep, dcreep };
+            id.u_prev = r.opt_f64()?;
+            let p_at = r.offset();
+            let mut p = Covariance::zeros();
+            for v in p.iter_mut() {
+                *v = r.finite()?;
+            }
+            if p.diagonal().iter().any(|&v| v < 0.0) {
+                return Err(corrupt(p_at, "snapshot holds a covariance with a negative variance"));
+            }
+            id.p = p;
+            let at = r.offset();
+            let samples = r.u64()?;
+            let mut flags = [false; 5];
+            for f in flags.iter_mut() {
+                *f = r.bool()?;
+            }
+            let innovation_um = r.f64()?;
+            let trace = r.f64()?;
+            r.end()?;
+            if (samples == 0) != id.u_prev.is_none() {
+                return Err(corrupt(at, "sample count does not match the stored previous input"));
+            }
+            let [updated, step_limited, projected, trace_capped, restarted] = flags;
+            id.status =
+                OutputErrorStatus { samples, updated, step_limited, projected, trace_capped, restarted, innovation_um, trace };
+            Ok(id)
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+        use crate::identify::AnyIdentifier;
+        use crate::model::{paper_input, simulate};
+
+        fn record() -> (Vec<f64>, Vec<f64>) {
+            let dt = 1e-4;
+            let u: Vec<f64> = paper_input(dt, 0.0)[..6_000].to_vec();
+            let (mut x, _) = simulate(&Params::paper_1hz(), &u, dt, 0.0, None).unwrap();
+            for (k, v) in x.iter_mut().enumerate() {
+                *v += 1e-3 * ((k as f64 * 0.37).sin() + (k as f64 * 1.91).cos());
+            }
+            (u, x)
+        }
+
+        fn identifiers() -> Vec<OutputErrorIdentifier> {
+            let dt = 1e-4;
+            let p = Params { n: 1.7, ..Params::paper_1hz() };
+            let effects = EffectSet {
+                input_lag: Some(InputLag { fc_hz: 800.0 }),
+                creep: Some(Creep { tau_s: vec![0.01, 0.3], gain_um_per_v: vec![0.001, 0.0005] }),
+                ..EffectSet::none()
+            };
+            let cfg = OutputErrorConfig { memory_travel_v: 500.0, offset_walk_um: 0.02, ..Default::default() };
+            vec![
+                OutputErrorIdentifier::new(dt, p, 0.05, OutputErrorConfig::default()).unwrap(),
+                OutputErrorIdentifier::with_effects(dt, p, &effects, 0.0, cfg).unwrap(),
+            ]
+        }
+
+        #[test]
+        fn restored_identifier_continues_bit_for_bit() {
+            let (u, x) = record();
+            for fresh in identifiers() {
+                for cut in [0, 1, 2, 3, 777, 4_000] {
+                    let mut original = fresh.clone();
+                    for k in 0..cut {
+                        original.push(u[k], x[k]).unwrap();
+                    }
+                    let bytes = original.to_bytes();
+                    let mut restored = OutputErrorIdentifier::from_bytes(&bytes).unwrap();
+                    assert_eq!(restored, original, "cut {cut}");
+                    assert_eq!(restored.to_bytes(), bytes, "cut {cut}");
+                    for k in cut..u.len() {
+                        let a = original.push(u[k], x[k]).unwrap();
+                        let b = restored.push(u[k], x[k]).unwrap();
+                        assert_eq!(a.to_bits(), b.to_bits(), "cut {cut}, sample {k}");
+                    }
+                    assert_eq!(restored, original);
+                    // And through the run-time choice of method.
+                    let any = AnyIdentifier::OutputError(original.clone());
+                    let back = AnyIdentifier::from_snapshot(&any.to_snapshot().unwrap()).unwrap();
+                    assert_eq!(back, any);
+                }
+            }
+        }
+
+        #[test]
+        fn corrupt_snapshots_are_errors_naming_snapshot() {
+            let (u, x) = record();
+            for mut id in identifiers() {
+                for k in 0..500 {
+                    id.push(u[k], x[k]).unwrap();
+                }
+                let bytes = id.to_bytes();
+                let names_snapshot = |e: Error| matches!(e, Error::InvalidConfig { name: "snapshot", .. });
+                for cut in 0..bytes.len() {
+                    let err = OutputErrorIdentifier::from_bytes(&bytes[..cut]).unwrap_err();
+                    assert!(names_snapshot(err), "cut {cut}");
+                }
+                let mut longer = bytes.clone();
+                longer.push(0);
+                assert!(names_snapshot(OutputErrorIdentifier::from_bytes(&longer).unwrap_err()));
+                // A NaN in the covariance, a forgetting factor of 2, a paper snapshot.
+                let mut bad = bytes.clone();
+                let p_start = bytes.len() - (8 + 5 + 16) - NUM_PARAMS * NUM_PARAMS * 8;
+                bad[p_start..p_start + 8].copy_from_slice(&f64::NAN.to_bits().to_le_bytes());
+                assert!(names_snapshot(OutputErrorIdentifier::from_bytes(&bad).unwrap_err()));
+                let mut bad = bytes.clone();
+                bad[6..14].copy_from_slice(&2.0f64.to_bits().to_le_bytes());
+                assert!(names_snapshot(OutputErrorIdentifier::from_bytes(&bad).unwrap_err()));
+                let mut other_kind = bytes.clone();
+                other_kind[5] = crate::snapshot::KIND_PAPER;
+                assert!(AnyIdentifier::from_snapshot(&other_kind).is_err());
+                // Every single flipped bit: an error or a valid identifier, never a panic.
+                for i in 0..bytes.len() {
+                    for bit in [0, 3, 6, 7] {
+                        let mut flipped = bytes.clone();
+                        flipped[i] ^= 1 << bit;
+                        if let Ok(mut r) = OutputErrorIdentifier::from_bytes(&flipped) {
+                            for k in 500..520 {
+                                let _ = r.push(u[k], x[k]);
+                            }
+                        }
+                    }
+                }
+            }
         }
     }
 }

@@ -5,6 +5,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyType};
 
+use super::effects::PyEffectSet;
 use super::params::PyParams;
 use super::{samples, value_error};
 use crate::identify::{
@@ -38,7 +39,13 @@ use crate::identify::{
 /// each parameter's scale [0.01]; `n_bounds` [(1.0, 4.0)]; `margin` least
 /// β + γ and β − γ [1e-6]; `offset_walk_um` random walk of x0 per sample
 /// (creep, drift) [0.05 µm]; `max_offset_step_um` largest change of x0 per
-/// sample [0.5 µm].
+/// sample [0.5 µm]; `effects` an `EffectSet` (e.g. from `boucwen.effects.fit_extended`
+/// or `boucwen.diagnose`) whose `input_lag` fc and `creep` gains are identified
+/// too, starting from the values given (creep time constants fixed, at most 4
+/// elements; other effects are rejected) [None]; `p0_effects` initial covariance
+/// of ln fc and of the gains' logistic coordinates, i.e. a relative standard
+/// deviation of about √p0_effects [0.01 = 10 %]. The current effect estimates
+/// are in `effects`.
 /// Largest window [samples] accepted (the window is held in memory).
 const MAX_WINDOW: usize = PaperConfig::MAX_WINDOW;
 
@@ -68,7 +75,8 @@ impl PyIdentifier {
     #[pyo3(signature = (dt, window, init, h0 = 0.0, method = "paper", *, decomposition = "model",
         h_zero_frac = None, rate_frac = None, min_points = None, rank_tol = None,
         min_log_spread = None, min_r2 = None, min_arg_frac = None, min_line_t = None, min_delta_t = None, min_u_std_v = None, n_bounds = None, forgetting = None, memory_travel_v = None,
-        p0 = None, noise_um2 = None, max_trace = None, max_step = None, margin = None, offset_walk_um = None, max_offset_step_um = None))]
+        p0 = None, noise_um2 = None, max_trace = None, max_step = None, margin = None, offset_walk_um = None, max_offset_step_um = None,
+        effects = None, p0_effects = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         dt: f64,
@@ -97,6 +105,8 @@ impl PyIdentifier {
         margin: Option<f64>,
         offset_walk_um: Option<f64>,
         max_offset_step_um: Option<f64>,
+        effects: Option<PyRef<'_, PyEffectSet>>,
+        p0_effects: Option<f64>,
     ) -> PyResult<Self> {
         if method == "rpem" {
             let paper_only =
@@ -128,7 +138,11 @@ impl PyIdentifier {
             if let Some(v) = n_bounds {
                 cfg.n_bounds = v;
             }
-            let id = OutputErrorIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
+            if let Some(v) = p0_effects {
+                cfg.p0_effects = v;
+            }
+            let effects = effects.map(|e| e.inner.clone()).unwrap_or_default();
+            let id = OutputErrorIdentifier::with_effects(dt, init.inner, &effects, h0, cfg).map_err(value_error)?;
             return Ok(PyIdentifier { inner: AnyIdentifier::OutputError(id) });
         }
         let window = count_arg(window, "window")?;
@@ -137,11 +151,12 @@ impl PyIdentifier {
                 "invalid window = {window}: at most {MAX_WINDOW} samples (the window is held in memory)"
             )));
         }
-        let rpem_only = [forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um, max_offset_step_um];
-        if method == "paper" && rpem_only.iter().any(Option::is_some) {
+        let rpem_only =
+            [forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um, max_offset_step_um, p0_effects];
+        if method == "paper" && (rpem_only.iter().any(Option::is_some) || effects.is_some()) {
             return Err(PyValueError::new_err(
-                "forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um and \
-                 max_offset_step_um are options of method=\"rpem\", not of method=\"paper\"",
+                "forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um, \
+                 max_offset_step_um, effects and p0_effects are options of method=\"rpem\", not of method=\"paper\"",
             ));
         }
         if window < PaperConfig::MIN_WINDOW as i64 {
@@ -242,6 +257,18 @@ impl PyIdentifier {
     #[getter]
     fn h(&self) -> f64 {
         self.inner.h()
+    }
+
+    /// The effects identified along with the parameters, with their current
+    /// estimates (input_lag fc [Hz], creep gains [µm/V]; the creep time constants
+    /// stay as given): an `EffectSet`, empty for method="rpem" without effects, and
+    /// None for method="paper", which identifies no effects.
+    #[getter]
+    fn effects(&self) -> Option<PyEffectSet> {
+        match &self.inner {
+            AnyIdentifier::OutputError(id) => Some(PyEffectSet { inner: id.effects() }),
+            _ => None,
+        }
     }
 
     /// The online method in use.

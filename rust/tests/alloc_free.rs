@@ -1,6 +1,7 @@
-//! The per-sample paths do no heap allocation: `PaperIdentifier::push` (after
-//! construction and warm-up) and `Model::step`, proved with a counting global
-//! allocator.
+//! The per-sample paths do no heap allocation: `PaperIdentifier::push` and
+//! `OutputErrorIdentifier::push` (after construction and warm-up), their run-time
+//! dispatch `AnyIdentifier::push_many`, and `Model::step`, proved with a counting
+//! global allocator.
 //!
 //! The counter is thread-local, so allocations made meanwhile by the test harness on
 //! other threads are not charged to the code under test.
@@ -8,7 +9,12 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use boucwen::identify::{AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfig, PaperIdentifier, SubFit};
+use boucwen::effects::{Creep, InputLag};
+use boucwen::identify::{
+    AnyIdentifier, Decomposition, OnlineIdentifier, OutputErrorConfig, OutputErrorIdentifier, PaperConfig, PaperIdentifier,
+    SubFit,
+};
+use boucwen::EffectSet;
 use boucwen::model::paper_input;
 use boucwen::{simulate, Model, Params};
 
@@ -140,6 +146,61 @@ fn paper_identifier_push_does_not_allocate_window_100() {
 fn paper_identifier_push_does_not_allocate_window_10_000() {
     check_identifier(10_000, Decomposition::Model);
     check_identifier(10_000, Decomposition::Line);
+}
+
+/// The output-error identifier ("rpem") over the whole paper input, after a warm-up:
+/// directly and through `AnyIdentifier::push_many`.
+fn check_output_error(make: impl Fn() -> OutputErrorIdentifier, what: &str) {
+    let (u, x) = record();
+    let warm = 1000;
+    let mut id = make();
+    for (&a, &b) in u[..warm].iter().zip(&x[..warm]) {
+        id.push(a, b).expect("finite sample");
+    }
+    let (count, (checksum, updated, limited)) = allocations_during(|| {
+        let (mut sum, mut updated, mut limited) = (0.0, 0u32, 0u32);
+        for (&a, &b) in u[warm..].iter().zip(&x[warm..]) {
+            sum += id.push(a, b).expect("finite sample");
+            let d = id.detail();
+            updated += d.updated as u32;
+            limited += d.step_limited as u32;
+        }
+        assert!(id.push(f64::NAN, 1.0).is_err());
+        assert!(id.push(1.0, f64::INFINITY).is_err());
+        (sum, updated, limited)
+    });
+    assert!(checksum.is_finite());
+    assert_eq!(count, 0, "OutputErrorIdentifier::push allocated {count} times over {} samples ({what})", u.len() - warm);
+    // The measured pushes updated the estimates (the Gauss–Newton step ran).
+    assert!(updated > 0, "no update while counting ({what}); step limited {limited} times");
+
+    let mut any = AnyIdentifier::OutputError(make());
+    for (&a, &b) in u[..warm].iter().zip(&x[..warm]) {
+        any.push(a, b).expect("finite sample");
+    }
+    let mut out = vec![0.0; u.len() - warm];
+    let (count, result) = allocations_during(|| any.push_many(&u[warm..], &x[warm..], &mut out));
+    assert!(result.is_ok());
+    assert_eq!(count, 0, "AnyIdentifier::push_many (rpem) allocated {count} times ({what})");
+    assert!(out.iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn output_error_identifier_push_does_not_allocate() {
+    let cfg = OutputErrorConfig::default();
+    check_output_error(|| OutputErrorIdentifier::new(DT, Params::paper_1hz(), 0.0, cfg).expect("valid"), "base model");
+    // Starting far off and stiff: the trust region and the projection at work.
+    let stiff = Params { beta: 5.0, gamma: 4.0, n: 1.0, ..Params::paper_1hz() };
+    check_output_error(|| OutputErrorIdentifier::new(DT, stiff, 0.0, cfg).expect("valid"), "stiff start");
+    let effects = EffectSet {
+        input_lag: Some(InputLag { fc_hz: 800.0 }),
+        creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0, 10.0], gain_um_per_v: vec![0.001; 4] }),
+        ..EffectSet::none()
+    };
+    check_output_error(
+        || OutputErrorIdentifier::with_effects(DT, Params::paper_1hz(), &effects, 0.0, cfg).expect("valid"),
+        "input lag and four creep elements",
+    );
 }
 
 #[test]

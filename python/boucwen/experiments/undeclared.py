@@ -229,7 +229,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m boucwen.experiments.undeclared",
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=3, help="records per effect (default 3)")
+    parser.add_argument("--online", action="store_true",
+                        help="instead: RMS of the offline base, offline extended and online rpem "
+                             "models (markdown table; see boucwen.experiments.undeclared_online)")
     args = parser.parse_args(argv)
+    if args.online:
+        from .undeclared_online import run_online_table
+
+        run_online_table(args.seeds)
+        return 0
     rows = run_table(args.seeds)
     return 0 if all(r["ok"] for r in rows) else 1
 
