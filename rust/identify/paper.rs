@@ -527,7 +527,7 @@ impl PaperIdentifier {
     /// Steps 1–5 from the sums; returns the new estimates and what ran.
     fn refit(&mut self) -> (Params, PushStatus) {
         let cfg = self.config;
-        let s = *self.sums.get();
+        let s = self.sums.get();
         let mut p = self.params;
         let mut status = self.status;
         let count = s[CNT];
@@ -538,7 +538,7 @@ impl PaperIdentifier {
         let excited = count >= 2.0 && var_u > cfg.min_u_std_v * cfg.min_u_std_v;
         if self.window.is_full() && excited {
             if !self.rls.active || status.refreshed {
-                if let Some(fresh) = LineRls::from_sums(&s) {
+                if let Some(fresh) = LineRls::from_sums(s) {
                     self.rls = fresh;
                 }
             }
@@ -561,7 +561,7 @@ impl PaperIdentifier {
         if touched & TOUCH_CROSSING != 0 || self.cache.rate.is_some_and(|r| r.delta_in != p.delta) {
             self.cache.rate = None;
         }
-        let rate = *self.cache.rate.get_or_insert_with(|| rate_fit(&cfg, &s, p.delta));
+        let rate = *self.cache.rate.get_or_insert_with(|| rate_fit(&cfg, s, p.delta));
         status.rate_fit = rate.status;
         if rate.status != SubFit::Held {
             p.a = rate.a_plus_kv - p.kv;
@@ -571,7 +571,7 @@ impl PaperIdentifier {
         if touched & TOUCH_LOADING != 0 {
             self.cache.shape = None;
         }
-        let shape = *self.cache.shape.get_or_insert_with(|| shape_fit(&cfg, &s));
+        let shape = *self.cache.shape.get_or_insert_with(|| shape_fit(&cfg, s));
         status.shape_fit = shape.status;
         let mut sum_bg = p.beta + p.gamma;
         if shape.status == SubFit::Ran {
@@ -582,7 +582,7 @@ impl PaperIdentifier {
         if touched & TOUCH_UNLOADING != 0 || self.cache.ret.is_some_and(|r| r.n_in != p.n) {
             self.cache.ret = None;
         }
-        let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, &s, p.n));
+        let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, s, p.n));
         status.return_fit = ret.status;
         let diff_gb = if ret.status == SubFit::Ran { ret.diff_gb } else { p.gamma - p.beta };
 
@@ -639,8 +639,8 @@ impl OnlineIdentifier for PaperIdentifier {
         let (params, status) = self.refit();
         self.params = params;
         self.status = status;
-        self.raw.rotate_left(1);
-        self.raw[RAW_HISTORY - 1] = Some(newest);
+        let [_, a, b, c] = self.raw;
+        self.raw = [a, b, c, Some(newest)];
         Ok(prediction)
     }
 
