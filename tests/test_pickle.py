@@ -61,22 +61,34 @@ def test_unpickled_identifier_continues_bit_for_bit(cut: int) -> None:
     assert pickle.dumps(restored) == pickle.dumps(original)
 
 
+def _rpem(with_effects: bool) -> Identifier:
+    """An rpem identifier with a tuning of its own, and optionally an input lag and creep."""
+    extra = {}
+    if with_effects:
+        extra["effects"] = boucwen.EffectSet(input_lag={"fc_hz": 800.0},
+                                             creep={"tau_s": [0.01, 0.3], "gain_um_per_v": [0.001, 0.0005]})
+    return Identifier(DT, 16, Params.paper_1hz().replace(n=1.7), h0=0.05, method="rpem",
+                      memory_travel_v=800.0, offset_walk_um=0.02, noise_um2=2e-4, **extra)
+
+
+@pytest.mark.parametrize("with_effects", [False, True], ids=["base", "lag+creep"])
 @pytest.mark.parametrize("cut", [0, 1, 2, 3, 1001, 9_999])
-def test_unpickled_rpem_identifier_continues_bit_for_bit(cut: int) -> None:
+def test_unpickled_rpem_identifier_continues_bit_for_bit(cut: int, with_effects: bool) -> None:
     u, x = _record()
-    original = Identifier(DT, 16, Params.paper_1hz().replace(n=1.7), h0=0.05, method="rpem",
-                          memory_travel_v=800.0, offset_walk_um=0.02, noise_um2=2e-4)
+    original = _rpem(with_effects)
     original.push_many(u[:cut], x[:cut])
     data = pickle.dumps(original, protocol=pickle.HIGHEST_PROTOCOL)
     restored = pickle.loads(data)
     assert isinstance(restored, Identifier) and restored.method == "rpem"
     assert restored.params == original.params
+    assert restored.effects == original.effects
     assert restored.h == original.h
     assert restored.status == original.status
     a = np.array([original.push(float(uk), float(xk)) for uk, xk in zip(u[cut:], x[cut:])])
     b = restored.push_many(u[cut:], x[cut:])
     np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64))
     assert restored.params == original.params
+    assert restored.effects == original.effects
     assert pickle.dumps(restored) == pickle.dumps(original)
 
 
@@ -94,9 +106,10 @@ def test_rpem_snapshot_keeps_the_configuration() -> None:
     assert not np.array_equal(y_restored, default.push_many(u[2000:], x[2000:]))
 
 
-def test_rpem_truncated_and_flipped_snapshots_never_crash() -> None:
+@pytest.mark.parametrize("with_effects", [False, True], ids=["base", "lag+creep"])
+def test_rpem_truncated_and_flipped_snapshots_never_crash(with_effects: bool) -> None:
     u, x = _record(2000)
-    ident = Identifier(DT, 16, Params.paper_1hz(), method="rpem")
+    ident = _rpem(with_effects)
     ident.push_many(u, x)
     restore, (data,) = ident.__reduce__()
     assert restore(data).params == ident.params

@@ -222,8 +222,14 @@ class Identifier:
     as a fraction of each parameter's scale [0.01]; ``max_offset_step_um``
     largest change of x0 per sample [0.5 µm]; ``offset_walk_um`` random walk
     of x0 per sample [0.05 µm]; ``n_bounds`` [(1.0, 4.0)]; ``margin`` least
-    β + γ and β − γ [1e-6]. Options of one method given to the other raise
-    ``ValueError``.
+    β + γ and β − γ [1e-6]; ``effects`` an :class:`EffectSet` (e.g. from
+    ``boucwen.effects.fit_extended`` or ``boucwen.diagnose``) whose ``input_lag`` fc
+    and ``creep`` gains are identified too, from the values given (creep time
+    constants fixed, at most 4 elements, other effects rejected) [None];
+    ``p0_effects`` initial covariance of ln fc and of the gains' logistic
+    coordinates, a relative standard deviation of about √p0_effects [0.05]. With
+    ``creep`` among the effects ``offset_walk_um`` defaults to 0. Options of one
+    method given to the other raise ``ValueError``.
     """
 
     def __new__(
@@ -255,7 +261,13 @@ class Identifier:
         margin: Optional[float] = None,
         offset_walk_um: Optional[float] = None,
         max_offset_step_um: Optional[float] = None,
+        effects: Optional[EffectSet] = None,
+        p0_effects: Optional[float] = None,
     ) -> "Identifier": ...
+    @property
+    def effects(self) -> Optional[EffectSet]:
+        """Current effect estimates (fc [Hz], creep gains [µm/V]) of ``method="rpem"``
+        (an empty EffectSet without effects); None for ``method="paper"``."""
     def push(self, u: float, x: float) -> float:
         """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:

@@ -52,14 +52,22 @@
 //!   covariance or sensitivity that comes out non-finite is dropped (estimates held,
 //!   P and the sensitivities restarted).
 //! - O(1) and allocation-free per sample: only fixed-size nalgebra types
-//!   ([`Covariance`] is a 12 × 12 `SMatrix`).
+//!   ([`Covariance`] is a 12 × 12 `SMatrix`, of which the base model uses 7 × 7).
 //!
 //! Effects ([`OutputErrorIdentifier::with_effects`]): θ is extended by ln fc of an
 //! `input_lag` and the gains of up to [`MAX_CREEP`] `creep` elements, the chain
 //! u → u_a → (h, creep) → x of [`crate::effects`] is propagated with its
 //! sensitivities (∂u_a/∂ln fc through the exact first-order step, ∂h/∂θ through
 //! u_a at both ends of each interval, creep kept at unit gain so that cᵢ = gᵢ·sᵢ).
-//! See that constructor for its status.
+//! The step is taken in ln fc and in each gain's logistic coordinate
+//! η = ln(g/(gmax − g)), so the gains stay within (0, gmax) without clipping
+//! against the covariance; the effects start from the values given (an offline
+//! extended fit) with the relative prior `p0_effects`, and with creep the offset
+//! does not walk ([`OutputErrorConfig::for_effects`]).
+//!
+//! Cost: without effects the update runs on the 7 base slots only (7 × 7
+//! covariance, sensitivities over 7 parameters), with the same results as the
+//! full 12-slot computation; the effect slots are used only when declared.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -122,10 +130,9 @@ pub struct OutputErrorConfig {
     /// Initial covariance of the effects' coordinates: ln fc of the input lag and
     /// the logistic coordinate η = ln(g/(gmax − g)) of each creep gain, which near
     /// the usual gains (g ≪ gmax) is ln g. Both are relative: √p0_effects is the
-    /// prior relative standard deviation of fc and of each gain. Default 0.01
-    /// (10 %): the effects are meant to start from an offline extended fit
-    /// (`fit_extended`, `diagnose`); larger values let fc and the slow gains trade
-    /// places with x0 and kv over the first periods.
+    /// prior relative standard deviation of fc and of each gain. Default 0.05
+    /// (about 22 %): the effects are meant to start from an offline extended fit
+    /// (`fit_extended`, `diagnose`) or a guess within some 30 %.
     pub p0_effects: f64,
     /// R: expected variance of the prediction error [µm²]. Default 1e-4 µm²
     /// (0.01 µm: sensor noise plus what the model cannot explain).
@@ -163,7 +170,7 @@ impl Default for OutputErrorConfig {
             memory_travel_v: 2000.0,
             offset_walk_um: 0.05,
             p0: 1e-3,
-            p0_effects: 0.01,
+            p0_effects: 0.05,
             noise_um2: 1e-4,
             max_trace: 1.0,
             max_step: 0.01,
@@ -179,6 +186,18 @@ impl Default for OutputErrorConfig {
 }
 
 impl OutputErrorConfig {
+    /// The defaults for a model extended by `effects`: as [`Default`], but with
+    /// `creep` among them the offset x0 is a constant (`offset_walk_um` = 0): the
+    /// creep elements describe what the random walk absorbs otherwise, and a walking
+    /// offset would take every slow error before the creep gains could see it.
+    pub fn for_effects(effects: &EffectSet) -> Self {
+        let mut cfg = Self::default();
+        if effects.creep.is_some() {
+            cfg.offset_walk_um = 0.0;
+        }
+        cfg
+    }
+
     /// Checks every value; the error names the offending option.
     pub fn validate(&self) -> Result<()> {
         let bad = |name, value: f64, reason| Err(Error::InvalidConfig { name, value, reason });
@@ -642,12 +661,11 @@ impl OutputErrorIdentifier {
     /// constants τᵢ stay fixed; at most [`MAX_CREEP`] elements). Other effects are
     /// not identified online and are rejected.
     ///
-    /// Status: the extended chain reproduces [`crate::effects::simulate_extended`]
-    /// and its sensitivities are checked against finite differences, but started
-    /// from a guess of fc and the creep gains the recursion is not yet robust (fc
-    /// and the slow creep gains, nearly collinear with x0 and kv over short spans,
-    /// can run off while the base parameters compensate). Start it from an offline
-    /// extended fit and keep `p0_effects` small.
+    /// The lag is identified as ln fc and each creep gain through its logistic
+    /// coordinate (see `update`), with the relative prior `p0_effects`. Use
+    /// [`OutputErrorConfig::for_effects`] for the configuration: with creep the
+    /// offset must not walk, or it takes the slow errors the gains should explain.
+    /// A creep gain given below 5 % of `creep_gain_scale_um_per_v` starts there.
     pub fn with_effects(dt: f64, init: Params, effects: &EffectSet, h0: f64, config: OutputErrorConfig) -> Result<Self> {
         positive_dt(dt)?;
         init.validate()?;
@@ -1172,6 +1190,67 @@ mod tests {
         }
     }
 
+    /// Sine bursts around changing means, each after a ramp and a 0.3 s hold [V]
+    /// (as tests/test_rpem.py's `creep_input`).
+    fn creep_input(dt: f64, seconds: f64) -> Vec<f64> {
+        let plan = [(2.0, 40.0, 50.0), (8.0, 20.0, 30.0), (32.0, 15.0, 70.0), (4.0, 30.0, 40.0), (16.0, 25.0, 60.0)];
+        let total = (seconds / dt) as usize;
+        let (mut u, mut last, mut i) = (Vec::new(), 0.0f64, 0);
+        while u.len() < total {
+            let (f, amp, mean): (f64, f64, f64) = plan[i % plan.len()];
+            let ramp = (0.02 / dt) as usize;
+            u.extend((0..ramp).map(|k| last + (mean - amp - last) * k as f64 / (ramp - 1) as f64));
+            u.extend(std::iter::repeat_n(mean - amp, (0.3 / dt) as usize));
+            let periods = (f * 0.4).round().max(2.0);
+            let n = (periods / f / dt).round() as usize;
+            u.extend((0..n).map(|k| mean - amp * (2.0 * std::f64::consts::PI * f * k as f64 * dt).cos()));
+            last = *u.last().unwrap();
+            i += 1;
+        }
+        u.truncate(total);
+        u
+    }
+
+    #[test]
+    fn identifies_input_lag_and_creep_from_effects_started_off() {
+        // Noise-free record of the model with a 500 Hz lag and three creep elements;
+        // the identifier starts from fc 30 % high and gains 25–30 % off.
+        let dt = 1e-4;
+        let truth = Params::paper_1hz();
+        let effects = lag_and_creep();
+        let u = creep_input(dt, 8.0);
+        let x = crate::effects::simulate_extended(&truth, &effects, &u, dt, 0.0).unwrap();
+        let start = EffectSet {
+            input_lag: Some(InputLag { fc_hz: 650.0 }),
+            creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0], gain_um_per_v: vec![0.0011, 0.0026, 0.00105] }),
+            ..EffectSet::none()
+        };
+        let cfg = OutputErrorConfig::for_effects(&start);
+        assert_eq!(cfg.offset_walk_um, 0.0);
+        let mut ext = OutputErrorIdentifier::with_effects(dt, truth, &start, 0.0, cfg).unwrap();
+        let mut base = OutputErrorIdentifier::new(dt, truth, 0.0, OutputErrorConfig::default()).unwrap();
+        let last = u.len() - u.len() / 4;
+        let (mut err_ext, mut err_base) = (0.0f64, 0.0f64);
+        for (k, (&u, &x)) in u.iter().zip(&x).enumerate() {
+            let (pe, pb) = (ext.push(u, x).unwrap(), base.push(u, x).unwrap());
+            assert!(pe.is_finite() && ext.covariance().iter().all(|v| v.is_finite()));
+            assert!(ext.covariance().trace() <= cfg.max_trace * (1.0 + 1e-12));
+            if k >= last {
+                err_ext += (x - pe).powi(2);
+                err_base += (x - pb).powi(2);
+            }
+        }
+        assert!(err_ext < err_base, "{err_ext} vs {err_base}");
+        let found = ext.effects();
+        let fc = found.input_lag.unwrap().fc_hz;
+        assert!((fc - 500.0).abs() < 0.05 * 500.0, "fc {fc}");
+        let g = found.creep.unwrap().gain_um_per_v;
+        let (want, began) = ([0.0015, 0.002, 0.0015], [0.0011, 0.0026, 0.00105]);
+        for i in 1..3 {
+            assert!((g[i] - want[i]).abs() < 0.5 * (began[i] - want[i]).abs(), "gain {i}: {g:?}");
+        }
+    }
+
     fn perturbed() -> Params {
         let t = Params::paper_1hz();
         Params { kv: t.kv * 1.1, x0: t.x0 + 0.05, a: t.a * 0.9, beta: t.beta * 1.1, gamma: t.gamma * 0.9, n: 1.6, delta: t.delta * 1.2 }
@@ -1443,7 +1522,20 @@ mod snapshot_impl {
             let mut id = OutputErrorIdentifier::with_effects(dt, init.params, &effects, h0, config)
                 .map_err(|_| corrupt(config_at, "snapshot holds an invalid configuration, time step or effect"))?;
             // Stored as they were held (the constructor's projection of the starting
-            // values is not repeated: projecting twice may move a rounding bit).
+            // values is not repeated: projecting twice may move a rounding bit). The
+            // effects' estimates must lie where the recursion keeps them: fc within
+            // `fc_bounds_hz`, each creep gain strictly within (0, gmax) (its logistic
+            // coordinate is finite there).
+            let (fc_lo, fc_hi) = config.fc_bounds_hz;
+            let gmax = config.creep_gain_max_um_per_v;
+            for e in [&init, &est] {
+                if lag && !(fc_lo..=fc_hi).contains(&e.fc_hz) {
+                    return Err(corrupt(config_at, "snapshot holds a corner frequency outside fc_bounds_hz"));
+                }
+                if e.creep_gain[..n_creep].iter().any(|&g| !(g > 0.0 && g < gmax)) {
+                    return Err(corrupt(config_at, "snapshot holds a creep gain outside (0, creep_gain_max_um_per_v)"));
+                }
+            }
             id.init = init;
             id.est = est;
 

@@ -44,8 +44,9 @@ use crate::identify::{
 /// too, starting from the values given (creep time constants fixed, at most 4
 /// elements; other effects are rejected) [None]; `p0_effects` initial covariance
 /// of ln fc and of the gains' logistic coordinates, i.e. a relative standard
-/// deviation of about √p0_effects [0.01 = 10 %]. The current effect estimates
-/// are in `effects`.
+/// deviation of about √p0_effects [0.05, about 22 %]. With `creep` among the
+/// effects, `offset_walk_um` defaults to 0 (the creep elements take the slow part
+/// the walk would absorb). The current effect estimates are in `effects`.
 /// Largest window [samples] accepted (the window is held in memory).
 const MAX_WINDOW: usize = PaperConfig::MAX_WINDOW;
 
@@ -118,7 +119,8 @@ impl PyIdentifier {
                      options of method=\"paper\", not of method=\"rpem\"",
                 ));
             }
-            let mut cfg = OutputErrorConfig::default();
+            let effects = effects.map(|e| e.inner.clone()).unwrap_or_default();
+            let mut cfg = OutputErrorConfig::for_effects(&effects);
             let options = [
                 (&mut cfg.forgetting, forgetting),
                 (&mut cfg.memory_travel_v, memory_travel_v),
@@ -141,7 +143,6 @@ impl PyIdentifier {
             if let Some(v) = p0_effects {
                 cfg.p0_effects = v;
             }
-            let effects = effects.map(|e| e.inner.clone()).unwrap_or_default();
             let id = OutputErrorIdentifier::with_effects(dt, init.inner, &effects, h0, cfg).map_err(value_error)?;
             return Ok(PyIdentifier { inner: AnyIdentifier::OutputError(id) });
         }

@@ -6,7 +6,9 @@ holding one effect of the vocabulary (creep, input_lag, resonance, drift, delay)
 none, runs :func:`boucwen.diagnose` on each without telling it what is inside, and
 prints one row per record: the effect put in, what was named, and the RMS error
 against the *noise-free* signal [µm] before (base model) → after (with the named
-effects).
+effects). With ``--online`` it prints instead how the online identifier
+(``method="rpem"``, started from the base fit) compares with the offline fits
+(:mod:`boucwen.experiments.undeclared_online`).
 
 The input (:func:`test_input`) repeats a pattern three times with random levels: fast
 steps followed by holds, a full-range slow sweep, minor loops, sine bursts at
