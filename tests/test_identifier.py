@@ -7,7 +7,15 @@ import numpy as np
 import pytest
 
 import boucwen
-from boucwen import Identifier, Params
+from boucwen import Params
+
+
+def Identifier(*args, **kwargs):
+    """boucwen.Identifier with the paper's method, which these tests are about
+    (the library's default online method is "rpem")."""
+    kwargs.setdefault("method", "paper")
+    return boucwen.Identifier(*args, **kwargs)
+
 
 DT = 1e-4  # 10 kHz
 PAPER = Params.paper_1hz()

@@ -8,7 +8,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import boucwen
-from boucwen import Identifier, Params, reference
+from boucwen import Params, reference
+
+
+def Identifier(*args, **kwargs):
+    """boucwen.Identifier with the paper's method, which these tests are about
+    (the library's default online method is "rpem")."""
+    kwargs.setdefault("method", "paper")
+    return boucwen.Identifier(*args, **kwargs)
+
 
 PAPER = Params.paper_1hz()
 

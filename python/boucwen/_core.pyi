@@ -195,7 +195,8 @@ class Identifier:
 
     Arguments: ``dt`` sampling interval [s]; ``window`` limited memory N
     [samples] (16 to 10 000 000); ``init`` starting parameters (e.g. an offline fit);
-    ``h0`` initial h [µm]; ``method`` the online method.
+    ``h0`` initial h [µm]; ``method`` the online method: "rpem" (default, the
+    output-error method) or "paper" (the paper's method; ``window`` is its N).
 
     Options of ``method="paper"`` (default in brackets; ``None`` keeps it):
     ``decomposition`` "model" (line through x − h_model) or "line" (the
@@ -238,7 +239,7 @@ class Identifier:
         window: int,
         init: Params,
         h0: float = 0.0,
-        method: _IdentifierMethod = "paper",
+        method: _IdentifierMethod = "rpem",
         *,
         decomposition: Literal["model", "line"] = "model",
         h_zero_frac: Optional[float] = None,

@@ -23,7 +23,8 @@ use crate::identify::{
 ///
 /// Arguments: `dt` sampling interval [s]; `window` limited memory N [samples];
 /// `init` starting parameters (e.g. an offline fit); `h0` initial h [µm];
-/// `method` "paper" (the paper's limited-memory RLS and sub-fits). Options of the
+/// `method` "rpem" (default: the output-error method below) or "paper" (the
+/// paper's limited-memory RLS and sub-fits; `window` is its N). Options of the
 /// paper method (defaults in brackets): `decomposition` "model" or "line" ["model"],
 /// `h_zero_frac` [0.005], `rate_frac` [0.2], `min_points` [8], `rank_tol` [1e-3],
 /// `min_log_spread` [0.05], `min_r2` [0.9], `min_arg_frac` [0.05], `min_line_t` [10], `min_delta_t` [3.0],
@@ -73,7 +74,7 @@ pub struct PyIdentifier {
 #[pymethods]
 impl PyIdentifier {
     #[new]
-    #[pyo3(signature = (dt, window, init, h0 = 0.0, method = "paper", *, decomposition = "model",
+    #[pyo3(signature = (dt, window, init, h0 = 0.0, method = "rpem", *, decomposition = "model",
         h_zero_frac = None, rate_frac = None, min_points = None, rank_tol = None,
         min_log_spread = None, min_r2 = None, min_arg_frac = None, min_line_t = None, min_delta_t = None, min_u_std_v = None, n_bounds = None, forgetting = None, memory_travel_v = None,
         p0 = None, noise_um2 = None, max_trace = None, max_step = None, margin = None, offset_walk_um = None, max_offset_step_um = None,
