@@ -118,7 +118,7 @@ ALL_FITS = {"line_fit", "rate_fit", "shape_fit", "return_fit"}
         (2e-3, 400, "line", PAPER, {}, {"line_fit", "rate_fit", "return_fit"}),
         (1e-3, 300, "model", PAPER, {}, {"line_fit", "return_fit"}),
         # Looser tolerances so that every sub-fit runs, steps 2 and 3 included.
-        (2e-3, 400, "model", PAPER, dict(min_r2=0.0, h_zero_frac=0.05), ALL_FITS),
+        (2e-3, 400, "model", PAPER, dict(min_r2=0.0, h_zero_frac=0.05, min_arg_frac=0.0, noise_gate=0.0), ALL_FITS),
     ],
 )
 def test_rust_identifier_agrees_with_the_reference(dt, window, decomposition, init, options, must_run):

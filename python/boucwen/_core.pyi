@@ -208,7 +208,9 @@ class Identifier:
     fewest std(ln h) for fitting n [0.05]; ``min_r2``: least squared correlation
     of the log–log points [0.9]; ``min_arg_frac``: steps 3–4 use a point only when
     |A − r| ≥ this fraction of |A| [0.05]; ``min_line_t``: kv, x0 are updated only
-    when |kv| is at least this many standard errors [10]; ``min_delta_t``: δ is updated only when
+    when |kv| is at least this many standard errors [10]; ``noise_gate``: steps 3–4
+    use a point only when |A − r| exceeds this many noise standard deviations [3.0];
+    ``min_delta_t``: δ is updated only when
     resolved to this many standard errors [3.0]; ``min_u_std_v``: step 1 runs only
     while std(u) over the window exceeds this [1e-6 V]; ``n_bounds``: accepted
     range of n [(0.5, 4.0)].
@@ -250,6 +252,7 @@ class Identifier:
         min_r2: Optional[float] = None,
         min_arg_frac: Optional[float] = None,
         min_line_t: Optional[float] = None,
+        noise_gate: Optional[float] = None,
         min_delta_t: Optional[float] = None,
         min_u_std_v: Optional[float] = None,
         n_bounds: Optional[Tuple[float, float]] = None,

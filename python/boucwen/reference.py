@@ -494,6 +494,7 @@ class _Point:
     udot: float
     a: float  # ẋ (crossing) or ln h (loading / unloading)
     b: float  # ln|A − r| (loading / unloading)
+    dx_diff: float  # five-point minus three-point ẋ [µm/s]: mostly noise
     kind: str = _UNUSED
     positive: bool = True  # sign of A − r (loading / unloading)
 
@@ -532,6 +533,7 @@ class PaperIdentifier:
         min_r2: float = 0.9,
         min_arg_frac: float = 0.05,
         min_line_t: float = 10.0,
+        noise_gate: float = 3.0,
         min_delta_t: float = 3.0,
         min_u_std_v: float = 1e-6,
         n_bounds: Tuple[float, float] = (0.5, 4.0),
@@ -557,6 +559,7 @@ class PaperIdentifier:
             ("min_delta_t", min_delta_t),
             ("min_arg_frac", min_arg_frac),
             ("min_line_t", min_line_t),
+            ("noise_gate", noise_gate),
             ("min_u_std_v", min_u_std_v),
         ]:
             if not (math.isfinite(v) and v >= 0.0):
@@ -572,6 +575,7 @@ class PaperIdentifier:
         self.min_delta_t = float(min_delta_t)
         self.min_arg_frac = float(min_arg_frac)
         self.min_line_t = float(min_line_t)
+        self.noise_gate = float(noise_gate)
         self.min_u_std_v = float(min_u_std_v)
         self.n_bounds = (float(lo), float(hi))
         self.reset()
@@ -641,7 +645,7 @@ class PaperIdentifier:
         pts = list(self._window)
         cols: Dict[str, NDArray[Any]] = {
             name: np.array([getattr(q, name) for q in pts], dtype=np.float64)
-            for name in ("u", "x", "y", "udot", "a", "b")
+            for name in ("u", "x", "y", "udot", "a", "b", "dx_diff")
         }
         cols["kind"] = np.array([q.kind for q in pts], dtype=object)
         cols["positive"] = np.array([q.positive for q in pts], dtype=bool)
@@ -655,8 +659,9 @@ class PaperIdentifier:
         mid = s[2]
         udot = (s[0].u - 8.0 * s[1].u + 8.0 * s[3].u - s[4].u) / (12.0 * self.dt)
         xdot = (s[0].x - 8.0 * s[1].x + 8.0 * s[3].x - s[4].x) / (12.0 * self.dt)
+        dxd = xdot - (s[3].x - s[1].x) / (2.0 * self.dt)
         y = mid.x if self.decomposition == "line" else mid.x - mid.h_model
-        unused = _Point(mid.u, mid.x, y, udot, 0.0, 0.0)
+        unused = _Point(mid.u, mid.x, y, udot, 0.0, 0.0, dxd)
         if len(self._window) < 2:
             return unused
         w = self._window_columns()
@@ -671,16 +676,20 @@ class PaperIdentifier:
             # ẋ less the small |h|^n terms of eq. (5) at this h (current β, γ, n).
             hn = 0.0 if h == 0.0 else _pow(abs(h), p.n)
             xdot_c = xdot + (p.beta * abs(udot) * _sgn(h) + p.gamma * udot) * hn
-            return _Point(mid.u, mid.x, y, udot, xdot_c, 0.0, _CROSSING)
+            return _Point(mid.u, mid.x, y, udot, xdot_c, 0.0, dxd, _CROSSING)
         if h > h_tol:
             # Loading (u̇ > 0): r = (ḣ − δu)/u̇ = A − (β+γ)hⁿ.
             # Unloading (u̇ < 0): r = (ḣ + δu)/u̇ = A − (γ−β)hⁿ.
             r = (hdot - p.delta * mid.u) / udot if udot > 0.0 else (hdot + p.delta * mid.u) / udot
             arg = p.A - r
-            # |A − r| far below |A| is a difference of nearly equal numbers: left out.
-            if math.isfinite(arg) and arg != 0.0 and abs(arg) >= self.min_arg_frac * abs(p.A):
+            # |A − r| far below |A| is a difference of nearly equal numbers, and
+            # |A − r|·|u̇| below noise_gate noise standard deviations of ẋ is noise:
+            # left out. For white noise on x, var(ẋ₅) = 13·var(ẋ₅ − ẋ₃).
+            xdot_var = 13.0 * float(np.mean(w["dx_diff"] ** 2))
+            resolved = abs(arg) * abs(udot) >= self.noise_gate * math.sqrt(xdot_var)
+            if math.isfinite(arg) and arg != 0.0 and abs(arg) >= self.min_arg_frac * abs(p.A) and resolved:
                 kind = _LOADING if udot > 0.0 else _UNLOADING
-                return _Point(mid.u, mid.x, y, udot, math.log(h), math.log(abs(arg)), kind, arg > 0.0)
+                return _Point(mid.u, mid.x, y, udot, math.log(h), math.log(abs(arg)), dxd, kind, arg > 0.0)
         return unused
 
     def _refit(self) -> None:

@@ -34,7 +34,8 @@
 //!      every input (β + γ > 0 and β − γ > 0, as in the paper's Table 2);
 //!      otherwise β, γ and n are held.
 //!    Steps 3–4 leave out points whose |A − r| is below `min_arg_frac`·|A| (a
-//!    small difference of nearly equal numbers: its logarithm is mostly error).
+//!    small difference of nearly equal numbers: its logarithm is mostly error) or
+//!    below `noise_gate` standard deviations of the noise of r.
 //!    Points with |u̇| below `rate_frac`·rms(u̇) are left out of steps 2–4 (the
 //!    ratios divide by u̇, and finite differences of noisy x are unreliable there).
 //!    A sub-fit with too few points or too little spread keeps its previous estimate.
@@ -81,6 +82,11 @@ pub struct PaperConfig {
     /// smaller values are a difference of two nearly equal numbers, dominated by
     /// the error of A and of the finite differences. Default 0.05.
     pub min_arg_frac: f64,
+    /// Steps 3–4 use a point only when |A − r| is at least this many standard
+    /// deviations of the noise of r (that of ẋ over |u̇|; ẋ's noise is estimated
+    /// over the window from the difference of the five- and three-point
+    /// derivatives). Default 3.
+    pub noise_gate: f64,
     /// Step 2 updates δ only when |δ| is at least this many standard errors of
     /// its estimate (else it fits A + kv alone). Default 3.
     pub min_delta_t: f64,
@@ -115,6 +121,7 @@ impl PaperConfig {
             min_r2: 0.9,
             min_arg_frac: 0.05,
             min_line_t: 10.0,
+            noise_gate: 3.0,
             min_delta_t: 3.0,
             min_u_std_v: 1e-6,
             n_bounds: (0.5, 4.0),
@@ -142,6 +149,7 @@ impl PaperConfig {
             ("min_delta_t", self.min_delta_t),
             ("min_arg_frac", self.min_arg_frac),
             ("min_line_t", self.min_line_t),
+            ("noise_gate", self.noise_gate),
             ("min_u_std_v", self.min_u_std_v),
         ];
         for (name, v) in fractions {
@@ -182,6 +190,9 @@ struct Point {
     a: f64,
     /// ln|A − r| for steps 3–4.
     b: f64,
+    /// Five-point minus three-point estimate of ẋ [µm/s]: mostly noise (for the
+    /// noise estimate of the gate of steps 3–4).
+    dx_diff: f64,
     class: Class,
 }
 
@@ -200,7 +211,8 @@ const L_POS: usize = 16; // step 3 (+): count, Σz, Σz², Σw, Σzw, Σw²
 const L_NEG: usize = 22; // step 3 (−)
 const U_POS: usize = 28; // step 4 (+): count, Σz, Σw
 const U_NEG: usize = 31; // step 4 (−)
-const NSUMS: usize = 34;
+const SEE: usize = 34; // Σ (ẋ₅ − ẋ₃)²
+const NSUMS: usize = 35;
 
 /// Raw samples kept for the derivative stencil besides the newest one.
 const RAW_HISTORY: usize = 4;
@@ -219,6 +231,7 @@ impl Point {
         c[SXX] = self.x * self.x;
         c[SDD] = self.udot * self.udot;
         c[SYY] = self.y * self.y;
+        c[SEE] = self.dx_diff * self.dx_diff;
         match self.class {
             Class::Unused => {}
             Class::Crossing => {
@@ -484,11 +497,12 @@ impl PaperIdentifier {
         let twelve_dt = 12.0 * self.dt;
         let udot = (s[0].u - 8.0 * s[1].u + 8.0 * s[3].u - s[4].u) / twelve_dt;
         let xdot = (s[0].x - 8.0 * s[1].x + 8.0 * s[3].x - s[4].x) / twelve_dt;
+        let dx_diff = xdot - (s[3].x - s[1].x) / (2.0 * self.dt);
         let y = match self.config.decomposition {
             Decomposition::Line => mid.x,
             Decomposition::Model => mid.x - mid.h_model,
         };
-        let mut point = Point { u: mid.u, x: mid.x, y, udot, a: 0.0, b: 0.0, class: Class::Unused };
+        let mut point = Point { u: mid.u, x: mid.x, y, udot, a: 0.0, b: 0.0, dx_diff, class: Class::Unused };
 
         let s = self.sums.get();
         let count = s[CNT];
@@ -513,7 +527,11 @@ impl PaperIdentifier {
         } else if h > h_tol {
             let r = if udot > 0.0 { (hdot - p.delta * mid.u) / udot } else { (hdot + p.delta * mid.u) / udot };
             let arg = p.a - r;
-            if arg.is_finite() && arg != 0.0 && arg.abs() >= self.config.min_arg_frac * p.a.abs() {
+            // Noise of r = (ḣ ∓ δu)/u̇ is that of ẋ over |u̇|. For white noise on x,
+            // var(ẋ₅) = 13·var(ẋ₅ − ẋ₃); the signal in ẋ₅ − ẋ₃ only adds to it (safe).
+            let xdot_var = 13.0 * s[SEE] / count;
+            let resolved = arg.abs() * udot.abs() >= self.config.noise_gate * xdot_var.sqrt();
+            if arg.is_finite() && arg != 0.0 && arg.abs() >= self.config.min_arg_frac * p.a.abs() && resolved {
                 let positive = arg > 0.0;
                 point.a = h.ln();
                 point.b = arg.abs().ln();
@@ -747,7 +765,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         });
         w.f64s(&[c.h_zero_frac, c.rate_frac]);
         w.u64(c.min_points as u64);
-        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_arg_frac, c.min_line_t, c.min_delta_t, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
+        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_arg_frac, c.min_line_t, c.noise_gate, c.min_delta_t, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
         w.f64(self.dt);
         w.params(&self.init);
         w.f64(self.h0);
@@ -764,7 +782,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         }
         w.u64(self.window.len() as u64);
         for p in self.window.iter() {
-            w.f64s(&[p.u, p.x, p.y, p.udot, p.a, p.b]);
+            w.f64s(&[p.u, p.x, p.y, p.udot, p.a, p.b, p.dx_diff]);
             w.u8(match p.class {
                 Class::Unused => 0,
                 Class::Crossing => 1,
@@ -807,7 +825,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, min_delta_t, min_u_std_v, n_lo, n_hi] = r.f64s::<9>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, min_delta_t, min_u_std_v, n_lo, n_hi] = r.f64s::<10>()?;
         let config = PaperConfig {
             window_len,
             decomposition,
@@ -819,6 +837,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
             min_r2,
             min_arg_frac,
             min_line_t,
+            noise_gate,
             min_delta_t,
             min_u_std_v,
             n_bounds: (n_lo, n_hi),
@@ -843,7 +862,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
             return Err(corrupt(at, "more window points than the window holds"));
         }
         for _ in 0..points {
-            let [u, x, y, udot, a, b] = r.f64s::<6>()?;
+            let [u, x, y, udot, a, b, dx_diff] = r.f64s::<7>()?;
             let class = match r.u8()? {
                 0 => Class::Unused,
                 1 => Class::Crossing,
@@ -853,7 +872,7 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
                 5 => Class::Unloading { positive: false },
                 _ => return Err(corrupt(r.offset() - 1, "unknown window point class")),
             };
-            id.window.push(Point { u, x, y, udot, a, b, class });
+            id.window.push(Point { u, x, y, udot, a, b, dx_diff, class });
         }
         let sums = r.f64s::<NSUMS>()?;
         let theta = r.f64s::<2>()?;

@@ -27,7 +27,7 @@ use crate::identify::{
 /// paper's limited-memory RLS and sub-fits; `window` is its N). Options of the
 /// paper method (defaults in brackets): `decomposition` "model" or "line" ["model"],
 /// `h_zero_frac` [0.005], `rate_frac` [0.2], `min_points` [8], `rank_tol` [1e-3],
-/// `min_log_spread` [0.05], `min_r2` [0.9], `min_arg_frac` [0.05], `min_line_t` [10], `min_delta_t` [3.0],
+/// `min_log_spread` [0.05], `min_r2` [0.9], `min_arg_frac` [0.05], `min_line_t` [10], `noise_gate` [3.0], `min_delta_t` [3.0],
 /// `min_u_std_v` [1e-6 V], `n_bounds` [(0.5, 4.0)] (see `PaperConfig` in the Rust docs).
 ///
 /// `method="rpem"`: recursive prediction-error method on the model's output
@@ -76,7 +76,7 @@ impl PyIdentifier {
     #[new]
     #[pyo3(signature = (dt, window, init, h0 = 0.0, method = "rpem", *, decomposition = "model",
         h_zero_frac = None, rate_frac = None, min_points = None, rank_tol = None,
-        min_log_spread = None, min_r2 = None, min_arg_frac = None, min_line_t = None, min_delta_t = None, min_u_std_v = None, n_bounds = None, forgetting = None, memory_travel_v = None,
+        min_log_spread = None, min_r2 = None, min_arg_frac = None, min_line_t = None, noise_gate = None, min_delta_t = None, min_u_std_v = None, n_bounds = None, forgetting = None, memory_travel_v = None,
         p0 = None, noise_um2 = None, max_trace = None, max_step = None, margin = None, offset_walk_um = None, max_offset_step_um = None,
         effects = None, p0_effects = None))]
     #[allow(clippy::too_many_arguments)]
@@ -95,6 +95,7 @@ impl PyIdentifier {
         min_r2: Option<f64>,
         min_arg_frac: Option<f64>,
         min_line_t: Option<f64>,
+        noise_gate: Option<f64>,
         min_delta_t: Option<f64>,
         min_u_std_v: Option<f64>,
         n_bounds: Option<(f64, f64)>,
@@ -204,6 +205,9 @@ impl PyIdentifier {
         }
         if let Some(v) = min_line_t {
             cfg.min_line_t = v;
+        }
+        if let Some(v) = noise_gate {
+            cfg.noise_gate = v;
         }
         if let Some(v) = min_delta_t {
             cfg.min_delta_t = v;
