@@ -36,7 +36,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ._core import EffectSet
-from .effects import (VOCABULARY, ExtendedFit, best_delay, candidate_starts, fit_extended,
+from .effects import (VOCABULARY, ZETA_BOUNDS, ExtendedFit, best_delay, candidate_starts, fit_extended,
                       simulate_chain)
 from .fit import fit
 from .io import validate_samples
@@ -326,10 +326,16 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
                 trials[name] = {"error": str(exc)}
                 continue
             held, _ = heldout(fr)
-            fits[name] = fr
             trials[name] = {"train_rms_um": fr.rms_um, "heldout_rms_um": held,
                             "heldout_gain": 1.0 - held / cur_held if cur_held > 0 else 0.0,
                             "fitted": fr.effects.to_dict().get(name)}
+            if name == "resonance" and fr.effects.to_dict()["resonance"]["zeta"] >= 0.99 * ZETA_BOUNDS[1]:
+                # Critically damped or more: no peak, so not a resonance (a lag shape
+                # the other effects describe); recorded, but not a candidate.
+                trials[name]["rejected"] = "no resonance peak: fitted zeta at its bound of 1"
+                say(f"  - {name:9s}: fitted zeta at its bound (no peak): not a resonance")
+                continue
+            fits[name] = fr
             say(f"  + {name:9s}: held-out RMS {held:.4g} µm (gain {trials[name]['heldout_gain']:+.1%})")
         ranked = sorted(fits, key=lambda k: trials[k]["heldout_rms_um"])
         best = ranked[0] if ranked else None

@@ -46,8 +46,10 @@ __all__ = ["Layout", "ExtendedFit", "fit_extended", "simulate_chain", "creep_tim
 
 #: The effect names, in signal-chain order.
 VOCABULARY: tuple[str, ...] = tuple(EffectSet.vocabulary)
-#: Bounds on the damping ratio ζ [-] during a fit.
-ZETA_BOUNDS = (1e-3, 3.0)
+#: Bounds on the damping ratio ζ [-] during a fit. Above 1 the second-order element
+#: has two real poles and no peak: that is a lag, not a resonance, and the diagnosis
+#: must not call it one.
+ZETA_BOUNDS = (1e-3, 1.0)
 #: fn is kept below this fraction of the sampling rate (Nyquist = 0.5).
 FN_MAX_NYQUIST_FRACTION = 0.45
 #: Residual value [µm] returned for a parameter set that cannot be simulated.

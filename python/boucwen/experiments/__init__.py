@@ -3,4 +3,7 @@
 - :mod:`boucwen.experiments.reproduce`: the paper's experiment (section 4): the
   traditional offline fit on 1 Hz data against the online identifiers over
   1 → 10 → 100 → 200 Hz, Tables 1–2 and Figs. 6–9.
+- :mod:`boucwen.experiments.undeclared`: records with one undeclared effect each
+  (or none), diagnosed blind; with ``--online``, also identified online
+  (:mod:`boucwen.experiments.undeclared_online`).
 """
