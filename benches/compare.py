@@ -132,6 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     # ---------------------------------------------------------------- online identification
     ref_samples = 3_000
     for method in methods():
+
         def push_loop() -> None:
             ident = Identifier(DT, WINDOW, params, method=method)
             push = ident.push
@@ -143,11 +144,19 @@ def main(argv: list[str] | None = None) -> int:
 
         t_loop = median_time(push_loop, reps)
         t_many = median_time(push_many, reps)
-        table.add(f"`Identifier.push` from Python ({method}, N = {WINDOW})", ns(t_loop, n),
-                  note="per call, the Python loop included; target ≤ 500 ns")
-        table.add(f"`Identifier.push_many` ({method}, N = {WINDOW})", ns(t_many, n),
-                  f"{rate(t_many, n)}", "target ≥ 10 M samples/s")
+        table.add(
+            f"`Identifier.push` from Python ({method}, N = {WINDOW})",
+            ns(t_loop, n),
+            note="per call, the Python loop included; target ≤ 500 ns",
+        )
+        table.add(
+            f"`Identifier.push_many` ({method}, N = {WINDOW})",
+            ns(t_many, n),
+            f"{rate(t_many, n)}",
+            "target ≥ 10 M samples/s",
+        )
         if method == "paper" and reference is not None:
+
             def ref_loop() -> None:
                 ident = reference.PaperIdentifier(DT, WINDOW, params)
                 for uk, xk in zip(u[:ref_samples].tolist(), x[:ref_samples].tolist()):
@@ -155,9 +164,12 @@ def main(argv: list[str] | None = None) -> int:
 
             t_ref = median_time(ref_loop, 1)
             per_ref = t_ref / ref_samples
-            table.add(f"NumPy reference `PaperIdentifier.push` (N = {WINDOW})", ns(t_ref, ref_samples),
-                      f"{per_ref / (t_many / n):,.0f}× `push_many`, {per_ref / (t_loop / n):,.0f}× `push`",
-                      f"first {ref_samples} samples; recomputes the window, O(N) per sample")
+            table.add(
+                f"NumPy reference `PaperIdentifier.push` (N = {WINDOW})",
+                ns(t_ref, ref_samples),
+                f"{per_ref / (t_many / n):,.0f}× `push_many`, {per_ref / (t_loop / n):,.0f}× `push`",
+                f"first {ref_samples} samples; recomputes the window, O(N) per sample",
+            )
 
     # ---------------------------------------------------------------- simulation
     t_sim = median_time(lambda: boucwen.simulate(params, u, DT), max(reps, 9))
@@ -165,8 +177,12 @@ def main(argv: list[str] | None = None) -> int:
     if reference is not None:
         t_ref_sim = median_time(lambda: reference.simulate(params, u, DT), 1)
         ref_sim_per_sample = t_ref_sim / n
-        table.add("`reference.simulate` (NumPy/Python)", ns(t_ref_sim, n), f"{t_ref_sim / t_sim:,.0f}× `simulate`",
-                  "same integrator rule")
+        table.add(
+            "`reference.simulate` (NumPy/Python)",
+            ns(t_ref_sim, n),
+            f"{t_ref_sim / t_sim:,.0f}× `simulate`",
+            "same integrator rule",
+        )
     else:
         ref_sim_per_sample = None
 
@@ -199,8 +215,9 @@ def main(argv: list[str] | None = None) -> int:
         chosen = None
         for rtol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9):
             start = time.perf_counter()
-            sol = scipy_integrate.solve_ivp(rhs, (0.0, t_grid[-1]), [0.0], method="RK45", t_eval=t_grid,
-                                            rtol=rtol, atol=rtol * 1e-3, max_step=DT)
+            sol = scipy_integrate.solve_ivp(
+                rhs, (0.0, t_grid[-1]), [0.0], method="RK45", t_eval=t_grid, rtol=rtol, atol=rtol * 1e-3, max_step=DT
+            )
             elapsed = time.perf_counter() - start
             if not sol.success:
                 continue
@@ -211,9 +228,13 @@ def main(argv: list[str] | None = None) -> int:
                 break
         if chosen is not None:
             rtol, err, elapsed, nfev = chosen
-            table.add("`scipy.integrate.solve_ivp` (RK45)", ns(elapsed, m), f"{elapsed / t_sim_m:,.0f}× `simulate`",
-                      f"rtol {rtol:g}: max error {err:.1e} µm (target {target:.0e} µm; `simulate`: {err_rust:.1e} µm); "
-                      f"first {m} samples, {nfev / m:.1f} evaluations per sample, max_step = dt (u̇ jumps at every sample)")
+            table.add(
+                "`scipy.integrate.solve_ivp` (RK45)",
+                ns(elapsed, m),
+                f"{elapsed / t_sim_m:,.0f}× `simulate`",
+                f"rtol {rtol:g}: max error {err:.1e} µm (target {target:.0e} µm; `simulate`: {err_rust:.1e} µm); "
+                f"first {m} samples, {nfev / m:.1f} evaluations per sample, max_step = dt (u̇ jumps at every sample)",
+            )
 
     # ---------------------------------------------------------------- offline fit
     fit_module = optional("boucwen.fit")
@@ -234,9 +255,12 @@ def main(argv: list[str] | None = None) -> int:
             t_fit = time.perf_counter() - start
         finally:
             fit_module.simulate = rust_simulate
-        table.add(f"`boucwen.fit`, {m} samples", f"{t_fit:.2f} s",
-                  note=f"{result.nfev} simulations, {simulated[0] / 1e6:.1f} M samples simulated, "
-                       f"rms error {result.rms_um:.3g} µm; target ≤ 2 s")
+        table.add(
+            f"`boucwen.fit`, {m} samples",
+            f"{t_fit:.2f} s",
+            note=f"{result.nfev} simulations, {simulated[0] / 1e6:.1f} M samples simulated, "
+            f"rms error {result.rms_um:.3g} µm; target ≤ 2 s",
+        )
         if reference is not None and ref_sim_per_sample is not None:
             if args.full:
                 fit_module.simulate = reference.simulate
@@ -249,7 +273,10 @@ def main(argv: list[str] | None = None) -> int:
                 label, how = f"{t_ref_fit:.1f} s", "measured (--full)"
             else:
                 t_ref_fit = simulated[0] * ref_sim_per_sample
-                label, how = f"≈ {t_ref_fit:.0f} s", "estimated: samples simulated × reference cost per sample (--full runs it)"
+                label, how = (
+                    f"≈ {t_ref_fit:.0f} s",
+                    "estimated: samples simulated × reference cost per sample (--full runs it)",
+                )
             table.add("same fit, NumPy reference simulator", label, f"{t_ref_fit / t_fit:,.0f}× `boucwen.fit`", how)
 
     print()

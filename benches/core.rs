@@ -24,8 +24,8 @@ fn push(c: &mut Criterion) {
     let mut group = c.benchmark_group("paper_push");
     group.throughput(Throughput::Elements(1));
     for window in [100usize, 1_000, 10_000, 100_000] {
-        let mut id = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(window))
-            .expect("valid config");
+        let mut id =
+            PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(window)).expect("valid config");
         // Warm up past the first full window so every sub-fit runs.
         let mut k = 0usize;
         for _ in 0..(window + 1000).min(u.len()) {

@@ -10,25 +10,13 @@ use std::fmt;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Error {
     /// A model parameter is out of its domain (`name` follows [`crate::Params::NAMES`]).
-    InvalidParameter {
-        name: &'static str,
-        value: f64,
-        reason: &'static str,
-    },
+    InvalidParameter { name: &'static str, value: f64, reason: &'static str },
     /// A configuration value (time step, window length, tolerance…) is invalid.
-    InvalidConfig {
-        name: &'static str,
-        value: f64,
-        reason: &'static str,
-    },
+    InvalidConfig { name: &'static str, value: f64, reason: &'static str },
     /// A sample is NaN or infinite; the state is left as it was.
     NonFiniteSample { name: &'static str, value: f64 },
     /// Two arrays that must have the same length do not.
-    LengthMismatch {
-        what: &'static str,
-        expected: usize,
-        found: usize,
-    },
+    LengthMismatch { what: &'static str, expected: usize, found: usize },
 }
 
 impl fmt::Display for Error {

@@ -13,8 +13,9 @@ from boucwen.io import write_csv
 
 
 def run_cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "boucwen.cli", *map(str, args)],
-                          capture_output=True, text=True, cwd=cwd, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "boucwen.cli", *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=300
+    )
 
 
 def assert_one_line_error(proc):
@@ -47,12 +48,15 @@ def test_fit_prints_and_writes_json(good_csv, tmp_path):
     assert doc["rms_um"] < 1e-5 and doc["success"] is True
 
 
-@pytest.mark.parametrize("content", [
-    "t,u,x\n0,1,2\n0.1,oops,3\n0.2,1,2\n",      # not a number
-    "t,u\n0,1\n0.1,2\n0.2,3\n",                  # missing column
-    "",                                          # empty
-    "t,u,x\n0,1,2\n0.1,2,3\n0.2,2,3\n0.3,2,3\n0.4,2,3\n0.5,2,3\n",  # too short for fit
-])
+@pytest.mark.parametrize(
+    "content",
+    [
+        "t,u,x\n0,1,2\n0.1,oops,3\n0.2,1,2\n",  # not a number
+        "t,u\n0,1\n0.1,2\n0.2,3\n",  # missing column
+        "",  # empty
+        "t,u,x\n0,1,2\n0.1,2,3\n0.2,2,3\n0.3,2,3\n0.4,2,3\n0.5,2,3\n",  # too short for fit
+    ],
+)
 def test_fit_bad_csv(tmp_path, content):
     path = tmp_path / "bad.csv"
     path.write_text(content, encoding="utf-8")
@@ -75,15 +79,15 @@ def test_missing_output_folders_are_created(good_csv, tmp_path):
     assert proc.returncode in (0, 1) and out.exists(), proc.stderr
 
 
-@pytest.mark.parametrize("argv", [[], ["frobnicate"], ["fit"], ["fit", "a.csv", "--bogus"],
-                                  ["reproduce", "--window", "many"]])
+@pytest.mark.parametrize(
+    "argv", [[], ["frobnicate"], ["fit"], ["fit", "a.csv", "--bogus"], ["reproduce", "--window", "many"]]
+)
 def test_usage_errors(argv):
     assert_one_line_error(run_cli(*argv))
 
 
 def test_reproduce_bad_window(tmp_path):
-    assert_one_line_error(run_cli("reproduce", "--quick", "--no-figures", "--window", "3",
-                                  "--out", tmp_path))
+    assert_one_line_error(run_cli("reproduce", "--quick", "--no-figures", "--window", "3", "--out", tmp_path))
 
 
 def test_reproduce_out_is_a_file(tmp_path):

@@ -56,11 +56,11 @@ def test_result_fields_and_json():
     rec = make_record("drift", 0, "paper_1hz", 0.005)
     d = diagnose(rec.u, rec.x, rec.dt)
     doc = json.loads(json.dumps(d.to_dict()))
-    assert set(doc) == {"effects", "rms_before", "max_before", "rms_after", "max_after",
-                        "params", "evidence"}
+    assert set(doc) == {"effects", "rms_before", "max_before", "rms_after", "max_after", "params", "evidence"}
     assert doc["effects"] == ["drift"]
     assert doc["params"]["drift"]["rate_um_per_s"] == pytest.approx(
-        rec.effects.to_dict()["drift"]["rate_um_per_s"], rel=0.05)
+        rec.effects.to_dict()["drift"]["rate_um_per_s"], rel=0.05
+    )
     assert "base" in doc["params"] and "base_only" in doc["params"]
     assert doc["evidence"]["rounds"][0]["most_likely"] == "drift"
     assert d.x_base.shape == d.x_extended.shape == rec.u.shape
@@ -84,11 +84,14 @@ def test_evidence_points_the_right_way():
     assert ratios[-1] > ratios[0]
 
 
-@pytest.mark.parametrize("kw, words", [
-    (dict(train_fraction=0.1), "train_fraction"),
-    (dict(min_gain=-1), "min_gain"),
-    (dict(max_effects=9), "max_effects"),
-])
+@pytest.mark.parametrize(
+    "kw, words",
+    [
+        (dict(train_fraction=0.1), "train_fraction"),
+        (dict(min_gain=-1), "min_gain"),
+        (dict(max_effects=9), "max_effects"),
+    ],
+)
 def test_bad_options(kw, words):
     u = make_input()[:500]
     with pytest.raises(ValueError, match=words):
@@ -110,8 +113,7 @@ def test_cli_writes_report_predictions_and_plot(tmp_path):
     data = tmp_path / "data.csv"
     write_csv(data, {"t": t, "u": rec.u, "x": rec.x, "extra": np.zeros_like(t)})
     report, pred, fig = tmp_path / "r.json", tmp_path / "p.csv", tmp_path / "f.png"
-    code = main(["diagnose", str(data), "--json", str(report), "--predictions", str(pred),
-                 "--plot", str(fig)])
+    code = main(["diagnose", str(data), "--json", str(report), "--predictions", str(pred), "--plot", str(fig)])
     assert code == 0
     doc = json.loads(report.read_text())
     assert doc["effects"] == ["delay"]
@@ -124,14 +126,23 @@ def test_cli_writes_report_predictions_and_plot(tmp_path):
     assert fig.stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("argv_tail, words", [
-    (["missing.csv"], "no such file"),
-    ([], "exactly one"),
-    (["--dataset", "nope"], "unknown dataset"),
-])
+@pytest.mark.parametrize(
+    "argv_tail, words",
+    [
+        (["missing.csv"], "no such file"),
+        ([], "exactly one"),
+        (["--dataset", "nope"], "unknown dataset"),
+    ],
+)
 def test_cli_bad_input_exits_2_with_one_line(tmp_path, capsys, argv_tail, words):
-    argv = ["diagnose", *[str(tmp_path / a) if a.endswith(".csv") else a for a in argv_tail],
-            "--json", str(tmp_path / "r.json"), "--predictions", str(tmp_path / "p.csv")]
+    argv = [
+        "diagnose",
+        *[str(tmp_path / a) if a.endswith(".csv") else a for a in argv_tail],
+        "--json",
+        str(tmp_path / "r.json"),
+        "--predictions",
+        str(tmp_path / "p.csv"),
+    ]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err and "Traceback" not in err
@@ -140,7 +151,8 @@ def test_cli_bad_input_exits_2_with_one_line(tmp_path, capsys, argv_tail, words)
 def test_cli_bad_csv_exits_2(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("t,u\n0,1\n1,2\n2,3\n")
-    assert main(["diagnose", str(bad), "--json", str(tmp_path / "r.json"),
-                 "--predictions", str(tmp_path / "p.csv")]) == 2
+    assert (
+        main(["diagnose", str(bad), "--json", str(tmp_path / "r.json"), "--predictions", str(tmp_path / "p.csv")]) == 2
+    )
     err = capsys.readouterr().err
     assert err.startswith("boucwen diagnose: error:") and err.count("\n") == 1

@@ -20,9 +20,13 @@ def _u(n=3000, seed=0):
     return 50 + 45 * np.sin(2 * np.pi * 2 * t) * np.cos(2 * np.pi * 0.3 * t) + rng.normal(0, 0.01, n)
 
 
-ALL = dict(creep={"tau_s": [0.01, 0.5], "gain_um_per_v": [0.003, 0.004]},
-           input_lag={"fc_hz": 80.0}, resonance={"fn_hz": 150.0, "zeta": 0.1},
-           drift={"rate_um_per_s": 0.2}, delay={"samples": 2})
+ALL = dict(
+    creep={"tau_s": [0.01, 0.5], "gain_um_per_v": [0.003, 0.004]},
+    input_lag={"fc_hz": 80.0},
+    resonance={"fn_hz": 150.0, "zeta": 0.1},
+    drift={"rate_um_per_s": 0.2},
+    delay={"samples": 2},
+)
 
 
 def test_round_trips_and_vocabulary():
@@ -35,18 +39,21 @@ def test_round_trips_and_vocabulary():
     assert len(EffectSet()) == 0 and "drift" in e
 
 
-@pytest.mark.parametrize("kw, words", [
-    (dict(input_lag={"fc_hz": 0.0}), "input_lag.fc_hz"),
-    (dict(input_lag={"fc_hz": math.nan}), "input_lag.fc_hz"),
-    (dict(resonance={"fn_hz": 100.0, "zeta": -0.1}), "resonance.zeta"),
-    (dict(resonance={"fn_hz": -5.0, "zeta": 0.1}), "resonance.fn_hz"),
-    (dict(delay={"samples": -1}), "delay.samples"),
-    (dict(drift={"rate_um_per_s": math.inf}), "drift.rate_um_per_s"),
-    (dict(creep={"tau_s": [1.0, 2.0], "gain_um_per_v": [0.1]}), "creep.gain_um_per_v"),
-    (dict(creep={"tau_s": [0.0], "gain_um_per_v": [0.1]}), "creep.tau_s"),
-    (dict(drift={"rate": 1.0}), "unknown parameter"),
-    (dict(resonance={"fn_hz": 100.0}), "missing parameter"),
-])
+@pytest.mark.parametrize(
+    "kw, words",
+    [
+        (dict(input_lag={"fc_hz": 0.0}), "input_lag.fc_hz"),
+        (dict(input_lag={"fc_hz": math.nan}), "input_lag.fc_hz"),
+        (dict(resonance={"fn_hz": 100.0, "zeta": -0.1}), "resonance.zeta"),
+        (dict(resonance={"fn_hz": -5.0, "zeta": 0.1}), "resonance.fn_hz"),
+        (dict(delay={"samples": -1}), "delay.samples"),
+        (dict(drift={"rate_um_per_s": math.inf}), "drift.rate_um_per_s"),
+        (dict(creep={"tau_s": [1.0, 2.0], "gain_um_per_v": [0.1]}), "creep.gain_um_per_v"),
+        (dict(creep={"tau_s": [0.0], "gain_um_per_v": [0.1]}), "creep.tau_s"),
+        (dict(drift={"rate": 1.0}), "unknown parameter"),
+        (dict(resonance={"fn_hz": 100.0}), "missing parameter"),
+    ],
+)
 def test_invalid_parameters_name_the_culprit(kw, words):
     with pytest.raises(ValueError, match=words.replace(".", r"\.")):
         EffectSet(**kw)
@@ -87,8 +94,7 @@ def test_creep_step_response_matches_the_closed_form():
     # After the ramp an element is short of its final value g·10 by the share
     # τ/dt·(1 − exp(−dt/τ)) (exact solution of τ·ċ = g·u − c for a ramp of u).
     short = lambda tau: tau / DT * (1 - math.exp(-DT / tau))
-    want = 2.0 + sum(10 * g * (1 - short(tau) * np.exp(-t / tau))
-                     for tau, g in ((0.05, 0.01), (0.5, 0.02)))
+    want = 2.0 + sum(10 * g * (1 - short(tau) * np.exp(-t / tau)) for tau, g in ((0.05, 0.01), (0.5, 0.02)))
     np.testing.assert_allclose(x[1:], want, atol=1e-9)
 
 
@@ -115,9 +121,11 @@ def test_output_is_finite_for_any_valid_effects():
     rng = np.random.default_rng(3)
     u = _u(800)
     for _ in range(20):
-        e = EffectSet(input_lag={"fc_hz": float(np.exp(rng.uniform(-2, 8)))},
-                      resonance={"fn_hz": float(rng.uniform(0.1, 499)), "zeta": float(np.exp(rng.uniform(-7, 2)))},
-                      creep={"tau_s": list(np.exp(rng.uniform(-8, 3, 3))), "gain_um_per_v": list(rng.normal(0, 1, 3))})
+        e = EffectSet(
+            input_lag={"fc_hz": float(np.exp(rng.uniform(-2, 8)))},
+            resonance={"fn_hz": float(rng.uniform(0.1, 499)), "zeta": float(np.exp(rng.uniform(-7, 2)))},
+            creep={"tau_s": list(np.exp(rng.uniform(-8, 3, 3))), "gain_um_per_v": list(rng.normal(0, 1, 3))},
+        )
         assert np.all(np.isfinite(simulate_extended(P, e, u, DT)))
 
 

@@ -119,17 +119,20 @@ def test_bench_record_fits_to_its_noise():
     assert r.max_um < 0.1
 
 
-@pytest.mark.parametrize("u, x, dt, exc", [
-    ([0.0, 1.0, 2.0] * 10, [0.0] * 29, 1e-3, ValueError),        # lengths differ
-    (np.zeros((4, 8)), np.zeros((4, 8)), 1e-3, ValueError),          # not 1-D
-    (["a"] * 20, [0.0] * 20, 1e-3, TypeError),                       # not numbers
-    ([0.0, np.nan] * 10, [0.0] * 20, 1e-3, ValueError),              # NaN
-    (np.linspace(0, 1, 20), np.zeros(20), 0.0, ValueError),          # dt = 0
-    (np.linspace(0, 1, 20), np.zeros(20), -1e-3, ValueError),        # dt < 0
-    (np.linspace(0, 1, 20), np.zeros(20), "0.1", TypeError),         # dt not a number
-    (np.ones(20), np.zeros(20), 1e-3, ValueError),                   # constant u
-    (np.linspace(0, 1, 5), np.zeros(5), 1e-3, ValueError),           # too short
-])
+@pytest.mark.parametrize(
+    "u, x, dt, exc",
+    [
+        ([0.0, 1.0, 2.0] * 10, [0.0] * 29, 1e-3, ValueError),  # lengths differ
+        (np.zeros((4, 8)), np.zeros((4, 8)), 1e-3, ValueError),  # not 1-D
+        (["a"] * 20, [0.0] * 20, 1e-3, TypeError),  # not numbers
+        ([0.0, np.nan] * 10, [0.0] * 20, 1e-3, ValueError),  # NaN
+        (np.linspace(0, 1, 20), np.zeros(20), 0.0, ValueError),  # dt = 0
+        (np.linspace(0, 1, 20), np.zeros(20), -1e-3, ValueError),  # dt < 0
+        (np.linspace(0, 1, 20), np.zeros(20), "0.1", TypeError),  # dt not a number
+        (np.ones(20), np.zeros(20), 1e-3, ValueError),  # constant u
+        (np.linspace(0, 1, 5), np.zeros(5), 1e-3, ValueError),  # too short
+    ],
+)
 def test_bad_input(u, x, dt, exc):
     with pytest.raises(exc):
         fit(u, x, dt)

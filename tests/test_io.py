@@ -35,6 +35,7 @@ def _expect(path, *words):
 
 # ----------------------------------------------------------------------------- good files
 
+
 def test_round_trip(tmp_path):
     dt = 1e-4
     t = np.arange(2000) * dt
@@ -77,6 +78,7 @@ def test_long_record_with_9_digit_time_stamps(tmp_path):
 
 
 # ----------------------------------------------------------------------------- bad files
+
 
 def test_missing_file(tmp_path):
     path = tmp_path / "nope.csv"
@@ -158,6 +160,7 @@ def test_not_utf8(tmp_path):
 
 # ----------------------------------------------------------------------------- writing
 
+
 def test_write_csv_rejects_bad_input(tmp_path):
     path = tmp_path / "w.csv"
     with pytest.raises(ValueError, match="same length"):
@@ -174,6 +177,7 @@ def test_write_csv_rejects_bad_input(tmp_path):
 
 # ----------------------------------------------------------------------------- arrays
 
+
 def test_validate_samples_converts():
     u_in = np.arange(10, dtype=np.int32)
     x_in = np.linspace(0, 1, 20)[::2]
@@ -186,22 +190,25 @@ def test_validate_samples_converts():
     np.testing.assert_array_equal(u2, [1.0, 2.0])
 
 
-@pytest.mark.parametrize("u,x,dt,exc,words", [
-    (["a", "b"], [1, 2], None, TypeError, "u must hold real numbers"),
-    ([1, 2], [1 + 1j, 2], None, TypeError, "x must hold real numbers"),
-    ([True, False], [1, 2], None, TypeError, "u must hold real numbers"),
-    (1.0, [1.0], None, ValueError, "u must be 1-D, got a scalar"),
-    (np.zeros((2, 3)), np.zeros(6), None, ValueError, "shape (2, 3)"),
-    ([], [], None, ValueError, "u is empty"),
-    ([1, 2, 3], [1, 2], None, ValueError, "same length, got 3 and 2"),
-    ([1, np.nan, 3], [1, 2, 3], None, ValueError, "u[1] is nan"),
-    ([1, 2, 3], [1, 2, np.inf], None, ValueError, "x[2] is inf"),
-    ([1, 2], [1, 2], 0.0, ValueError, "dt must be finite and > 0"),
-    ([1, 2], [1, 2], -1e-3, ValueError, "dt must be finite and > 0"),
-    ([1, 2], [1, 2], float("nan"), ValueError, "dt must be finite"),
-    ([1, 2], [1, 2], "0.1", TypeError, "dt must be a real number"),
-    ([1, 2], [1, 2], True, TypeError, "dt must be a real number"),
-])
+@pytest.mark.parametrize(
+    "u,x,dt,exc,words",
+    [
+        (["a", "b"], [1, 2], None, TypeError, "u must hold real numbers"),
+        ([1, 2], [1 + 1j, 2], None, TypeError, "x must hold real numbers"),
+        ([True, False], [1, 2], None, TypeError, "u must hold real numbers"),
+        (1.0, [1.0], None, ValueError, "u must be 1-D, got a scalar"),
+        (np.zeros((2, 3)), np.zeros(6), None, ValueError, "shape (2, 3)"),
+        ([], [], None, ValueError, "u is empty"),
+        ([1, 2, 3], [1, 2], None, ValueError, "same length, got 3 and 2"),
+        ([1, np.nan, 3], [1, 2, 3], None, ValueError, "u[1] is nan"),
+        ([1, 2, 3], [1, 2, np.inf], None, ValueError, "x[2] is inf"),
+        ([1, 2], [1, 2], 0.0, ValueError, "dt must be finite and > 0"),
+        ([1, 2], [1, 2], -1e-3, ValueError, "dt must be finite and > 0"),
+        ([1, 2], [1, 2], float("nan"), ValueError, "dt must be finite"),
+        ([1, 2], [1, 2], "0.1", TypeError, "dt must be a real number"),
+        ([1, 2], [1, 2], True, TypeError, "dt must be a real number"),
+    ],
+)
 def test_validate_samples_rejects(u, x, dt, exc, words):
     with pytest.raises(exc) as info:
         validate_samples(u, x, dt)
@@ -214,6 +221,7 @@ def test_record_checks_lengths():
 
 
 # ----------------------------------------------------------------------------- datasets
+
 
 def test_dataset_names():
     assert datasets.names() == ["micromanipulator", "micromanipulator_compensated"]

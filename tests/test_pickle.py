@@ -57,10 +57,20 @@ def _rpem(with_effects: bool) -> Identifier:
     """An rpem identifier with a tuning of its own, and optionally an input lag and creep."""
     extra = {}
     if with_effects:
-        extra["effects"] = boucwen.EffectSet(input_lag={"fc_hz": 800.0},
-                                             creep={"tau_s": [0.01, 0.3], "gain_um_per_v": [0.001, 0.0005]})
-    return Identifier(DT, 16, Params.paper_1hz().replace(n=1.7), h0=0.05, method="rpem",
-                      memory_travel_v=800.0, offset_walk_um=0.02, noise_um2=2e-4, **extra)
+        extra["effects"] = boucwen.EffectSet(
+            input_lag={"fc_hz": 800.0}, creep={"tau_s": [0.01, 0.3], "gain_um_per_v": [0.001, 0.0005]}
+        )
+    return Identifier(
+        DT,
+        16,
+        Params.paper_1hz().replace(n=1.7),
+        h0=0.05,
+        method="rpem",
+        memory_travel_v=800.0,
+        offset_walk_um=0.02,
+        noise_um2=2e-4,
+        **extra,
+    )
 
 
 @pytest.mark.parametrize("with_effects", [False, True], ids=["base", "lag+creep"])

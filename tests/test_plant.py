@@ -14,11 +14,11 @@ DT = 1e-4
 
 # ----------------------------------------------------------------------------- no extension needed
 
+
 def test_paper_input_segments_and_continuity():
     t, u, segments = paper_input(DT)
     assert [f for f, _, _ in segments] == [1.0, 10.0, 100.0, 200.0]
-    assert [(lo, hi) for _, lo, hi in segments] == [
-        (0, 30000), (30000, 33000), (33000, 33300), (33300, 33801)]
+    assert [(lo, hi) for _, lo, hi in segments] == [(0, 30000), (30000, 33000), (33000, 33300), (33300, 33801)]
     assert t.shape == u.shape == (33801,)
     assert t[-1] == pytest.approx(3.38)
     np.testing.assert_allclose(np.diff(t), DT, rtol=1e-9)
@@ -29,8 +29,7 @@ def test_paper_input_segments_and_continuity():
     for (f_prev, _, _), (_, lo, _) in zip([(None, 0, 0)] + segments[:-1], segments):
         assert u[lo] == pytest.approx(0.0, abs=1e-9)
         if lo:  # one sample before the switch the previous sine is just short of its minimum
-            assert u[lo - 1] == pytest.approx(50 * (1 - math.cos(2 * math.pi * f_prev * DT)),
-                                              rel=1e-6)
+            assert u[lo - 1] == pytest.approx(50 * (1 - math.cos(2 * math.pi * f_prev * DT)), rel=1e-6)
     assert np.abs(np.diff(u)).max() <= steepest * (1 + 1e-9)
     assert u[-1] == pytest.approx(0.0, abs=1e-9)
 
@@ -40,8 +39,7 @@ def test_paper_input_formula():
     k = np.arange(0, 30000, 997)
     np.testing.assert_allclose(u[k], 50 + 50 * np.sin(2 * np.pi * t[k] - np.pi / 2), atol=1e-9)
     k = np.arange(33300, 33801, 7)
-    np.testing.assert_allclose(u[k], 50 + 50 * np.sin(2 * np.pi * 200 * (t[k] - 3.33) - np.pi / 2),
-                               atol=1e-9)
+    np.testing.assert_allclose(u[k], 50 + 50 * np.sin(2 * np.pi * 200 * (t[k] - 3.33) - np.pi / 2), atol=1e-9)
 
 
 def test_paper_input_custom_and_invalid():
@@ -59,8 +57,7 @@ def test_paper_input_custom_and_invalid():
 
 def test_settings_defaults_and_dict():
     s = BenchSettings()
-    assert (s.kv, s.x0, s.A, s.beta, s.gamma, s.n, s.delta) == (
-        0.19, 0.015, -0.072, 0.020, -0.019, 1.52, 0.0075)
+    assert (s.kv, s.x0, s.A, s.beta, s.gamma, s.n, s.delta) == (0.19, 0.015, -0.072, 0.020, -0.019, 1.52, 0.0075)
     d = s.to_dict()
     assert d["creep_tau_s"] == [0.01, 0.1, 1.0, 10.0]
     assert d["vibration_hz"] == [17.0, 29.0] and d["vibration_um"] == [0.25, 0.2]
@@ -72,14 +69,26 @@ def test_settings_defaults_and_dict():
         s.kv = 0.2
 
 
-@pytest.mark.parametrize("change", [
-    {"amplifier_fc_hz": 0.0}, {"creep_tau_s": (0.1,)}, {"creep_tau_s": (0.0, 1, 2, 3)},
-    {"noise_um": -1.0}, {"oversample": 0}, {"adc_bits": 40}, {"n": 0.0}, {"kv": math.nan},
-    {"adc_min_v": 100.0}, {"stroke_quadratic_per_um": math.inf},
-    {"stroke_quadratic_per_um": "0.004"}, {"vibration_hz": (17.0,)},
-    {"vibration_phase_rad": (0.0,)}, {"vibration_hz": (0.0, 29.0)},
-    {"vibration_um": (math.nan, 0.1)},
-])
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"amplifier_fc_hz": 0.0},
+        {"creep_tau_s": (0.1,)},
+        {"creep_tau_s": (0.0, 1, 2, 3)},
+        {"noise_um": -1.0},
+        {"oversample": 0},
+        {"adc_bits": 40},
+        {"n": 0.0},
+        {"kv": math.nan},
+        {"adc_min_v": 100.0},
+        {"stroke_quadratic_per_um": math.inf},
+        {"stroke_quadratic_per_um": "0.004"},
+        {"vibration_hz": (17.0,)},
+        {"vibration_phase_rad": (0.0,)},
+        {"vibration_hz": (0.0, 29.0)},
+        {"vibration_um": (math.nan, 0.1)},
+    ],
+)
 def test_settings_rejects(change):
     with pytest.raises(ValueError):
         BenchSettings(**change)
@@ -93,11 +102,12 @@ def test_lowpass_is_exact_for_a_ramp_and_has_first_order_gain():
     f = 200.0
     t = np.arange(200001) * step
     y = plant._lowpass(np.sin(2 * np.pi * f * t), tau, step, 0.0)
-    gain = np.ptp(y[-int(1 / f / step):]) / 2
+    gain = np.ptp(y[-int(1 / f / step) :]) / 2
     assert gain == pytest.approx(1 / math.hypot(1, 2 * np.pi * f * tau), rel=1e-3)
 
 
 # ----------------------------------------------------------------------------- with the extension
+
 
 @pytest.fixture(scope="module")
 def bench():
@@ -195,8 +205,7 @@ def test_creep_follows_its_elements():
     s = BenchSettings()
     creep = plant.measure(u, dt, s).meta["creep"]
     t = np.arange(u.size) * dt
-    want = sum(g * 100.0 * (1 - np.exp(-(t - dt / 2) / tau))
-               for tau, g in zip(s.creep_tau_s, s.creep_gain_um_per_v))
+    want = sum(g * 100.0 * (1 - np.exp(-(t - dt / 2) / tau)) for tau, g in zip(s.creep_tau_s, s.creep_gain_um_per_v))
     k = t >= 0.5
     np.testing.assert_allclose(creep[k], want[k], rtol=2e-3)
     # a few percent of the stroke over seconds
@@ -223,13 +232,13 @@ def test_paper_input_agrees_with_the_core():
 
 # ----------------------------------------------------------------------------- added effects
 
+
 def test_electrostriction_is_quadratic_in_the_bouc_wen_displacement(bench):
     u, segments, rec = bench
     s = BenchSettings()
     linear = plant.true_displacement(u, DT, dataclasses.replace(s, stroke_quadratic_per_um=0.0))
     y = linear - s.x0 - rec.meta["creep"]  # kv·u_a + h [µm]
-    np.testing.assert_allclose(rec.meta["x_true"] - linear, s.stroke_quadratic_per_um * y * y,
-                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(rec.meta["x_true"] - linear, s.stroke_quadratic_per_um * y * y, rtol=1e-9, atol=1e-12)
     # The stack's gain grows along the stroke: the local slope dx/du on the rising branch
     # of the last 1 Hz period is higher near the top than near the bottom, by the factor
     # 1 + 2·ε·Δy that the quadratic map predicts (the hysteresis is the same in both).
@@ -244,8 +253,7 @@ def test_electrostriction_is_quadratic_in_the_bouc_wen_displacement(bench):
 
     gain_rise = (slope(x, hi) / slope(xl, hi)) / (slope(x, lo) / slope(xl, lo))
     y1 = y[p1]
-    expect = (1 + 2 * s.stroke_quadratic_per_um * y1[hi].mean()) / (
-        1 + 2 * s.stroke_quadratic_per_um * y1[lo].mean())
+    expect = (1 + 2 * s.stroke_quadratic_per_um * y1[hi].mean()) / (1 + 2 * s.stroke_quadratic_per_um * y1[lo].mean())
     assert gain_rise == pytest.approx(expect, rel=2e-3)
     assert gain_rise > 1.05
     # a few percent of the stroke away from the straight line through the end points
@@ -258,8 +266,9 @@ def test_floor_vibration_is_the_documented_tones(bench):
     u, _, rec = bench
     s = BenchSettings()
     t = rec.t
-    want = sum(a * np.sin(2 * np.pi * f * t + ph)
-               for f, a, ph in zip(s.vibration_hz, s.vibration_um, s.vibration_phase_rad))
+    want = sum(
+        a * np.sin(2 * np.pi * f * t + ph) for f, a, ph in zip(s.vibration_hz, s.vibration_um, s.vibration_phase_rad)
+    )
     np.testing.assert_allclose(rec.meta["vibration"], want, rtol=0, atol=1e-12)
     np.testing.assert_allclose(plant.floor_vibration(t, s), want, rtol=0, atol=1e-12)
     # it is in the reading, not in the stack: the spectrum of x − x_true has the two
@@ -295,8 +304,9 @@ def traditional():
         out = {}
         for f, lo, hi in segments:
             n = int(round(1 / f / DT))
-            out[f] = float(err[hi - n:hi].max())  # last full period
+            out[f] = float(err[hi - n : hi].max())  # last full period
         return out
+
     return run
 
 

@@ -87,8 +87,9 @@ def test_table2_is_what_the_online_identifier_ends_with(quick_run):
     out, results, _ = quick_run
     data = np.load(out / "predictions.npz")
     fit = results["traditional_fit"]
-    ident = Identifier(float(data["dt"]), results["window"]["samples"],
-                       Params.from_dict(fit["params"]), fit["h0_um"], "paper")
+    ident = Identifier(
+        float(data["dt"]), results["window"]["samples"], Params.from_dict(fit["params"]), fit["h0_um"], "paper"
+    )
     pred = ident.push_many(data["u"], data["x"])
     np.testing.assert_array_equal(pred, data["x_online_paper"])
     assert ident.params.to_dict() == pytest.approx(results["table2"]["online_paper"]["200"])
@@ -96,8 +97,7 @@ def test_table2_is_what_the_online_identifier_ends_with(quick_run):
 
 def test_figures_written(quick_run):
     out, _, _ = quick_run
-    for name in ["fig6_1_to_10hz.png", "fig7_10_to_100hz.png", "fig8_100_to_200hz.png",
-                 "fig9_loops.png"]:
+    for name in ["fig6_1_to_10hz.png", "fig7_10_to_100hz.png", "fig8_100_to_200hz.png", "fig9_loops.png"]:
         data = (out / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000, name
 

@@ -73,6 +73,7 @@ def _same_state(a: Identifier, b: Identifier) -> bool:
 
 # --------------------------------------------------------------------------- messages
 
+
 @pytest.mark.parametrize(
     "args, exc, match",
     [
@@ -240,12 +241,28 @@ def test_read_csv_missing_file(tmp_path: Path) -> None:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "boucwen.cli", *args], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    return subprocess.run(
+        [sys.executable, "-m", "boucwen.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONWARNINGS": "ignore"},
+    )
 
 
-@pytest.mark.parametrize("name", ["empty", "header_only", "missing_column", "text_in_number",
-                                  "wrong_delimiter", "decreasing_time", "non_uniform_time", "binary"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "empty",
+        "header_only",
+        "missing_column",
+        "text_in_number",
+        "wrong_delimiter",
+        "decreasing_time",
+        "non_uniform_time",
+        "binary",
+    ],
+)
 def test_cli_fit_bad_csv_exits_2_with_one_line(tmp_path: Path, name: str) -> None:
     path = tmp_path / f"{name}.csv"
     path.write_text(BAD_CSVS[name], encoding="latin-1")
@@ -256,13 +273,19 @@ def test_cli_fit_bad_csv_exits_2_with_one_line(tmp_path: Path, name: str) -> Non
 
 
 def test_cli_missing_file_and_bad_options(tmp_path: Path) -> None:
-    for args in (["fit", str(tmp_path / "missing.csv")], ["fit"], ["no-such-command"], ["fit", "x.csv", "--starts", "two"]):
+    for args in (
+        ["fit", str(tmp_path / "missing.csv")],
+        ["fit"],
+        ["no-such-command"],
+        ["fit", "x.csv", "--starts", "two"],
+    ):
         done = _cli(*args)
         assert done.returncode == 2, (args, done.stderr)
         assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr, (args, done.stderr)
 
 
 # --------------------------------------------------------------------------- poor excitation
+
 
 @pytest.mark.parametrize("method", METHODS)
 def test_constant_input_then_excitation(method: str) -> None:
@@ -296,12 +319,20 @@ def test_constant_input_then_excitation(method: str) -> None:
 
 # --------------------------------------------------------------------------- properties
 
+
 @st.composite
 def bounded_params(draw: Any) -> Params:
     s = draw(st.floats(1e-4, 0.2))
     d = draw(st.floats(1e-4, 0.2))
-    return Params(draw(st.floats(-1, 1)), draw(st.floats(-10, 10)), draw(st.floats(-0.5, 0.5)),
-                  0.5 * (s + d), 0.5 * (s - d), draw(st.floats(0.5, 4.0)), draw(st.floats(-0.05, 0.05)))
+    return Params(
+        draw(st.floats(-1, 1)),
+        draw(st.floats(-10, 10)),
+        draw(st.floats(-0.5, 0.5)),
+        0.5 * (s + d),
+        0.5 * (s - d),
+        draw(st.floats(0.5, 4.0)),
+        draw(st.floats(-0.05, 0.05)),
+    )
 
 
 inputs = st.lists(st.floats(-200, 200), min_size=1, max_size=300)
@@ -355,19 +386,68 @@ def test_paper_identifier_agrees_with_the_numpy_reference(offset: int, window: i
 
 # --------------------------------------------------------------------------- fuzz
 
-_WEIRD_SCALARS = [NAN, INF, -INF, 1e308, -1e308, 5e-324, -0.0, 0.0, 1e-300, -1.0, 2**63, -(2**63), 10**40,
-                  True, None, "1.0", "nan", b"1", [], [1.0], (), {}, object(), 1 + 1j, np.float32(NAN),
-                  np.int64(-1), np.array(1.0), np.array([1.0, 2.0])]
+_WEIRD_SCALARS = [
+    NAN,
+    INF,
+    -INF,
+    1e308,
+    -1e308,
+    5e-324,
+    -0.0,
+    0.0,
+    1e-300,
+    -1.0,
+    2**63,
+    -(2**63),
+    10**40,
+    True,
+    None,
+    "1.0",
+    "nan",
+    b"1",
+    [],
+    [1.0],
+    (),
+    {},
+    object(),
+    1 + 1j,
+    np.float32(NAN),
+    np.int64(-1),
+    np.array(1.0),
+    np.array([1.0, 2.0]),
+]
 
 
 def _weird_arrays(rng: np.random.Generator) -> list[Any]:
     return [
-        [], np.array([]), np.zeros((0, 3)), np.zeros((2, 3)), np.zeros((1, 1, 1)), np.array(5.0),
-        rng.standard_normal(7) * 1e300, np.array([NAN] * 3), np.array([INF, -INF]), np.full(5, 5e-324),
-        np.array([1, 2, 3], dtype=np.int8), np.array([True, False]), np.array(["1", "2"]), np.array([1 + 1j]),
-        np.array([object(), 1], dtype=object), [1, "a"], [[1, 2], [3]], "123", b"123", None, 3.0,
-        np.arange(10.0)[::3], np.asfortranarray(np.zeros((3, 1))), np.float32([1, 2, 3]), range(5), {1: 2},
-        rng.uniform(-1e6, 1e6, 50), np.ma.masked_array([1.0, 2.0], mask=[0, 1]),
+        [],
+        np.array([]),
+        np.zeros((0, 3)),
+        np.zeros((2, 3)),
+        np.zeros((1, 1, 1)),
+        np.array(5.0),
+        rng.standard_normal(7) * 1e300,
+        np.array([NAN] * 3),
+        np.array([INF, -INF]),
+        np.full(5, 5e-324),
+        np.array([1, 2, 3], dtype=np.int8),
+        np.array([True, False]),
+        np.array(["1", "2"]),
+        np.array([1 + 1j]),
+        np.array([object(), 1], dtype=object),
+        [1, "a"],
+        [[1, 2], [3]],
+        "123",
+        b"123",
+        None,
+        3.0,
+        np.arange(10.0)[::3],
+        np.asfortranarray(np.zeros((3, 1))),
+        np.float32([1, 2, 3]),
+        range(5),
+        {1: 2},
+        rng.uniform(-1e6, 1e6, 50),
+        np.ma.masked_array([1.0, 2.0], mask=[0, 1]),
     ]
 
 

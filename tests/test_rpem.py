@@ -60,7 +60,7 @@ def test_constant_input_then_excitation_no_wind_up():
     # Excitation again: no burst, the error is back to the noise-free level at once.
     u2 = rich_input(1.0)
     x2, _ = simulate(TRUTH, np.concatenate([u, u2]), DT)
-    x2 = x2[u.size:]
+    x2 = x2[u.size :]
     pred2 = ident.push_many(u2, x2)
     assert np.all(np.isfinite(pred2))
     assert np.max(np.abs(pred2 - x2)) < 0.02
@@ -107,14 +107,35 @@ def test_no_nan_and_admissible_parameters_under_wild_input():
 
 
 def test_method_name_options_and_bad_options():
-    ident = Identifier(DT, 16, TRUTH, 0.0, "rpem", forgetting=0.9999, memory_travel_v=800.0, p0=1e-4,
-                       noise_um2=1e-3, max_trace=0.5, max_step=0.005, n_bounds=(1.0, 3.0), margin=0.0,
-                       offset_walk_um=0.01, max_offset_step_um=0.1)
+    ident = Identifier(
+        DT,
+        16,
+        TRUTH,
+        0.0,
+        "rpem",
+        forgetting=0.9999,
+        memory_travel_v=800.0,
+        p0=1e-4,
+        noise_um2=1e-3,
+        max_trace=0.5,
+        max_step=0.005,
+        n_bounds=(1.0, 3.0),
+        margin=0.0,
+        offset_walk_um=0.01,
+        max_offset_step_um=0.1,
+    )
     assert ident.method == "rpem"
     assert ident.push(0.0, 0.0) == pytest.approx(TRUTH.x0)
-    for bad in [dict(forgetting=0.0), dict(forgetting=1.5), dict(p0=-1.0), dict(noise_um2=math.nan),
-                dict(n_bounds=(0.5, 3.0)), dict(memory_travel_v=0.0), dict(max_step=0.0),
-                dict(offset_walk_um=-1.0)]:
+    for bad in [
+        dict(forgetting=0.0),
+        dict(forgetting=1.5),
+        dict(p0=-1.0),
+        dict(noise_um2=math.nan),
+        dict(n_bounds=(0.5, 3.0)),
+        dict(memory_travel_v=0.0),
+        dict(max_step=0.0),
+        dict(offset_walk_um=-1.0),
+    ]:
         with pytest.raises(ValueError):
             Identifier(DT, 16, TRUTH, 0.0, "rpem", **bad)
     # Options of one method given to the other are an error, not silently ignored.
@@ -139,7 +160,7 @@ def _steady_max(x, pred, segments):
     out = {}
     for f, lo, hi in segments:
         period = int(round(1 / (f * DT)))
-        out[f] = float(np.max(np.abs(x - pred)[hi - period:hi]))
+        out[f] = float(np.max(np.abs(x - pred)[hi - period : hi]))
     return out
 
 

@@ -17,6 +17,17 @@ from ._core import EffectSet, simulate_extended
 from .diagnose import Diagnosis, diagnose
 from .fit import FitResult, fit
 
-__all__ = ["Identifier", "Model", "Params", "__version__", "paper_input", "simulate",
-           "fit", "FitResult", "EffectSet", "simulate_extended",
-           "diagnose", "Diagnosis"]
+__all__ = [
+    "Identifier",
+    "Model",
+    "Params",
+    "__version__",
+    "paper_input",
+    "simulate",
+    "fit",
+    "FitResult",
+    "EffectSet",
+    "simulate_extended",
+    "diagnose",
+    "Diagnosis",
+]

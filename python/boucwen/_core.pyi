@@ -57,9 +57,7 @@ class Params:
     names: ClassVar[List[str]]
     """Parameter names in array order: ``["kv", "x0", "A", "beta", "gamma", "n", "delta"]``."""
 
-    def __new__(
-        cls, kv: float, x0: float, A: float, beta: float, gamma: float, n: float, delta: float
-    ) -> "Params": ...
+    def __new__(cls, kv: float, x0: float, A: float, beta: float, gamma: float, n: float, delta: float) -> "Params": ...
     @staticmethod
     def paper_1hz() -> "Params":
         """The paper's Table 2 values identified at 1 Hz on a P-885.51 stack."""
@@ -304,6 +302,7 @@ class EffectSet:
     creep={"tau_s": [s…], "gain_um_per_v": [µm/V…]}, input_lag={"fc_hz": Hz},
     resonance={"fn_hz": Hz, "zeta": -}, drift={"rate_um_per_s": µm/s},
     delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError."""
+
     vocabulary: ClassVar[List[str]]
     def __new__(
         cls,

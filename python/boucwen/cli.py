@@ -45,14 +45,14 @@ class _Parser(argparse.ArgumentParser):
 
 # --------------------------------------------------------------------------- fit
 
+
 def _cmd_fit(args: argparse.Namespace) -> int:
     from .fit import fit
     from .io import read_csv
 
     _prepare_output(args.json)
     rec = read_csv(args.data)
-    result = fit(rec.u, rec.x, rec.dt, n_starts=args.starts, seed=args.seed,
-                 progress=args.progress)
+    result = fit(rec.u, rec.x, rec.dt, n_starts=args.starts, seed=args.seed, progress=args.progress)
     p = result.params
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
     print(f"  kv    = {p.kv:.6g} µm/V")
@@ -64,8 +64,10 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     print(f"  delta = {p.delta:.6g} µm/(V·s)")
     print(f"  h0    = {result.h0:.6g} µm")
     print(f"output error: rms {result.rms_um:.4g} µm, max {result.max_um:.4g} µm")
-    print(f"{'converged' if result.success else 'NOT converged'}: {result.message} "
-          f"({result.nfev} simulations, {result.elapsed_s:.2f} s)")
+    print(
+        f"{'converged' if result.success else 'NOT converged'}: {result.message} "
+        f"({result.nfev} simulations, {result.elapsed_s:.2f} s)"
+    )
     if args.json:
         doc = result.to_dict()
         doc["data"] = {"path": str(args.data), "samples": len(rec), "dt_s": rec.dt}
@@ -76,10 +78,13 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 
 
 def _add_fit(sub) -> None:
-    p = sub.add_parser("fit", help="offline output-error fit of a CSV record (t, u, x)",
-                       description="Identifies the seven parameters and h0 of the asymmetric "
-                                   "Bouc-Wen model from a CSV record with columns t [s], u [V], "
-                                   "x [um] by output-error least squares.")
+    p = sub.add_parser(
+        "fit",
+        help="offline output-error fit of a CSV record (t, u, x)",
+        description="Identifies the seven parameters and h0 of the asymmetric "
+        "Bouc-Wen model from a CSV record with columns t [s], u [V], "
+        "x [um] by output-error least squares.",
+    )
     p.add_argument("data", help="CSV file with a header line and columns t,u,x")
     p.add_argument("--json", metavar="OUT.json", help="also write the result as JSON")
     p.add_argument("--starts", type=int, default=4, help="local starts (default 4)")
@@ -90,33 +95,39 @@ def _add_fit(sub) -> None:
 
 # --------------------------------------------------------------------------- reproduce
 
+
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from .experiments.reproduce import run
 
-    run(args.out, quick=args.quick, window=args.window, seed=args.seed,
-        figures=not args.no_figures)
+    run(args.out, quick=args.quick, window=args.window, seed=args.seed, figures=not args.no_figures)
     return EXIT_OK
 
 
 def _add_reproduce(sub) -> None:
     from .experiments.reproduce import DEFAULT_OUT
 
-    p = sub.add_parser("reproduce", help="the paper's experiment on the simulated bench",
-                       description="Runs the paper's experiment (1 -> 10 -> 100 -> 200 Hz) on the "
-                                   "simulated bench: traditional fit vs online identification, "
-                                   "Tables 1-2, Figs. 6-9.")
-    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
-                   help=f"output directory (default {DEFAULT_OUT})")
+    p = sub.add_parser(
+        "reproduce",
+        help="the paper's experiment on the simulated bench",
+        description="Runs the paper's experiment (1 -> 10 -> 100 -> 200 Hz) on the "
+        "simulated bench: traditional fit vs online identification, "
+        "Tables 1-2, Figs. 6-9.",
+    )
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR", help=f"output directory (default {DEFAULT_OUT})")
     p.add_argument("--quick", action="store_true", help="reduced input, for smoke tests")
-    p.add_argument("--window", type=int, default=None,
-                   help="limited memory N of the online method [samples] "
-                        "(default: one period of the highest frequency)")
+    p.add_argument(
+        "--window",
+        type=int,
+        default=None,
+        help="limited memory N of the online method [samples] (default: one period of the highest frequency)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of noise and fit (default 0)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(handler=_cmd_reproduce)
 
 
 # --------------------------------------------------------------------------- diagnose
+
 
 def _prepare_output(path: str | None) -> None:
     """Creates the folder of an output file, before any long work (OSError if it cannot)."""
@@ -138,8 +149,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         from .datasets import load
 
         rec = load(args.dataset)
-        source = {"dataset": args.dataset, "citation": rec.meta.get("citation"),
-                  "licence": rec.meta.get("licence")}
+        source = {"dataset": args.dataset, "citation": rec.meta.get("citation"), "licence": rec.meta.get("licence")}
     else:
         from .io import read_csv
 
@@ -161,20 +171,26 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _add_diagnose(sub) -> None:
-    p = sub.add_parser("diagnose", help="find which effect the base model misses in a record",
-                       description="Fits the base model, analyses the residual, adds the effects "
-                                   "(creep, input_lag, resonance, drift, delay) that earn their "
-                                   "parameters on held-out data, and reports the error before "
-                                   "and after [um].")
-    p.add_argument("data", nargs="?", default=None,
-                   help="CSV file with a header line and columns t,u,x (s, V, um)")
-    p.add_argument("--dataset", metavar="NAME", default=None,
-                   help="use a shipped dataset instead of a CSV file (e.g. micromanipulator)")
+    p = sub.add_parser(
+        "diagnose",
+        help="find which effect the base model misses in a record",
+        description="Fits the base model, analyses the residual, adds the effects "
+        "(creep, input_lag, resonance, drift, delay) that earn their "
+        "parameters on held-out data, and reports the error before "
+        "and after [um].",
+    )
+    p.add_argument("data", nargs="?", default=None, help="CSV file with a header line and columns t,u,x (s, V, um)")
+    p.add_argument(
+        "--dataset",
+        metavar="NAME",
+        default=None,
+        help="use a shipped dataset instead of a CSV file (e.g. micromanipulator)",
+    )
     p.add_argument("--json", metavar="REPORT.json", required=True, help="write the report here")
-    p.add_argument("--predictions", metavar="PRED.csv", required=True,
-                   help="write t,x,x_base,x_extended here")
-    p.add_argument("--plot", metavar="FIG.png", default=None,
-                   help="also draw the residual before and after, and the loops")
+    p.add_argument("--predictions", metavar="PRED.csv", required=True, help="write t,x,x_base,x_extended here")
+    p.add_argument(
+        "--plot", metavar="FIG.png", default=None, help="also draw the residual before and after, and the loops"
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the base fit's starts (default 0)")
     p.add_argument("--progress", action="store_true", help="print progress to stderr")
     p.set_defaults(handler=_cmd_diagnose)
@@ -188,8 +204,7 @@ SUBCOMMANDS: list[Callable] = [_add_fit, _add_reproduce, _add_diagnose]
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand of :data:`SUBCOMMANDS`."""
-    parser = _Parser(prog="boucwen",
-                     description="Asymmetric Bouc-Wen hysteresis of piezoelectric actuators.")
+    parser = _Parser(prog="boucwen", description="Asymmetric Bouc-Wen hysteresis of piezoelectric actuators.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for add in SUBCOMMANDS:

@@ -36,8 +36,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ._core import EffectSet
-from .effects import (VOCABULARY, ZETA_BOUNDS, ExtendedFit, best_delay, candidate_starts, fit_extended,
-                      simulate_chain)
+from .effects import VOCABULARY, ZETA_BOUNDS, ExtendedFit, best_delay, candidate_starts, fit_extended, simulate_chain
 from .fit import fit
 from .io import validate_samples
 
@@ -84,21 +83,30 @@ class Diagnosis:
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON report (without the arrays)."""
-        return {"effects": list(self.effects), "rms_before": self.rms_before,
-                "max_before": self.max_before, "rms_after": self.rms_after,
-                "max_after": self.max_after, "params": self.params, "evidence": self.evidence}
+        return {
+            "effects": list(self.effects),
+            "rms_before": self.rms_before,
+            "max_before": self.max_before,
+            "rms_after": self.rms_after,
+            "max_after": self.max_after,
+            "params": self.params,
+            "evidence": self.evidence,
+        }
 
     def summary(self) -> str:
         """One line: effects and errors."""
         named = ", ".join(self.effects) if self.effects else "none"
-        return (f"effects: {named}; RMS {self.rms_before:.4g} → {self.rms_after:.4g} µm, "
-                f"max {self.max_before:.4g} → {self.max_after:.4g} µm")
+        return (
+            f"effects: {named}; RMS {self.rms_before:.4g} → {self.rms_after:.4g} µm, "
+            f"max {self.max_before:.4g} → {self.max_after:.4g} µm"
+        )
 
     def __repr__(self) -> str:
         return f"Diagnosis({self.summary()})"
 
 
 # --------------------------------------------------------------------------- evidence
+
 
 def _noise_sigma(r: np.ndarray) -> float:
     """Robust white-noise level [µm] from first differences (MAD)."""
@@ -141,7 +149,7 @@ def _band_ratios(r: np.ndarray, xm: np.ndarray, dt: float) -> list[list[float]]:
         f_hi = min(2.0 * f_lo, 0.5 / dt)
         sel = (freqs >= f_lo) & (freqs < f_hi)
         x_pow = float(np.sum(X[sel] ** 2))
-        if x_pow > 1e-12 * float(np.sum(X ** 2)):
+        if x_pow > 1e-12 * float(np.sum(X**2)):
             out.append([f_lo, f_hi, float(math.sqrt(np.sum(R[sel] ** 2) / x_pow))])
         f_lo = f_hi
     return out
@@ -168,21 +176,26 @@ def residual_evidence(u: Any, x: Any, x_model: Any, dt: float) -> dict[str, Any]
     r = x - xm
     n = r.size
     t = np.arange(n) * dt
-    ev: dict[str, Any] = {"rms_um": float(np.sqrt(np.mean(r ** 2))), "noise_um": _noise_sigma(r)}
+    ev: dict[str, Any] = {"rms_um": float(np.sqrt(np.mean(r**2))), "noise_um": _noise_sigma(r)}
 
     holds = _holds(u, dt)
     changes, steps = [], []
     for a, b in holds:
         w = max(2, min(10, (b - a) // 5))
         skip = min((b - a) // 4, max(2, int(0.005 / dt)))
-        changes.append(float(np.mean(r[b - w:b]) - np.mean(r[a + skip:a + skip + w])))
+        changes.append(float(np.mean(r[b - w : b]) - np.mean(r[a + skip : a + skip + w])))
         back = max(0, a - max(1, int(0.1 / dt)))
         steps.append(float(u[a] - u[back]))
-    corr = float(np.corrcoef(changes, steps)[0, 1]) if len(changes) >= 3 and np.std(steps) > 0 \
-        and np.std(changes) > 0 else 0.0
-    ev["creep"] = {"holds": len(holds),
-                   "hold_change_rms_um": float(np.sqrt(np.mean(np.square(changes)))) if changes else 0.0,
-                   "corr_with_step": corr}
+    corr = (
+        float(np.corrcoef(changes, steps)[0, 1])
+        if len(changes) >= 3 and np.std(steps) > 0 and np.std(changes) > 0
+        else 0.0
+    )
+    ev["creep"] = {
+        "holds": len(holds),
+        "hold_change_rms_um": float(np.sqrt(np.mean(np.square(changes)))) if changes else 0.0,
+        "corr_with_step": corr,
+    }
 
     xdot = np.gradient(xm, dt)
     denom = float(xdot @ xdot)
@@ -192,12 +205,15 @@ def residual_evidence(u: Any, x: Any, x_model: Any, dt: float) -> dict[str, Any]
 
     try:
         from scipy.signal import welch
+
         f, pxx = welch(r - r.mean(), fs=1.0 / dt, nperseg=min(n, max(64, int(0.25 / dt))))
         sel = f > max(4.0 * f[1] if f.size > 1 else 0.0, 0.02 / dt)
         if np.any(sel) and np.median(pxx[sel]) > 0:
             k = int(np.argmax(pxx[sel]))
-            ev["resonance"] = {"peak_hz": float(f[sel][k]),
-                               "peak_over_median": float(pxx[sel][k] / np.median(pxx[sel]))}
+            ev["resonance"] = {
+                "peak_hz": float(f[sel][k]),
+                "peak_over_median": float(pxx[sel][k] / np.median(pxx[sel])),
+            }
         else:
             ev["resonance"] = {"peak_hz": 0.0, "peak_over_median": 0.0}
     except ValueError:  # pragma: no cover - record shorter than a segment
@@ -218,11 +234,13 @@ def _delay_evidence(u, x, dt, fitres: ExtendedFit) -> dict[str, Any]:
 
 # --------------------------------------------------------------------------- diagnosis
 
+
 def _say_factory(progress: bool | Callable[[str], None], started: float) -> Callable[[str], None]:
     if progress is True:
+
         def say(msg: str) -> None:
-            print(f"diagnose: [{time.perf_counter() - started:6.2f} s] {msg}", file=sys.stderr,
-                  flush=True)
+            print(f"diagnose: [{time.perf_counter() - started:6.2f} s] {msg}", file=sys.stderr, flush=True)
+
         return say
     if callable(progress):
         return progress
@@ -230,12 +248,21 @@ def _say_factory(progress: bool | Callable[[str], None], started: float) -> Call
 
 
 def _rms(v: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(v ** 2))) if v.size else 0.0
+    return float(np.sqrt(np.mean(v**2))) if v.size else 0.0
 
 
-def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None] = False,
-             train_fraction: float = TRAIN_FRACTION, min_gain: float = MIN_GAIN,
-             max_effects: int = 3, seed: int = 0, workers: int | None = None) -> Diagnosis:
+def diagnose(
+    u: Any,
+    x: Any,
+    dt: float,
+    *,
+    progress: bool | Callable[[str], None] = False,
+    train_fraction: float = TRAIN_FRACTION,
+    min_gain: float = MIN_GAIN,
+    max_effects: int = 3,
+    seed: int = 0,
+    workers: int | None = None,
+) -> Diagnosis:
     """Finds which effects of the vocabulary the record holds beyond the base model.
 
     Args:
@@ -265,8 +292,7 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
     dt = float(dt)
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be finite and > 0 s, got {dt}")
-    for name, value, lo, hi in (("train_fraction", train_fraction, 0.3, 0.95),
-                                ("min_gain", min_gain, 0.0, 1.0)):
+    for name, value, lo, hi in (("train_fraction", train_fraction, 0.3, 0.95), ("min_gain", min_gain, 0.0, 1.0)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
             raise ValueError(f"{name} must be a number in [{lo}, {hi}], got {value!r}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or not 0 <= max_effects <= 5:
@@ -287,13 +313,16 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
 
     say(f"fitting the base model on the first {nt} of {n} samples")
     base_tr = fit(u_tr, x_tr, dt, seed=seed, workers=workers)
-    current = fit_extended(u_tr, x_tr, dt, base_tr.params, EffectSet(), base_tr.h0,
-                           max_nfev=100, workers=workers)
+    current = fit_extended(u_tr, x_tr, dt, base_tr.params, EffectSet(), base_tr.h0, max_nfev=100, workers=workers)
     cur_held, cur_x = heldout(current)
     say(f"base model: fitting-part RMS {current.rms_um:.4g} µm, held-out RMS {cur_held:.4g} µm")
     evidence: dict[str, Any] = {
-        "train_samples": nt, "heldout_samples": n - nt, "min_gain": min_gain,
-        "residual": residual_evidence(u, x, cur_x, dt), "rounds": []}
+        "train_samples": nt,
+        "heldout_samples": n - nt,
+        "min_gain": min_gain,
+        "residual": residual_evidence(u, x, cur_x, dt),
+        "rounds": [],
+    }
     evidence["residual"]["delay"] = _delay_evidence(u, x, dt, current)
     added: list[str] = []
 
@@ -303,8 +332,9 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
         for name in VOCABULARY:
             if name in current.effects.names:
                 continue
-            starts = candidate_starts(name, u_tr, x_tr, dt, current.params, current.effects,
-                                      current.h0, max_delay=MAX_DELAY_SAMPLES)
+            starts = candidate_starts(
+                name, u_tr, x_tr, dt, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES
+            )
             if len(starts) > 1:
                 costs = []
                 for s in starts:
@@ -316,19 +346,20 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
                 # The base fit has bent itself to follow the lag; a delay of d samples is
                 # the base model fitted to the record shifted by d, which starts it right.
                 d = int(starts[0].to_dict()["delay"]["samples"])
-                shifted = fit(u_tr[:-d], x_tr[d:], dt, init=current.params, seed=seed,
-                              workers=workers)
+                shifted = fit(u_tr[:-d], x_tr[d:], dt, init=current.params, seed=seed, workers=workers)
                 p0, h0 = shifted.params, shifted.h0
             try:
-                fr = fit_extended(u_tr, x_tr, dt, p0, starts[0], h0,
-                                  max_nfev=TRIAL_NFEV, workers=workers)
+                fr = fit_extended(u_tr, x_tr, dt, p0, starts[0], h0, max_nfev=TRIAL_NFEV, workers=workers)
             except ValueError as exc:
                 trials[name] = {"error": str(exc)}
                 continue
             held, _ = heldout(fr)
-            trials[name] = {"train_rms_um": fr.rms_um, "heldout_rms_um": held,
-                            "heldout_gain": 1.0 - held / cur_held if cur_held > 0 else 0.0,
-                            "fitted": fr.effects.to_dict().get(name)}
+            trials[name] = {
+                "train_rms_um": fr.rms_um,
+                "heldout_rms_um": held,
+                "heldout_gain": 1.0 - held / cur_held if cur_held > 0 else 0.0,
+                "fitted": fr.effects.to_dict().get(name),
+            }
             if name == "resonance" and fr.effects.to_dict()["resonance"]["zeta"] >= 0.99 * ZETA_BOUNDS[1]:
                 # Critically damped or more: no peak, so not a resonance (a lag shape
                 # the other effects describe); recorded, but not a candidate.
@@ -340,8 +371,9 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
         ranked = sorted(fits, key=lambda k: trials[k]["heldout_rms_um"])
         best = ranked[0] if ranked else None
         keep = best is not None and trials[best]["heldout_gain"] >= min_gain
-        evidence["rounds"].append({"heldout_rms_um": cur_held, "trials": trials,
-                                   "most_likely": best, "kept": bool(keep)})
+        evidence["rounds"].append(
+            {"heldout_rms_um": cur_held, "trials": trials, "most_likely": best, "kept": bool(keep)}
+        )
         if not keep:
             say("nothing left that earns its parameters on the held-out part")
             break
@@ -352,8 +384,7 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
         say(f"kept {best}: held-out RMS {cur_held:.4g} µm")
 
     say("refitting on the whole record")
-    base_all = fit(u, x, dt, init=base_tr.params, n_candidates=0, n_starts=1, seed=seed,
-                   workers=workers)
+    base_all = fit(u, x, dt, init=base_tr.params, n_candidates=0, n_starts=1, seed=seed, workers=workers)
     x_base = base_all.x_fit
     if added:
         ext = fit_extended(u, x, dt, current.params, current.effects, current.h0, workers=workers)
@@ -367,10 +398,18 @@ def diagnose(u: Any, x: Any, dt: float, *, progress: bool | Callable[[str], None
     params["base_only"] = {"base": base_all.params.to_dict(), "h0_um": base_all.h0}
     err_b, err_e = x - x_base, x - x_ext
     evidence["elapsed_s"] = time.perf_counter() - started
-    result = Diagnosis(effects=added, rms_before=_rms(err_b), max_before=float(np.max(np.abs(err_b))),
-                       rms_after=_rms(err_e), max_after=float(np.max(np.abs(err_e))),
-                       params=params, evidence=_jsonable(evidence), x_base=x_base,
-                       x_extended=x_ext, effect_set=effect_set)
+    result = Diagnosis(
+        effects=added,
+        rms_before=_rms(err_b),
+        max_before=float(np.max(np.abs(err_b))),
+        rms_after=_rms(err_e),
+        max_after=float(np.max(np.abs(err_e))),
+        params=params,
+        evidence=_jsonable(evidence),
+        x_base=x_base,
+        x_extended=x_ext,
+        effect_set=effect_set,
+    )
     say(result.summary())
     return result
 
@@ -392,6 +431,7 @@ def _jsonable(obj: Any) -> Any:
 
 
 # --------------------------------------------------------------------------- outputs
+
 
 def write_report(result: Diagnosis, path: Any, data: dict[str, Any] | None = None) -> None:
     """Writes the JSON report (:meth:`Diagnosis.to_dict`, plus ``data`` if given)."""
@@ -425,10 +465,20 @@ def plot_diagnosis(result: Diagnosis, t: Any, u: Any, x: Any, path: Any, title: 
     ax_l = fig.add_subplot(grid[1, 0])
     ax_s = fig.add_subplot(grid[1, 1])
     named = ", ".join(result.effects) if result.effects else "none"
-    ax_r.plot(t, x - result.x_base, linewidth=0.7, color="tab:red",
-              label=f"base model (RMS {result.rms_before:.3g} µm, max {result.max_before:.3g} µm)")
-    ax_r.plot(t, x - result.x_extended, linewidth=0.7, color="tab:blue",
-              label=f"with {named} (RMS {result.rms_after:.3g} µm, max {result.max_after:.3g} µm)")
+    ax_r.plot(
+        t,
+        x - result.x_base,
+        linewidth=0.7,
+        color="tab:red",
+        label=f"base model (RMS {result.rms_before:.3g} µm, max {result.max_before:.3g} µm)",
+    )
+    ax_r.plot(
+        t,
+        x - result.x_extended,
+        linewidth=0.7,
+        color="tab:blue",
+        label=f"with {named} (RMS {result.rms_after:.3g} µm, max {result.max_after:.3g} µm)",
+    )
     ax_r.axhline(0.0, color="grey", linewidth=0.5)
     ax_r.set_xlabel("time t [s]")
     ax_r.set_ylabel("error x − x̂ [µm]")
@@ -437,8 +487,7 @@ def plot_diagnosis(result: Diagnosis, t: Any, u: Any, x: Any, path: Any, title: 
     ax_r.grid(True, alpha=0.3)
     ax_l.plot(u, x, color="black", linewidth=1.2, label="measured")
     ax_l.plot(u, result.x_base, color="tab:red", linewidth=0.7, linestyle="--", label="base model")
-    ax_l.plot(u, result.x_extended, color="tab:blue", linewidth=0.7, linestyle=":",
-              label=f"with {named}")
+    ax_l.plot(u, result.x_extended, color="tab:blue", linewidth=0.7, linestyle=":", label=f"with {named}")
     ax_l.set_xlabel("voltage u [V]")
     ax_l.set_ylabel("displacement x [µm]")
     ax_l.set_title("(b) loops")
@@ -446,8 +495,10 @@ def plot_diagnosis(result: Diagnosis, t: Any, u: Any, x: Any, path: Any, title: 
     ax_l.grid(True, alpha=0.3)
     dt = float(t[1] - t[0]) if t.size > 1 else 1.0
     freqs = np.fft.rfftfreq(t.size, dt)[1:]
-    for err, color, label in ((x - result.x_base, "tab:red", "base model"),
-                              (x - result.x_extended, "tab:blue", f"with {named}")):
+    for err, color, label in (
+        (x - result.x_base, "tab:red", "base model"),
+        (x - result.x_extended, "tab:blue", f"with {named}"),
+    ):
         amp = np.abs(np.fft.rfft(err - err.mean()))[1:] * 2.0 / t.size
         ax_s.loglog(freqs, np.maximum(amp, 1e-12), color=color, linewidth=0.6, label=label)
     ax_s.set_xlabel("frequency [Hz]")

@@ -41,8 +41,17 @@ from scipy.optimize import least_squares
 from ._core import EffectSet, Params, simulate_extended
 from .fit import N_BOUNDS
 
-__all__ = ["Layout", "ExtendedFit", "fit_extended", "simulate_chain", "creep_time_constants",
-           "best_delay", "VOCABULARY", "ZETA_BOUNDS", "FN_MAX_NYQUIST_FRACTION"]
+__all__ = [
+    "Layout",
+    "ExtendedFit",
+    "fit_extended",
+    "simulate_chain",
+    "creep_time_constants",
+    "best_delay",
+    "VOCABULARY",
+    "ZETA_BOUNDS",
+    "FN_MAX_NYQUIST_FRACTION",
+]
 
 #: The effect names, in signal-chain order.
 VOCABULARY: tuple[str, ...] = tuple(EffectSet.vocabulary)
@@ -92,10 +101,13 @@ class Layout:
     @classmethod
     def of(cls, effects: EffectSet, dt: float, duration_s: float) -> "Layout":
         d = effects.to_dict()
-        return cls(names=tuple(effects.names),
-                   creep_tau_s=tuple(d["creep"]["tau_s"]) if "creep" in d else (),
-                   delay_samples=int(d["delay"]["samples"]) if "delay" in d else 0,
-                   dt=float(dt), duration_s=float(duration_s))
+        return cls(
+            names=tuple(effects.names),
+            creep_tau_s=tuple(d["creep"]["tau_s"]) if "creep" in d else (),
+            delay_samples=int(d["delay"]["samples"]) if "delay" in d else 0,
+            dt=float(dt),
+            duration_s=float(duration_s),
+        )
 
     def labels(self) -> list[str]:
         """Name of every unknown, in vector order."""
@@ -132,7 +144,7 @@ class Layout:
         kw: dict[str, Any] = {}
         if "creep" in self.names:
             k = len(self.creep_tau_s)
-            kw["creep"] = {"tau_s": list(self.creep_tau_s), "gain_um_per_v": [float(g) for g in v[i:i + k]]}
+            kw["creep"] = {"tau_s": list(self.creep_tau_s), "gain_um_per_v": [float(g) for g in v[i : i + k]]}
             i += k
         if "input_lag" in self.names:
             kw["input_lag"] = {"fc_hz": float(math.exp(v[i]))}
@@ -194,8 +206,7 @@ class ExtendedFit:
         return out
 
 
-def simulate_chain(params: Params, effects: EffectSet, u: np.ndarray, dt: float,
-                   h0: float) -> np.ndarray | None:
+def simulate_chain(params: Params, effects: EffectSet, u: np.ndarray, dt: float, h0: float) -> np.ndarray | None:
     """:func:`boucwen.simulate_extended`, or None if the values cannot be simulated."""
     try:
         x = simulate_extended(params, effects, u, dt, h0)
@@ -205,8 +216,15 @@ def simulate_chain(params: Params, effects: EffectSet, u: np.ndarray, dt: float,
 
 
 class _Problem:
-    def __init__(self, layout: Layout, u: np.ndarray, x: np.ndarray, dt: float,
-                 pool: ThreadPoolExecutor | None, typical: np.ndarray):
+    def __init__(
+        self,
+        layout: Layout,
+        u: np.ndarray,
+        x: np.ndarray,
+        dt: float,
+        pool: ThreadPoolExecutor | None,
+        typical: np.ndarray,
+    ):
         self.layout, self.u, self.x, self.dt, self.pool = layout, u, x, dt, pool
         self.typical = typical
         self.nsim = 0
@@ -258,9 +276,17 @@ def _typical(layout: Layout, v0: np.ndarray, u: np.ndarray, x: np.ndarray, dt: f
     span_x = max(float(np.ptp(x)), 1e-12)
     labels = layout.labels()
     typ = np.abs(v0).copy()
-    floors = {"kv": span_x / span_u, "x0": span_x, "A": span_x / span_u, "beta": 1e-3,
-              "gamma": 1e-3, "n": 1.0, "delta": 1e-3, "h0": 0.01 * span_x,
-              "drift.rate": span_x / max(layout.duration_s, dt) * 1e-2}
+    floors = {
+        "kv": span_x / span_u,
+        "x0": span_x,
+        "A": span_x / span_u,
+        "beta": 1e-3,
+        "gamma": 1e-3,
+        "n": 1.0,
+        "delta": 1e-3,
+        "h0": 0.01 * span_x,
+        "drift.rate": span_x / max(layout.duration_s, dt) * 1e-2,
+    }
     for j, name in enumerate(labels):
         floor = floors.get(name)
         if name.startswith("creep.gain"):
@@ -271,8 +297,18 @@ def _typical(layout: Layout, v0: np.ndarray, u: np.ndarray, x: np.ndarray, dt: f
     return typ
 
 
-def fit_extended(u: Any, x: Any, dt: float, params: Params, effects: EffectSet, h0: float = 0.0,
-                 *, max_nfev: int = 40, tol: float = 1e-8, workers: int | None = None) -> ExtendedFit:
+def fit_extended(
+    u: Any,
+    x: Any,
+    dt: float,
+    params: Params,
+    effects: EffectSet,
+    h0: float = 0.0,
+    *,
+    max_nfev: int = 40,
+    tol: float = 1e-8,
+    workers: int | None = None,
+) -> ExtendedFit:
     """Fits the base parameters, h0 and the effects' parameters by output error.
 
     Args:
@@ -313,8 +349,18 @@ def fit_extended(u: Any, x: Any, dt: float, params: Params, effects: EffectSet, 
         prob = _Problem(layout, u, x, dt, pool, typ)
         if prob.sim(v0) is None:
             raise ValueError("the starting point of fit_extended cannot be simulated")
-        res = least_squares(prob.residual, v0, jac=prob.jacobian, bounds=(lo, hi), method="trf",
-                            x_scale=typ, xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev)
+        res = least_squares(
+            prob.residual,
+            v0,
+            jac=prob.jacobian,
+            bounds=(lo, hi),
+            method="trf",
+            x_scale=typ,
+            xtol=tol,
+            ftol=tol,
+            gtol=tol,
+            max_nfev=max_nfev,
+        )
         p, e, h = layout.unpack(res.x)
         xs = simulate_chain(p, e, u, dt, h)
     finally:
@@ -323,12 +369,20 @@ def fit_extended(u: Any, x: Any, dt: float, params: Params, effects: EffectSet, 
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point
         raise ValueError("the fitted parameters cannot be simulated")
     err = x - xs
-    return ExtendedFit(params=p, effects=e, h0=h, rms_um=float(np.sqrt(np.mean(err ** 2))),
-                       max_um=float(np.max(np.abs(err))), nfev=prob.nsim, success=bool(res.success))
+    return ExtendedFit(
+        params=p,
+        effects=e,
+        h0=h,
+        rms_um=float(np.sqrt(np.mean(err**2))),
+        max_um=float(np.max(np.abs(err))),
+        nfev=prob.nsim,
+        success=bool(res.success),
+    )
 
 
-def best_delay(u: np.ndarray, x: np.ndarray, dt: float, params: Params, effects: EffectSet,
-               h0: float, max_samples: int) -> tuple[int, dict[int, float]]:
+def best_delay(
+    u: np.ndarray, x: np.ndarray, dt: float, params: Params, effects: EffectSet, h0: float, max_samples: int
+) -> tuple[int, dict[int, float]]:
     """The whole-sample delay d (0 … ``max_samples``) that best aligns the model with x.
 
     For each d, the model (with ``effects``, without any delay) is shifted by d samples
@@ -357,9 +411,18 @@ def _starts_from(effects: EffectSet, extra: dict[str, Any]) -> EffectSet:
     return EffectSet(**kw)
 
 
-def candidate_starts(name: str, u: np.ndarray, x: np.ndarray, dt: float, params: Params,
-                     effects: EffectSet, h0: float, *, max_delay: int = 8,
-                     creep_tau_s: Sequence[float] | None = None) -> list[EffectSet]:
+def candidate_starts(
+    name: str,
+    u: np.ndarray,
+    x: np.ndarray,
+    dt: float,
+    params: Params,
+    effects: EffectSet,
+    h0: float,
+    *,
+    max_delay: int = 8,
+    creep_tau_s: Sequence[float] | None = None,
+) -> list[EffectSet]:
     """Starting effect sets that add ``name`` to ``effects`` (a few for the nonlinear ones)."""
     duration = dt * (u.size - 1)
     if name == "creep":

@@ -101,16 +101,26 @@ class FitResult:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (without ``x_fit``)."""
-        return {"params": self.params.to_dict(), "h0_um": self.h0, "rms_um": self.rms_um,
-                "max_um": self.max_um, "success": self.success, "message": self.message,
-                "nfev": self.nfev, "elapsed_s": self.elapsed_s}
+        return {
+            "params": self.params.to_dict(),
+            "h0_um": self.h0,
+            "rms_um": self.rms_um,
+            "max_um": self.max_um,
+            "success": self.success,
+            "message": self.message,
+            "nfev": self.nfev,
+            "elapsed_s": self.elapsed_s,
+        }
 
     def __repr__(self) -> str:
-        return (f"FitResult(params={self.params!r}, h0={self.h0!r}, rms_um={self.rms_um:.4g}, "
-                f"max_um={self.max_um:.4g}, success={self.success}, nfev={self.nfev})")
+        return (
+            f"FitResult(params={self.params!r}, h0={self.h0!r}, rms_um={self.rms_um:.4g}, "
+            f"max_um={self.max_um:.4g}, success={self.success}, nfev={self.nfev})"
+        )
 
 
 # --------------------------------------------------------------------------- inputs
+
 
 def _validate(u: Any, x: Any, dt: Any) -> tuple[np.ndarray, np.ndarray, float]:
     try:
@@ -136,11 +146,19 @@ def _validate(u: Any, x: Any, dt: Any) -> tuple[np.ndarray, np.ndarray, float]:
 
 # --------------------------------------------------------------------------- problem
 
+
 class _Problem:
     """The separable output-error problem on one (possibly decimated) record."""
 
-    def __init__(self, u: np.ndarray, x: np.ndarray, dt: float, scale: np.ndarray,
-                 fixed_h0: float | None, pool: ThreadPoolExecutor | None):
+    def __init__(
+        self,
+        u: np.ndarray,
+        x: np.ndarray,
+        dt: float,
+        scale: np.ndarray,
+        fixed_h0: float | None,
+        pool: ThreadPoolExecutor | None,
+    ):
         self.u, self.x, self.dt = u, x, dt
         self.scale = scale
         self.fixed_h0 = fixed_h0
@@ -233,6 +251,7 @@ class _Problem:
 
 # --------------------------------------------------------------------------- guesses
 
+
 def _scales(u: np.ndarray, x: np.ndarray, dt: float) -> np.ndarray:
     """Scale of (A, β, γ, n, δ, h0) derived from the record."""
     basis = np.column_stack([u, np.ones_like(u)])
@@ -243,7 +262,7 @@ def _scales(u: np.ndarray, x: np.ndarray, dt: float) -> np.ndarray:
     half_width = max(0.5 * float(np.ptp(resid)), 1e-6 * max(span_x, 1e-12), 1e-12)
     span_u = float(np.ptp(u))
     s_a = max(abs(float(slope)), half_width / span_u)
-    s_bg = s_a / half_width ** 1.5
+    s_bg = s_a / half_width**1.5
     # Time the voltage spends moving one way: record duration / number of reversals.
     du = np.diff(u)
     du = du[np.abs(du) > 1e-9 * span_u]
@@ -285,21 +304,42 @@ def _decimation(u: np.ndarray) -> int:
 
 # --------------------------------------------------------------------------- fit
 
+
 def _local(problem: _Problem, z0: np.ndarray, max_nfev: int, tol: float):
     lb = np.full(problem.nvar, -np.inf)
     ub = np.full(problem.nvar, np.inf)
     lb[3], ub[3] = N_BOUNDS
     z0 = z0[: problem.nvar].copy()
     z0[3] = min(max(z0[3], N_BOUNDS[0] + 1e-9), N_BOUNDS[1] - 1e-9)
-    return least_squares(problem.residual, z0, jac=problem.jacobian, bounds=(lb, ub),
-                         method="trf", x_scale=1.0, xtol=tol, ftol=tol, gtol=tol,
-                         max_nfev=max_nfev)
+    return least_squares(
+        problem.residual,
+        z0,
+        jac=problem.jacobian,
+        bounds=(lb, ub),
+        method="trf",
+        x_scale=1.0,
+        xtol=tol,
+        ftol=tol,
+        gtol=tol,
+        max_nfev=max_nfev,
+    )
 
 
-def fit(u: Any, x: Any, dt: float, *, init: Params | None = None, h0: float | None = None,
-        n_starts: int = 4, n_candidates: int = 32, seed: int = 0, max_nfev: int = 40,
-        decimate: int | None = None, workers: int | None = None,
-        progress: bool | Callable[[str], None] = False) -> FitResult:
+def fit(
+    u: Any,
+    x: Any,
+    dt: float,
+    *,
+    init: Params | None = None,
+    h0: float | None = None,
+    n_starts: int = 4,
+    n_candidates: int = 32,
+    seed: int = 0,
+    max_nfev: int = 40,
+    decimate: int | None = None,
+    workers: int | None = None,
+    progress: bool | Callable[[str], None] = False,
+) -> FitResult:
     """Identifies the seven parameters and h0 from a record by output-error least squares.
 
     Args:
@@ -337,23 +377,24 @@ def fit(u: Any, x: Any, dt: float, *, init: Params | None = None, h0: float | No
         if not math.isfinite(h0):
             raise ValueError(f"h0 must be finite, got {h0}")
         h0 = float(h0)
-    for name, value, low in (("n_starts", n_starts, 1), ("n_candidates", n_candidates, 0),
-                             ("max_nfev", max_nfev, 1)):
+    for name, value, low in (("n_starts", n_starts, 1), ("n_candidates", n_candidates, 0), ("max_nfev", max_nfev, 1)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    if decimate is not None and (isinstance(decimate, bool) or not isinstance(decimate, (int, np.integer))
-                                 or decimate < 1):
+    if decimate is not None and (
+        isinstance(decimate, bool) or not isinstance(decimate, (int, np.integer)) or decimate < 1
+    ):
         raise ValueError(f"decimate must be None or an integer >= 1, got {decimate!r}")
     if workers is not None and (not isinstance(workers, (int, np.integer)) or workers < 1):
         raise ValueError(f"workers must be None or an integer >= 1, got {workers!r}")
 
     if progress is True:
+
         def say(msg: str) -> None:
-            print(f"fit: [{time.perf_counter() - started:5.2f} s] {msg}", file=sys.stderr,
-                  flush=True)
+            print(f"fit: [{time.perf_counter() - started:5.2f} s] {msg}", file=sys.stderr, flush=True)
     elif callable(progress):
         say = progress
     else:
+
         def say(msg: str) -> None:
             pass
 
@@ -372,13 +413,11 @@ def fit(u: Any, x: Any, dt: float, *, init: Params | None = None, h0: float | No
             cands[:, 5] = h0 / scale[5]
         starts: list[np.ndarray] = []
         if init is not None:
-            zi = np.array([init.A, init.beta, init.gamma, init.n, init.delta,
-                           h0 if h0 is not None else 0.0]) / scale
+            zi = np.array([init.A, init.beta, init.gamma, init.n, init.delta, h0 if h0 is not None else 0.0]) / scale
             starts.append(zi)
         if n_candidates:
             say(f"scoring {n_candidates} candidates on {coarse.u.size} samples (every {q}th)")
-            costs = (list(pool.map(coarse.cost, cands)) if pool
-                     else [coarse.cost(c) for c in cands])
+            costs = list(pool.map(coarse.cost, cands)) if pool else [coarse.cost(c) for c in cands]
             order = np.argsort(costs)
             starts.extend(cands[i] for i in order[:n_starts])
 
@@ -420,11 +459,19 @@ def fit(u: Any, x: Any, dt: float, *, init: Params | None = None, h0: float | No
     finally:
         if pool is not None:
             pool.shutdown()
-    rms_um = float(np.sqrt(np.mean(err ** 2)))
+    rms_um = float(np.sqrt(np.mean(err**2)))
     max_um = float(np.max(np.abs(err)))
     success = bool(final.success) and math.isfinite(rms_um)
     elapsed = time.perf_counter() - started
     say(f"done in {elapsed:.2f} s: rms {rms_um:.4g} µm, max {max_um:.4g} µm")
-    return FitResult(params=params, h0=float(th[5]), rms_um=rms_um, max_um=max_um,
-                     success=success, message=f"{stage}: {final.message}", nfev=int(nfev),
-                     x_fit=x_fit, elapsed_s=elapsed)
+    return FitResult(
+        params=params,
+        h0=float(th[5]),
+        rms_um=rms_um,
+        max_um=max_um,
+        success=success,
+        message=f"{stage}: {final.message}",
+        nfev=int(nfev),
+        x_fit=x_fit,
+        elapsed_s=elapsed,
+    )

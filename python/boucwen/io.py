@@ -84,11 +84,14 @@ class Record:
         return 1.0 / self.dt
 
     def __repr__(self) -> str:
-        return (f"Record(name={self.name!r}, samples={len(self)}, dt={self.dt!r} s, "
-                f"duration={(len(self) - 1) * self.dt:.6g} s)")
+        return (
+            f"Record(name={self.name!r}, samples={len(self)}, dt={self.dt!r} s, "
+            f"duration={(len(self) - 1) * self.dt:.6g} s)"
+        )
 
 
 # --------------------------------------------------------------------------- arrays
+
 
 def _as_float_vector(values: Any, name: str) -> np.ndarray:
     """`values` as a contiguous 1-D float64 array; TypeError/ValueError otherwise."""
@@ -107,8 +110,7 @@ def _as_float_vector(values: Any, name: str) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(a))
     if bad.size:
         k = int(bad[0])
-        raise ValueError(f"{name}[{k}] is {a[k]}; all samples must be finite "
-                         f"({bad.size} non-finite)")
+        raise ValueError(f"{name}[{k}] is {a[k]}; all samples must be finite ({bad.size} non-finite)")
     return a
 
 
@@ -147,6 +149,7 @@ def validate_samples(u: Any, x: Any, dt: Any = None) -> tuple[np.ndarray, np.nda
 
 
 # --------------------------------------------------------------------------- CSV
+
 
 def _fail(path: Path, message: str, line: int | None = None) -> ValueError:
     where = f"{path}: line {line}: " if line is not None else f"{path}: "
@@ -196,22 +199,30 @@ def read_csv(path: str | os.PathLike) -> Record:
     if "," not in header_line:
         for sep, label in ((";", "';'"), ("\t", "tabs")):
             if sep in header_line:
-                raise _fail(path, f"header {header_line.strip()!r} is separated by {label}; "
-                                  "columns must be separated by ','", header_no)
+                raise _fail(
+                    path,
+                    f"header {header_line.strip()!r} is separated by {label}; columns must be separated by ','",
+                    header_no,
+                )
         if len(header_line.split()) > 1:
-            raise _fail(path, f"header {header_line.strip()!r} is separated by spaces; "
-                              "columns must be separated by ','", header_no)
+            raise _fail(
+                path,
+                f"header {header_line.strip()!r} is separated by spaces; columns must be separated by ','",
+                header_no,
+            )
 
     header = [name.strip() for name in next(csv.reader([header_line]))]
     for name in REQUIRED_COLUMNS:
         if header.count(name) > 1:
-            raise _fail(path, f"column {name!r} appears {header.count(name)} times in the header",
-                        header_no)
+            raise _fail(path, f"column {name!r} appears {header.count(name)} times in the header", header_no)
     missing = [name for name in REQUIRED_COLUMNS if name not in header]
     if missing:
         found = ", ".join(repr(h) for h in header)
-        raise _fail(path, f"missing column{'s' if len(missing) > 1 else ''} "
-                          f"{', '.join(repr(m) for m in missing)} (found: {found})", header_no)
+        raise _fail(
+            path,
+            f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} (found: {found})",
+            header_no,
+        )
     cols = {name: header.index(name) for name in REQUIRED_COLUMNS}
     width = len(header)
 
@@ -223,8 +234,9 @@ def read_csv(path: str | os.PathLike) -> Record:
             hint = ""
             if len(fields) == 1 and (";" in fields[0] or "\t" in fields[0]):
                 hint = " (the row seems to use ';' or tabs; columns must be separated by ',')"
-            raise _fail(path, f"expected {width} comma-separated fields as in the header, "
-                              f"found {len(fields)}{hint}", line_no)
+            raise _fail(
+                path, f"expected {width} comma-separated fields as in the header, found {len(fields)}{hint}", line_no
+            )
         values = []
         for name in REQUIRED_COLUMNS:
             raw = fields[cols[name]].strip()
@@ -241,8 +253,7 @@ def read_csv(path: str | os.PathLike) -> Record:
     if not rows:
         raise _fail(path, "header only, no data rows")
     if len(rows) < 3:
-        raise _fail(path, f"only {len(rows)} data row{'s' if len(rows) > 1 else ''}, "
-                          "at least 3 are needed")
+        raise _fail(path, f"only {len(rows)} data row{'s' if len(rows) > 1 else ''}, at least 3 are needed")
 
     data = np.array(rows, dtype=np.float64)
     t, u, x = data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy()
@@ -250,18 +261,20 @@ def read_csv(path: str | os.PathLike) -> Record:
     bad = np.flatnonzero(steps <= 0.0)
     if bad.size:
         k = int(bad[0])
-        raise _fail(path, f"time not strictly increasing: t = {t[k + 1]!r} s after "
-                          f"t = {t[k]!r} s", line_nos[k + 1])
+        raise _fail(path, f"time not strictly increasing: t = {t[k + 1]!r} s after t = {t[k]!r} s", line_nos[k + 1])
     dt = float((t[-1] - t[0]) / (t.size - 1))
     tol = STEP_RTOL * dt + STAMP_RTOL * float(np.max(np.abs(t)))
     dev = np.abs(steps - dt)
     worst = int(np.argmax(dev))
     if dev[worst] > tol:
-        raise _fail(path, f"non-uniform sampling: step {steps[worst]:.9g} s differs from the "
-                          f"mean step {dt:.9g} s by {100.0 * dev[worst] / dt:.3g}% "
-                          f"(tolerance {100.0 * tol / dt:.3g}%)", line_nos[worst + 1])
-    return Record(t=t, u=u, x=x, dt=dt, name=path.stem,
-                  meta={"path": str(path), "columns": header})
+        raise _fail(
+            path,
+            f"non-uniform sampling: step {steps[worst]:.9g} s differs from the "
+            f"mean step {dt:.9g} s by {100.0 * dev[worst] / dt:.3g}% "
+            f"(tolerance {100.0 * tol / dt:.3g}%)",
+            line_nos[worst + 1],
+        )
+    return Record(t=t, u=u, x=x, dt=dt, name=path.stem, meta={"path": str(path), "columns": header})
 
 
 def write_csv(path: str | os.PathLike, columns: Mapping[str, Any]) -> None:
@@ -283,8 +296,9 @@ def write_csv(path: str | os.PathLike, columns: Mapping[str, Any]) -> None:
     arrays = []
     for name in names:
         if not isinstance(name, str) or not name.strip() or any(c in name for c in ',"\r\n'):
-            raise ValueError(f"bad column name {name!r}: must be a non-empty string without "
-                             "commas, quotes or line breaks")
+            raise ValueError(
+                f"bad column name {name!r}: must be a non-empty string without commas, quotes or line breaks"
+            )
         a = np.asarray(columns[name])
         if a.dtype.kind not in "biuf":
             raise TypeError(f"column {name!r} must hold real numbers, got dtype {a.dtype}")

@@ -82,16 +82,22 @@ import numpy as np
 
 from .io import Record, validate_samples
 
-__all__ = ["BenchSettings", "paper_input", "measure", "true_displacement",
-           "floor_vibration", "DEFAULT_DT", "PAPER_SEGMENTS"]
+__all__ = [
+    "BenchSettings",
+    "paper_input",
+    "measure",
+    "true_displacement",
+    "floor_vibration",
+    "DEFAULT_DT",
+    "PAPER_SEGMENTS",
+]
 
 #: Default sampling interval [s] (10 kHz).
 DEFAULT_DT = 1e-4
 
 #: The paper's input as (frequency [Hz], duration [s]) pairs: 1 Hz for 3 s,
 #: 10 Hz for 0.3 s, 100 Hz for 0.03 s, then 200 Hz for 0.05 s (10 periods).
-PAPER_SEGMENTS: tuple[tuple[float, float], ...] = (
-    (1.0, 3.0), (10.0, 0.3), (100.0, 0.03), (200.0, 0.05))
+PAPER_SEGMENTS: tuple[tuple[float, float], ...] = ((1.0, 3.0), (10.0, 0.3), (100.0, 0.03), (200.0, 0.05))
 
 
 @dataclass(frozen=True)
@@ -164,52 +170,65 @@ class BenchSettings:
     """Fine-grid points per sample interval for the lag, creep and Bouc–Wen core [-]."""
 
     def __post_init__(self) -> None:
-        for name in ("kv", "x0", "A", "beta", "gamma", "n", "delta", "noise_um",
-                     "resolution_um", "range_um", "adc_min_v", "adc_max_v"):
+        for name in (
+            "kv",
+            "x0",
+            "A",
+            "beta",
+            "gamma",
+            "n",
+            "delta",
+            "noise_um",
+            "resolution_um",
+            "range_um",
+            "adc_min_v",
+            "adc_max_v",
+        ):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"BenchSettings.{name} must be a finite number, got {value!r}")
         if self.n <= 0:
             raise ValueError(f"BenchSettings.n must be > 0, got {self.n}")
         if not (self.amplifier_fc_hz > 0):
-            raise ValueError(f"BenchSettings.amplifier_fc_hz must be > 0 Hz (math.inf = no lag), "
-                             f"got {self.amplifier_fc_hz}")
+            raise ValueError(
+                f"BenchSettings.amplifier_fc_hz must be > 0 Hz (math.inf = no lag), got {self.amplifier_fc_hz}"
+            )
         object.__setattr__(self, "creep_tau_s", tuple(float(v) for v in self.creep_tau_s))
-        object.__setattr__(self, "creep_gain_um_per_v",
-                           tuple(float(v) for v in self.creep_gain_um_per_v))
+        object.__setattr__(self, "creep_gain_um_per_v", tuple(float(v) for v in self.creep_gain_um_per_v))
         if len(self.creep_tau_s) != len(self.creep_gain_um_per_v):
-            raise ValueError("BenchSettings.creep_tau_s and creep_gain_um_per_v must have the "
-                             f"same length, got {len(self.creep_tau_s)} and "
-                             f"{len(self.creep_gain_um_per_v)}")
+            raise ValueError(
+                "BenchSettings.creep_tau_s and creep_gain_um_per_v must have the "
+                f"same length, got {len(self.creep_tau_s)} and "
+                f"{len(self.creep_gain_um_per_v)}"
+            )
         if not all(math.isfinite(v) and v > 0 for v in self.creep_tau_s):
-            raise ValueError(f"BenchSettings.creep_tau_s must be finite and > 0 s, "
-                             f"got {self.creep_tau_s}")
+            raise ValueError(f"BenchSettings.creep_tau_s must be finite and > 0 s, got {self.creep_tau_s}")
         if not all(math.isfinite(v) for v in self.creep_gain_um_per_v):
             raise ValueError("BenchSettings.creep_gain_um_per_v must be finite")
-        if not (isinstance(self.stroke_quadratic_per_um, (int, float))
-                and math.isfinite(self.stroke_quadratic_per_um)):
-            raise ValueError("BenchSettings.stroke_quadratic_per_um must be a finite number, "
-                             f"got {self.stroke_quadratic_per_um!r}")
+        if not (isinstance(self.stroke_quadratic_per_um, (int, float)) and math.isfinite(self.stroke_quadratic_per_um)):
+            raise ValueError(
+                f"BenchSettings.stroke_quadratic_per_um must be a finite number, got {self.stroke_quadratic_per_um!r}"
+            )
         for name in ("vibration_hz", "vibration_um", "vibration_phase_rad"):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
             if not all(math.isfinite(v) for v in getattr(self, name)):
                 raise ValueError(f"BenchSettings.{name} must be finite, got {getattr(self, name)}")
         if not (len(self.vibration_hz) == len(self.vibration_um) == len(self.vibration_phase_rad)):
-            raise ValueError("BenchSettings.vibration_hz, vibration_um and vibration_phase_rad "
-                             f"must have the same length, got {len(self.vibration_hz)}, "
-                             f"{len(self.vibration_um)} and {len(self.vibration_phase_rad)}")
+            raise ValueError(
+                "BenchSettings.vibration_hz, vibration_um and vibration_phase_rad "
+                f"must have the same length, got {len(self.vibration_hz)}, "
+                f"{len(self.vibration_um)} and {len(self.vibration_phase_rad)}"
+            )
         if not all(v > 0 for v in self.vibration_hz):
             raise ValueError(f"BenchSettings.vibration_hz must be > 0 Hz, got {self.vibration_hz}")
         if self.noise_um < 0 or self.resolution_um < 0 or self.range_um <= 0:
-            raise ValueError("BenchSettings: noise_um and resolution_um must be >= 0, "
-                             "range_um > 0")
+            raise ValueError("BenchSettings: noise_um and resolution_um must be >= 0, range_um > 0")
         if not isinstance(self.adc_bits, int) or not 0 <= self.adc_bits <= 32:
             raise ValueError(f"BenchSettings.adc_bits must be an int in 0…32, got {self.adc_bits!r}")
         if self.adc_bits and not self.adc_max_v > self.adc_min_v:
             raise ValueError("BenchSettings.adc_max_v must be > adc_min_v")
         if not isinstance(self.oversample, int) or self.oversample < 1:
-            raise ValueError(f"BenchSettings.oversample must be an int >= 1, "
-                             f"got {self.oversample!r}")
+            raise ValueError(f"BenchSettings.oversample must be an int >= 1, got {self.oversample!r}")
 
     def to_dict(self) -> dict[str, Any]:
         """The settings as a plain dict (tuples become lists)."""
@@ -218,6 +237,7 @@ class BenchSettings:
     def params(self):
         """The Bouc–Wen core as a :class:`boucwen.Params`."""
         from . import _core
+
         return _core.Params(self.kv, self.x0, self.A, self.beta, self.gamma, self.n, self.delta)
 
     @property
@@ -225,14 +245,16 @@ class BenchSettings:
         """Voltage step of one A/D code [V] (0 if the A/D does not quantise)."""
         if not self.adc_bits:
             return 0.0
-        return (self.adc_max_v - self.adc_min_v) / (2 ** self.adc_bits - 1)
+        return (self.adc_max_v - self.adc_min_v) / (2**self.adc_bits - 1)
 
 
 # --------------------------------------------------------------------------- input
 
-def paper_input(dt: float = DEFAULT_DT,
-                durations: Sequence[tuple[float, float]] | Mapping[float, float] | None = None,
-                ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, int, int]]]:
+
+def paper_input(
+    dt: float = DEFAULT_DT,
+    durations: Sequence[tuple[float, float]] | Mapping[float, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray, list[tuple[float, int, int]]]:
     """The paper's test voltage u = 50 + 50·sin(2πf·t' − π/2) [V], f switching at minima.
 
     ``t'`` is the time since the start of the current segment, so every segment
@@ -262,8 +284,9 @@ def paper_input(dt: float = DEFAULT_DT,
     """
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be finite and > 0 s, got {dt!r}")
-    pairs = list(durations.items() if isinstance(durations, Mapping)
-                 else (PAPER_SEGMENTS if durations is None else durations))
+    pairs = list(
+        durations.items() if isinstance(durations, Mapping) else (PAPER_SEGMENTS if durations is None else durations)
+    )
     if not pairs:
         raise ValueError("durations must hold at least one (frequency, duration) pair")
     starts = [0.0]
@@ -273,8 +296,10 @@ def paper_input(dt: float = DEFAULT_DT,
             raise ValueError(f"frequency and duration must be finite and > 0, got ({f}, {d})")
         periods = f * d
         if abs(periods - round(periods)) > 1e-6 * max(1.0, periods) or round(periods) < 1:
-            raise ValueError(f"{f:g} Hz for {d:g} s is {periods:.6g} periods, not a whole "
-                             "number; the switch would not fall on a minimum")
+            raise ValueError(
+                f"{f:g} Hz for {d:g} s is {periods:.6g} periods, not a whole "
+                "number; the switch would not fall on a minimum"
+            )
         starts.append(starts[-1] + d)
     total = starts[-1]
     count = int(math.floor(total / dt + 1e-9)) + 1
@@ -291,6 +316,7 @@ def paper_input(dt: float = DEFAULT_DT,
 
 
 # --------------------------------------------------------------------------- bench
+
 
 def _lowpass(v: np.ndarray, tau: float, step: float, y0: float) -> np.ndarray:
     """Exact response of τ·dy/dt = v − y to v linear between grid points [same unit as v]."""
@@ -333,16 +359,14 @@ def _respond(u: np.ndarray, dt: float, s: BenchSettings) -> dict[str, np.ndarray
     bw_fine, _ = _core.simulate(s.params().replace(x0=0.0), ua_fine, fine_dt, 0.0)
     y_fine = np.asarray(bw_fine, dtype=np.float64)
     x_fine = s.x0 + y_fine + s.stroke_quadratic_per_um * y_fine * y_fine + creep_fine
-    return {"u_applied": ua_fine[::m].copy(), "creep": creep_fine[::m].copy(),
-            "x": x_fine[::m].copy()}
+    return {"u_applied": ua_fine[::m].copy(), "creep": creep_fine[::m].copy(), "x": x_fine[::m].copy()}
 
 
 def floor_vibration(t: Any, settings: BenchSettings = BenchSettings()) -> np.ndarray:
     """Relative motion of vibrometer head and stack, Σ a_k·sin(2π·f_k·t + φ_k) [µm], at times t [s]."""
     t = np.asarray(t, dtype=np.float64)
     out = np.zeros_like(t)
-    for f, a, phase in zip(settings.vibration_hz, settings.vibration_um,
-                           settings.vibration_phase_rad):
+    for f, a, phase in zip(settings.vibration_hz, settings.vibration_um, settings.vibration_phase_rad):
         if a != 0.0:
             out += a * np.sin(2.0 * math.pi * f * t + phase)
     return out
@@ -356,8 +380,7 @@ def _as_input(u: Any, dt: Any) -> tuple[np.ndarray, float]:
     return u, float(dt)
 
 
-def true_displacement(u: Any, dt: float = DEFAULT_DT,
-                      settings: BenchSettings = BenchSettings()) -> np.ndarray:
+def true_displacement(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings()) -> np.ndarray:
     """Noise-free displacement x [µm] of the stack for the command u [V] sampled every dt [s].
 
     The floor vibration is not part of it (it moves the vibrometer, not the stack).
@@ -367,8 +390,7 @@ def true_displacement(u: Any, dt: float = DEFAULT_DT,
     return _respond(u, dt, settings)["x"]
 
 
-def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings(),
-            seed: int | None = 0) -> Record:
+def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings(), seed: int | None = 0) -> Record:
     """Runs the bench on the command u [V] sampled every dt [s] and returns what is measured.
 
     Args:
@@ -397,7 +419,7 @@ def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSetti
         x = s.resolution_um * np.round(x / s.resolution_um)
     x = np.clip(x, -s.range_um, s.range_um)
     if s.adc_bits:
-        top = 2 ** s.adc_bits - 1
+        top = 2**s.adc_bits - 1
         lsb = s.adc_lsb_v
         code = np.clip(np.round((u - s.adc_min_v) / lsb), 0, top)
         u_read = s.adc_min_v + code * lsb
@@ -407,9 +429,16 @@ def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSetti
         "source": "boucwen.plant simulated bench",
         "settings": s.to_dict(),
         "seed": seed,
-        "units": {"t": "s", "u": "V (command read by the A/D)", "x": "µm (vibrometer)",
-                  "u_command": "V", "u_applied": "V", "creep": "µm", "x_true": "µm",
-                  "vibration": "µm"},
+        "units": {
+            "t": "s",
+            "u": "V (command read by the A/D)",
+            "x": "µm (vibrometer)",
+            "u_command": "V",
+            "u_applied": "V",
+            "creep": "µm",
+            "x_true": "µm",
+            "vibration": "µm",
+        },
         "u_command": u.copy(),
         "u_applied": truth["u_applied"],
         "creep": truth["creep"],

@@ -26,9 +26,15 @@ def _figure(width: float, height: float):
     return fig
 
 
-def plot_switch(path: str | os.PathLike, t: np.ndarray, x: np.ndarray,
-                predictions: Mapping[str, np.ndarray], t_switch: float,
-                span: tuple[float, float], title: str) -> None:
+def plot_switch(
+    path: str | os.PathLike,
+    t: np.ndarray,
+    x: np.ndarray,
+    predictions: Mapping[str, np.ndarray],
+    t_switch: float,
+    span: tuple[float, float],
+    title: str,
+) -> None:
     """Displacement and modelling error around a frequency switch (like the paper's Figs. 6–8).
 
     Args:
@@ -61,9 +67,13 @@ def plot_switch(path: str | os.PathLike, t: np.ndarray, x: np.ndarray,
     fig.savefig(path, dpi=110)
 
 
-def plot_loops(path: str | os.PathLike, u: np.ndarray, x: np.ndarray,
-               predictions: Mapping[str, np.ndarray],
-               windows: Sequence[tuple[str, slice]]) -> None:
+def plot_loops(
+    path: str | os.PathLike,
+    u: np.ndarray,
+    x: np.ndarray,
+    predictions: Mapping[str, np.ndarray],
+    windows: Sequence[tuple[str, slice]],
+) -> None:
     """Hysteresis loops x(u), one panel per window (like the paper's Fig. 9).
 
     Args:
@@ -91,6 +101,6 @@ def plot_loops(path: str | os.PathLike, u: np.ndarray, x: np.ndarray,
         ax.set_ylabel("displacement x [µm]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper left", fontsize=7)
-    for ax in axes[len(windows):]:
+    for ax in axes[len(windows) :]:
         ax.set_visible(False)
     fig.savefig(path, dpi=110)

@@ -55,7 +55,11 @@ impl Effect for Creep {
         }
         for &g in &self.gain_um_per_v {
             if !g.is_finite() {
-                return Err(Error::InvalidParameter { name: "creep.gain_um_per_v", value: g, reason: "must be finite" });
+                return Err(Error::InvalidParameter {
+                    name: "creep.gain_um_per_v",
+                    value: g,
+                    reason: "must be finite",
+                });
             }
         }
         Ok(())

@@ -82,8 +82,7 @@ pub struct EffectSet {
 
 impl EffectSet {
     /// The vocabulary, in the order of the signal chain.
-    pub const NAMES: [&'static str; 5] =
-        [Creep::NAME, InputLag::NAME, Resonance::NAME, Drift::NAME, Delay::NAME];
+    pub const NAMES: [&'static str; 5] = [Creep::NAME, InputLag::NAME, Resonance::NAME, Drift::NAME, Delay::NAME];
 
     /// No effect: the base model.
     pub fn none() -> Self {
@@ -355,7 +354,11 @@ mod tests {
 
     #[test]
     fn names_follow_the_vocabulary_order() {
-        let e = EffectSet { delay: Some(Delay { samples: 1 }), creep: Creep::log_spaced(0.1, 1.0, 2).ok(), ..EffectSet::none() };
+        let e = EffectSet {
+            delay: Some(Delay { samples: 1 }),
+            creep: Creep::log_spaced(0.1, 1.0, 2).ok(),
+            ..EffectSet::none()
+        };
         assert_eq!(e.names(), vec!["creep", "delay"]);
     }
 }

@@ -101,7 +101,11 @@ impl AnyIdentifier {
     /// sample is non-finite the whole call is rejected before the state changes.
     pub fn push_many(&mut self, u: &[f64], x: &[f64], out: &mut [f64]) -> Result<()> {
         if x.len() != u.len() {
-            return Err(crate::Error::LengthMismatch { what: "x (same length as u)", expected: u.len(), found: x.len() });
+            return Err(crate::Error::LengthMismatch {
+                what: "x (same length as u)",
+                expected: u.len(),
+                found: x.len(),
+            });
         }
         if out.len() != u.len() {
             return Err(crate::Error::LengthMismatch { what: "output", expected: u.len(), found: out.len() });

@@ -204,7 +204,13 @@ impl OutputErrorConfig {
         if !(self.forgetting > 0.0 && self.forgetting <= 1.0) {
             return bad("forgetting", self.forgetting, "the forgetting factor must be in (0, 1]");
         }
-        for (name, v) in [("p0", self.p0), ("noise_um2", self.noise_um2), ("max_trace", self.max_trace), ("max_step", self.max_step), ("max_offset_step_um", self.max_offset_step_um)] {
+        for (name, v) in [
+            ("p0", self.p0),
+            ("noise_um2", self.noise_um2),
+            ("max_trace", self.max_trace),
+            ("max_step", self.max_step),
+            ("max_offset_step_um", self.max_offset_step_um),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, v, "must be finite and > 0");
             }
@@ -666,7 +672,13 @@ impl OutputErrorIdentifier {
     /// [`OutputErrorConfig::for_effects`] for the configuration: with creep the
     /// offset must not walk, or it takes the slow errors the gains should explain.
     /// A creep gain given below 5 % of `creep_gain_scale_um_per_v` starts there.
-    pub fn with_effects(dt: f64, init: Params, effects: &EffectSet, h0: f64, config: OutputErrorConfig) -> Result<Self> {
+    pub fn with_effects(
+        dt: f64,
+        init: Params,
+        effects: &EffectSet,
+        h0: f64,
+        config: OutputErrorConfig,
+    ) -> Result<Self> {
         positive_dt(dt)?;
         init.validate()?;
         config.validate()?;
@@ -676,7 +688,8 @@ impl OutputErrorIdentifier {
             return Err(Error::InvalidConfig {
                 name: "effects",
                 value: f64::NAN,
-                reason: "the rpem method identifies input_lag and creep only (resonance, drift and delay are not supported)",
+                reason:
+                    "the rpem method identifies input_lag and creep only (resonance, drift and delay are not supported)",
             });
         }
         let mut shape = Shape { lag: false, n_creep: 0, creep_tau: [1.0; MAX_CREEP], creep_decay: [0.0; MAX_CREEP] };
@@ -706,7 +719,8 @@ impl OutputErrorIdentifier {
                 shape.creep_decay[i] = first_order_coefficient(tau, dt);
                 // The logistic coordinate cannot reach 0 or gmax: a gain given below
                 // `START_GAIN_FRACTION`·scale starts there, one near gmax just below it.
-                let lowest = (START_GAIN_FRACTION * config.creep_gain_scale_um_per_v).min(0.5 * config.creep_gain_max_um_per_v);
+                let lowest =
+                    (START_GAIN_FRACTION * config.creep_gain_scale_um_per_v).min(0.5 * config.creep_gain_max_um_per_v);
                 est.creep_gain[i] = g.clamp(lowest, (1.0 - START_GAIN_FRACTION) * config.creep_gain_max_um_per_v);
                 active[I_CREEP + i] = 1.0;
                 scales[I_CREEP + i] = config.creep_gain_scale_um_per_v;
@@ -1168,8 +1182,14 @@ mod tests {
         // and small enough that the O(ε²) truncation stays below 1e-5 relative.
         let dt = 1e-4;
         let u: Vec<f64> = paper_input(dt, 0.0)[..31_000].to_vec();
-        let id = OutputErrorIdentifier::with_effects(dt, Params::paper_1hz(), &lag_and_creep(), 0.0, OutputErrorConfig::default())
-            .unwrap();
+        let id = OutputErrorIdentifier::with_effects(
+            dt,
+            Params::paper_1hz(),
+            &lag_and_creep(),
+            0.0,
+            OutputErrorConfig::default(),
+        )
+        .unwrap();
         let (_, psis) = run_chain(&id, &id.est, &u);
         for i in [I_KV, I_X0, I_A, I_DELTA, I_LN_FC, I_CREEP, I_CREEP + 1, I_CREEP + 2] {
             let eps = 1e-3 * id.scales[i];
@@ -1253,7 +1273,15 @@ mod tests {
 
     fn perturbed() -> Params {
         let t = Params::paper_1hz();
-        Params { kv: t.kv * 1.1, x0: t.x0 + 0.05, a: t.a * 0.9, beta: t.beta * 1.1, gamma: t.gamma * 0.9, n: 1.6, delta: t.delta * 1.2 }
+        Params {
+            kv: t.kv * 1.1,
+            x0: t.x0 + 0.05,
+            a: t.a * 0.9,
+            beta: t.beta * 1.1,
+            gamma: t.gamma * 0.9,
+            n: 1.6,
+            delta: t.delta * 1.2,
+        }
     }
 
     /// Sine bursts of several frequencies and amplitudes [V].
@@ -1401,8 +1429,20 @@ mod snapshot_impl {
 
     impl Snapshot for OutputErrorIdentifier {
         fn to_bytes(&self) -> Vec<u8> {
-            let OutputErrorIdentifier { config, dt, init, h0, est, shape, scales: _, active: _, chain, u_prev, p, status } =
-                self;
+            let OutputErrorIdentifier {
+                config,
+                dt,
+                init,
+                h0,
+                est,
+                shape,
+                scales: _,
+                active: _,
+                chain,
+                u_prev,
+                p,
+                status,
+            } = self;
             let mut w = Writer::new(KIND_RPEM);
             let OutputErrorConfig {
                 forgetting,
@@ -1459,8 +1499,16 @@ mod snapshot_impl {
             }
             w.opt_f64(*u_prev);
             w.f64s(p.as_slice());
-            let OutputErrorStatus { samples, updated, step_limited, projected, trace_capped, restarted, innovation_um, trace } =
-                *status;
+            let OutputErrorStatus {
+                samples,
+                updated,
+                step_limited,
+                projected,
+                trace_capped,
+                restarted,
+                innovation_um,
+                trace,
+            } = *status;
             w.u64(samples);
             for flag in [updated, step_limited, projected, trace_capped, restarted] {
                 w.u8(flag as u8);
@@ -1575,8 +1623,16 @@ mod snapshot_impl {
                 return Err(corrupt(at, "sample count does not match the stored previous input"));
             }
             let [updated, step_limited, projected, trace_capped, restarted] = flags;
-            id.status =
-                OutputErrorStatus { samples, updated, step_limited, projected, trace_capped, restarted, innovation_um, trace };
+            id.status = OutputErrorStatus {
+                samples,
+                updated,
+                step_limited,
+                projected,
+                trace_capped,
+                restarted,
+                innovation_um,
+                trace,
+            };
             Ok(id)
         }
     }

@@ -274,8 +274,11 @@ impl LineRls {
         let gram = Matrix2::new(s[SUU], s[SU], s[SU], s[CNT]);
         let p = gram.try_inverse()?;
         let theta = p * Vector2::new(s[SUY], s[SY]);
-        (theta.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite()))
-            .then_some(LineRls { theta, p, active: true })
+        (theta.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())).then_some(LineRls {
+            theta,
+            p,
+            active: true,
+        })
     }
 
     /// Rank-one update (sign = +1) or downdate (sign = −1) for the point (u, y).
@@ -480,11 +483,7 @@ impl PaperIdentifier {
             }
         }
         let kept = self.sums.get();
-        exact
-            .iter()
-            .zip(kept)
-            .map(|(e, k)| if *e == 0.0 { k.abs() } else { ((k - e) / e).abs() })
-            .fold(0.0, f64::max)
+        exact.iter().zip(kept).map(|(e, k)| if *e == 0.0 { k.abs() } else { ((k - e) / e).abs() }).fold(0.0, f64::max)
     }
 
     /// Builds the window point for the middle sample, classified with the current estimates.
@@ -535,8 +534,7 @@ impl PaperIdentifier {
                 let positive = arg > 0.0;
                 point.a = h.ln();
                 point.b = arg.abs().ln();
-                point.class =
-                    if udot > 0.0 { Class::Loading { positive } } else { Class::Unloading { positive } };
+                point.class = if udot > 0.0 { Class::Loading { positive } } else { Class::Unloading { positive } };
             }
         }
         point
@@ -765,7 +763,18 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         });
         w.f64s(&[c.h_zero_frac, c.rate_frac]);
         w.u64(c.min_points as u64);
-        w.f64s(&[c.rank_tol, c.min_log_spread, c.min_r2, c.min_arg_frac, c.min_line_t, c.noise_gate, c.min_delta_t, c.min_u_std_v, c.n_bounds.0, c.n_bounds.1]);
+        w.f64s(&[
+            c.rank_tol,
+            c.min_log_spread,
+            c.min_r2,
+            c.min_arg_frac,
+            c.min_line_t,
+            c.noise_gate,
+            c.min_delta_t,
+            c.min_u_std_v,
+            c.n_bounds.0,
+            c.n_bounds.1,
+        ]);
         w.f64(self.dt);
         w.params(&self.init);
         w.f64(self.h0);
@@ -825,7 +834,8 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, min_delta_t, min_u_std_v, n_lo, n_hi] = r.f64s::<10>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, min_delta_t, min_u_std_v, n_lo, n_hi] =
+            r.f64s::<10>()?;
         let config = PaperConfig {
             window_len,
             decomposition,
@@ -850,11 +860,8 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         id.params = r.params()?;
         id.h_model = r.finite()?;
         for slot in 0..RAW_HISTORY {
-            id.raw[slot] = if r.bool()? {
-                Some(Raw { u: r.finite()?, x: r.finite()?, h_model: r.finite()? })
-            } else {
-                None
-            };
+            id.raw[slot] =
+                if r.bool()? { Some(Raw { u: r.finite()?, x: r.finite()?, h_model: r.finite()? }) } else { None };
         }
         let at = r.offset();
         let points = r.u64()?;
@@ -877,7 +884,8 @@ impl crate::snapshot::Snapshot for PaperIdentifier {
         let sums = r.f64s::<NSUMS>()?;
         let theta = r.f64s::<2>()?;
         let p = r.f64s::<4>()?;
-        id.rls = LineRls { theta: Vector2::from_column_slice(&theta), p: Matrix2::from_column_slice(&p), active: r.bool()? };
+        id.rls =
+            LineRls { theta: Vector2::from_column_slice(&theta), p: Matrix2::from_column_slice(&p), active: r.bool()? };
         let at = r.offset();
         let samples = r.u64()?;
         let window_full = r.bool()?;

@@ -29,9 +29,7 @@ pub struct PyEffectSet {
 }
 
 fn get_f64(d: &Bound<'_, PyDict>, effect: &str, key: &str) -> PyResult<f64> {
-    let item = d
-        .get_item(key)?
-        .ok_or_else(|| PyValueError::new_err(format!("{effect}: missing parameter {key:?}")))?;
+    let item = d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("{effect}: missing parameter {key:?}")))?;
     if item.is_instance_of::<pyo3::types::PyBool>() {
         return Err(PyTypeError::new_err(format!("{effect}.{key} must be a number, got a bool")));
     }
@@ -71,9 +69,8 @@ fn parse(
     if let Some(o) = some(creep) {
         let d = as_dict(&o, "creep", &["tau_s", "gain_um_per_v"])?;
         let field = |key: &str| -> PyResult<Vec<f64>> {
-            let item = d
-                .get_item(key)?
-                .ok_or_else(|| PyValueError::new_err(format!("creep: missing parameter {key:?}")))?;
+            let item =
+                d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("creep: missing parameter {key:?}")))?;
             samples(&item, &format!("creep.{key}"))
         };
         set.creep = Some(Creep { tau_s: field("tau_s")?, gain_um_per_v: field("gain_um_per_v")? });
@@ -93,15 +90,14 @@ fn parse(
     }
     if let Some(o) = some(delay) {
         let d = as_dict(&o, "delay", &["samples"])?;
-        let item = d
-            .get_item("samples")?
-            .ok_or_else(|| PyValueError::new_err("delay: missing parameter \"samples\""))?;
+        let item =
+            d.get_item("samples")?.ok_or_else(|| PyValueError::new_err("delay: missing parameter \"samples\""))?;
         if item.is_instance_of::<pyo3::types::PyBool>() {
             return Err(PyTypeError::new_err("delay.samples must be an integer, got a bool"));
         }
-        let v: i64 = item.extract().map_err(|_| {
-            PyTypeError::new_err(format!("delay.samples must be an integer, got {}", type_name(&item)))
-        })?;
+        let v: i64 = item
+            .extract()
+            .map_err(|_| PyTypeError::new_err(format!("delay.samples must be an integer, got {}", type_name(&item))))?;
         if v < 0 {
             return Err(PyValueError::new_err(format!("invalid parameter delay.samples = {v}: must be >= 0")));
         }
@@ -207,10 +203,8 @@ impl PyEffectSet {
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
         let d = self.to_dict(py)?;
-        let parts: Vec<String> = d
-            .iter()
-            .map(|(k, v)| Ok(format!("{}={}", k.str()?, v.repr()?)))
-            .collect::<PyResult<_>>()?;
+        let parts: Vec<String> =
+            d.iter().map(|(k, v)| Ok(format!("{}={}", k.str()?, v.repr()?))).collect::<PyResult<_>>()?;
         Ok(format!("EffectSet({})", parts.join(", ")))
     }
 

@@ -112,8 +112,17 @@ impl PyIdentifier {
         p0_effects: Option<f64>,
     ) -> PyResult<Self> {
         if method == "rpem" {
-            let paper_only =
-                [h_zero_frac, rate_frac, rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, min_delta_t, min_u_std_v];
+            let paper_only = [
+                h_zero_frac,
+                rate_frac,
+                rank_tol,
+                min_log_spread,
+                min_r2,
+                min_arg_frac,
+                min_line_t,
+                min_delta_t,
+                min_u_std_v,
+            ];
             if decomposition != "model" || min_points.is_some() || paper_only.iter().any(Option::is_some) {
                 return Err(PyValueError::new_err(
                     "decomposition, h_zero_frac, rate_frac, min_points, rank_tol, min_log_spread, min_r2, \
@@ -154,8 +163,18 @@ impl PyIdentifier {
                 "invalid window = {window}: at most {MAX_WINDOW} samples (the window is held in memory)"
             )));
         }
-        let rpem_only =
-            [forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um, max_offset_step_um, p0_effects];
+        let rpem_only = [
+            forgetting,
+            memory_travel_v,
+            p0,
+            noise_um2,
+            max_trace,
+            max_step,
+            margin,
+            offset_walk_um,
+            max_offset_step_um,
+            p0_effects,
+        ];
         if method == "paper" && (rpem_only.iter().any(Option::is_some) || effects.is_some()) {
             return Err(PyValueError::new_err(
                 "forgetting, memory_travel_v, p0, noise_um2, max_trace, max_step, margin, offset_walk_um, \
@@ -221,7 +240,9 @@ impl PyIdentifier {
         let inner = match method {
             "paper" => AnyIdentifier::Paper(PaperIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?),
             other => {
-                return Err(PyValueError::new_err(format!("invalid method = {other:?}: expected \"paper\" or \"rpem\"")))
+                return Err(PyValueError::new_err(format!(
+                    "invalid method = {other:?}: expected \"paper\" or \"rpem\""
+                )))
             }
         };
         Ok(PyIdentifier { inner })

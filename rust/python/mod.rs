@@ -27,9 +27,9 @@ pub(crate) fn samples(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> 
         return Err(PyTypeError::new_err(format!("{name} must be a 1-D array of numbers, got a string")));
     }
     let numpy = py.import("numpy")?;
-    let array = numpy.call_method1("asarray", (obj,)).map_err(|_| {
-        PyTypeError::new_err(format!("{name} must be a 1-D array of numbers"))
-    })?;
+    let array = numpy
+        .call_method1("asarray", (obj,))
+        .map_err(|_| PyTypeError::new_err(format!("{name} must be a 1-D array of numbers")))?;
     let kind: String = array.getattr("dtype")?.getattr("kind")?.extract()?;
     if !matches!(kind.as_str(), "f" | "i" | "u" | "b") {
         return Err(PyTypeError::new_err(format!(

@@ -87,9 +87,9 @@ impl PyParams {
     #[staticmethod]
     fn from_array(values: &Bound<'_, PyAny>) -> PyResult<Self> {
         let v = samples(values, "values")?;
-        let arr: [f64; 7] = v
-            .try_into()
-            .map_err(|v: Vec<f64>| PyValueError::new_err(format!("expected 7 values {:?}, got {}", Params::NAMES, v.len())))?;
+        let arr: [f64; 7] = v.try_into().map_err(|v: Vec<f64>| {
+            PyValueError::new_err(format!("expected 7 values {:?}, got {}", Params::NAMES, v.len()))
+        })?;
         Params::from_array(arr).map(|inner| PyParams { inner }).map_err(value_error)
     }
 
@@ -108,7 +108,9 @@ impl PyParams {
         let mut v = [0.0; 7];
         for (slot, name) in v.iter_mut().zip(Params::NAMES) {
             let item = d.get_item(name)?.ok_or_else(|| PyKeyError::new_err(format!("missing parameter {name}")))?;
-            *slot = item.extract::<f64>().map_err(|_| PyValueError::new_err(format!("parameter {name} must be a number")))?;
+            *slot = item
+                .extract::<f64>()
+                .map_err(|_| PyValueError::new_err(format!("parameter {name} must be a number")))?;
         }
         for key in d.keys() {
             let key: String = key.str()?.to_string();

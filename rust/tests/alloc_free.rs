@@ -11,11 +11,11 @@ use std::cell::Cell;
 
 use boucwen::effects::{Creep, InputLag};
 use boucwen::identify::{
-    AnyIdentifier, Decomposition, OnlineIdentifier, OutputErrorConfig, OutputErrorIdentifier, PaperConfig, PaperIdentifier,
-    SubFit,
+    AnyIdentifier, Decomposition, OnlineIdentifier, OutputErrorConfig, OutputErrorIdentifier, PaperConfig,
+    PaperIdentifier, SubFit,
 };
-use boucwen::EffectSet;
 use boucwen::model::paper_input;
+use boucwen::EffectSet;
 use boucwen::{simulate, Model, Params};
 
 struct CountingAllocator;
@@ -119,14 +119,20 @@ fn check_identifier(window_len: usize, decomposition: Decomposition) {
         u.len() - warm
     );
     // The pushes measured ran the fits and the exact refresh of the window sums.
-    assert!(cov.line > 0 && cov.shape_or_return > 0, "sub-fits did not run: line {} shape/return {}", cov.line, cov.shape_or_return);
+    assert!(
+        cov.line > 0 && cov.shape_or_return > 0,
+        "sub-fits did not run: line {} shape/return {}",
+        cov.line,
+        cov.shape_or_return
+    );
     assert!(cov.refreshed > 0, "no exact refresh of the window sums happened while counting");
     if decomposition == Decomposition::Line {
         assert!(cov.rate > 0, "step 2 never ran");
     }
 
     // The same through the run-time dispatch that the Python bindings use.
-    let mut any = AnyIdentifier::Paper(PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, config).expect("valid config"));
+    let mut any =
+        AnyIdentifier::Paper(PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, config).expect("valid config"));
     for (&a, &b) in u[..warm].iter().zip(&x[..warm]) {
         any.push(a, b).expect("finite sample");
     }
@@ -170,7 +176,12 @@ fn check_output_error(make: impl Fn() -> OutputErrorIdentifier, what: &str) {
         (sum, updated, limited)
     });
     assert!(checksum.is_finite());
-    assert_eq!(count, 0, "OutputErrorIdentifier::push allocated {count} times over {} samples ({what})", u.len() - warm);
+    assert_eq!(
+        count,
+        0,
+        "OutputErrorIdentifier::push allocated {count} times over {} samples ({what})",
+        u.len() - warm
+    );
     // The measured pushes updated the estimates (the Gauss–Newton step ran).
     assert!(updated > 0, "no update while counting ({what}); step limited {limited} times");
 

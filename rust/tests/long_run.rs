@@ -40,7 +40,10 @@ fn offset_stream(k: u64, noise: &mut Lcg) -> (f64, f64) {
     let block = k / 100_000;
     let since = (k % 100_000) as f64 * DT;
     let step = if block % 2 == 0 { 0.0 } else { 300.0 };
-    let u = 1_000.0 + step + 40.0 * (2.0 * std::f64::consts::PI * 20.0 * t).sin() + 5.0 * (2.0 * std::f64::consts::PI * 130.0 * t).cos();
+    let u = 1_000.0
+        + step
+        + 40.0 * (2.0 * std::f64::consts::PI * 20.0 * t).sin()
+        + 5.0 * (2.0 * std::f64::consts::PI * 130.0 * t).cos();
     let transient = 50.0 * (-since / 0.01).exp();
     let x = 1.0e4 + 0.19 * u + transient + 0.5 * (u - 1_000.0).abs().sqrt() + 1e-3 * noise.next();
     (u, x)
@@ -124,7 +127,9 @@ fn constant_input_then_excitation_for_each_method() {
     let u: Vec<f64> = (0..20_000)
         .map(|k| {
             let t = k as f64 * DT;
-            50.0 - 45.0 * (2.0 * std::f64::consts::PI * t).cos() * (0.8 + 0.2 * (2.0 * std::f64::consts::PI * 10.0 * t).cos())
+            50.0 - 45.0
+                * (2.0 * std::f64::consts::PI * t).cos()
+                * (0.8 + 0.2 * (2.0 * std::f64::consts::PI * 10.0 * t).cos())
         })
         .collect();
     let (x, h_end) = simulate(&truth, &u, DT, 0.0, None).unwrap();
@@ -149,7 +154,10 @@ fn constant_input_then_excitation_for_each_method() {
         assert!(held.validate().is_ok(), "{name}: {held:?}");
         let change = scaled_change(&at_quarter, &held);
         println!("{name}: largest change over the last 750 000 constant samples, in parameter scales: {change:.2e}");
-        assert!(change <= 1e-3, "{name}: estimates moved by {change} scales while unexcited: {at_quarter:?} -> {held:?}");
+        assert!(
+            change <= 1e-3,
+            "{name}: estimates moved by {change} scales while unexcited: {at_quarter:?} -> {held:?}"
+        );
         // The level may follow the 1 nm noise, not wander off: within 10 nm.
         let level = (held.kv * u_hold + held.x0) - (at_quarter.kv * u_hold + at_quarter.x0);
         println!("{name}: change of kv·u + x0 over the same stretch: {level:.2e} µm");

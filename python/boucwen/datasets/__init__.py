@@ -33,24 +33,29 @@ __all__ = ["load", "names", "DATA_DIR"]
 DATA_DIR = "yan9a_micromanipulator"
 
 _DT = 0.005  # s, 200 Hz
-_SOURCE = ("github.com/yan9a/DiscreteBacklashOperator, commit 79fd060, "
-           "folder MatLabCode/DiscreteBacklashModel/")
-_CITATION = ("Y. N. Aye and W. T. Ang, \"A Discrete Backlash Operator for Identification and "
-             "Compensation of Hysteresis and Non-linearity for Piezoelectric Micromanipulator\", "
-             "Int. Conf. on Science and Technology for Sustainable Development, Yangon, 2018.")
+_SOURCE = "github.com/yan9a/DiscreteBacklashOperator, commit 79fd060, folder MatLabCode/DiscreteBacklashModel/"
+_CITATION = (
+    'Y. N. Aye and W. T. Ang, "A Discrete Backlash Operator for Identification and '
+    'Compensation of Hysteresis and Non-linearity for Piezoelectric Micromanipulator", '
+    "Int. Conf. on Science and Technology for Sustainable Development, Yangon, 2018."
+)
 
 # name -> (file, number of columns, description, extra notes)
 _RECORDS = {
     "micromanipulator": (
-        "Model_Vi_Do.dat", 7,
+        "Model_Vi_Do.dat",
+        7,
         "piezoelectric micromanipulator, 1 Hz sine command, about 40 cycles",
         "start-up transient in the first cycle; the per-cycle mean of x drifts by about "
-        "1.2 µm over the record (creep or drift)"),
+        "1.2 µm over the record (creep or drift)",
+    ),
     "micromanipulator_compensated": (
-        "Test_Vi_Do_Di.dat", 11,
+        "Test_Vi_Do_Di.dat",
+        11,
         "the same actuator with the authors' inverse hysteresis compensation in the loop",
         "the sensor reading appears one sample late (phase lag 1); meta['desired'] holds "
-        "the desired displacement [µm] (file column 9)"),
+        "the desired displacement [µm] (file column 9)",
+    ),
 }
 
 
@@ -93,8 +98,12 @@ def load(name: str) -> Record:
         "licence": "MIT, Copyright (c) 2019 Yan Naing Aye",
         "licence_text": _read_text("LICENSE"),
         "citation": _CITATION,
-        "units": {"t": "s", "u": "V (actuator input command, before the amplifier)",
-                  "x": "µm (capacitive sensor)", "dt": "s"},
+        "units": {
+            "t": "s",
+            "u": "V (actuator input command, before the amplifier)",
+            "x": "µm (capacitive sensor)",
+            "dt": "s",
+        },
         "description": description,
         "notes": notes,
     }

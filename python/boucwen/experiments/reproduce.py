@@ -59,11 +59,26 @@ from .. import plant
 from .._core import Identifier, Params, simulate
 from ..fit import FitResult, fit
 
-__all__ = ["run", "OnlineMethod", "ONLINE_METHODS", "available_online_methods",
-           "default_online_method", "fixed_parameter_prediction", "table1_from_predictions", "adaptation_times",
-           "steady_state_slice", "default_window", "SEGMENTS", "QUICK_SEGMENTS",
-           "PAPER_TABLE1", "PAPER_TABLE2", "STEADY_STATE", "ADAPTATION_RULE",
-           "ADAPTATION_FACTOR", "DEFAULT_OUT"]
+__all__ = [
+    "run",
+    "OnlineMethod",
+    "ONLINE_METHODS",
+    "available_online_methods",
+    "default_online_method",
+    "fixed_parameter_prediction",
+    "table1_from_predictions",
+    "adaptation_times",
+    "steady_state_slice",
+    "default_window",
+    "SEGMENTS",
+    "QUICK_SEGMENTS",
+    "PAPER_TABLE1",
+    "PAPER_TABLE2",
+    "STEADY_STATE",
+    "ADAPTATION_RULE",
+    "ADAPTATION_FACTOR",
+    "DEFAULT_OUT",
+]
 
 #: Default output directory of ``boucwen reproduce``.
 DEFAULT_OUT = os.path.join("out", "reproduce")
@@ -88,17 +103,22 @@ PAPER_TABLE2: dict[str, dict[str, float]] = {
 
 #: Band of the adaptation rule: per-period maximum error within this × steady state.
 ADAPTATION_FACTOR = 1.5
-STEADY_STATE = ("the last full period of each frequency (for the last frequency, the last "
-                "period of the record); Table 1 is max |x - x_hat| over it")
-ADAPTATION_RULE = (f"time from the switch (or from the start, for the first frequency) to the "
-                   f"start of the first whole period of the new frequency from which on every "
-                   f"period's max |x - x_hat| stays within {ADAPTATION_FACTOR} x the steady-state "
-                   f"value; a whole number of periods")
+STEADY_STATE = (
+    "the last full period of each frequency (for the last frequency, the last "
+    "period of the record); Table 1 is max |x - x_hat| over it"
+)
+ADAPTATION_RULE = (
+    f"time from the switch (or from the start, for the first frequency) to the "
+    f"start of the first whole period of the new frequency from which on every "
+    f"period's max |x - x_hat| stays within {ADAPTATION_FACTOR} x the steady-state "
+    f"value; a whole number of periods"
+)
 
 _PARAM_NAMES = ("kv", "x0", "A", "beta", "gamma", "n", "delta")
 
 
 # --------------------------------------------------------------------------- methods
+
 
 @dataclass(frozen=True)
 class OnlineMethod:
@@ -121,8 +141,9 @@ class OnlineMethod:
 #: installed library does not offer (Identifier raises ValueError) are skipped.
 ONLINE_METHODS: tuple[OnlineMethod, ...] = (
     OnlineMethod("paper", "paper", {}, "paper's method, kv/x0 from x - h_model (library default)"),
-    OnlineMethod("paper_literal", "paper", {"decomposition": "line"},
-                 "paper's method, kv/x0 = line through the loop (literal)"),
+    OnlineMethod(
+        "paper_literal", "paper", {"decomposition": "line"}, "paper's method, kv/x0 = line through the loop (literal)"
+    ),
     OnlineMethod("rpem", "rpem", {}, "recursive prediction-error (output-error) method"),
 )
 
@@ -131,8 +152,9 @@ def _make_identifier(m: OnlineMethod, dt: float, window: int, init: Params, h0: 
     return Identifier(dt, window, init, h0, m.method, **dict(m.options))
 
 
-def available_online_methods(dt: float = plant.DEFAULT_DT, window: int = 50,
-                             init: Params | None = None) -> list[OnlineMethod]:
+def available_online_methods(
+    dt: float = plant.DEFAULT_DT, window: int = 50, init: Params | None = None
+) -> list[OnlineMethod]:
     """The entries of :data:`ONLINE_METHODS` that :class:`boucwen.Identifier` accepts."""
     init = init if init is not None else Params.paper_1hz()
     out = []
@@ -159,6 +181,7 @@ def default_window(segments: Sequence[tuple[float, int, int]], dt: float) -> int
 
 # --------------------------------------------------------------------------- metrics
 
+
 def _period(f: float, dt: float) -> int:
     return max(1, int(round(1.0 / (f * dt))))
 
@@ -172,24 +195,33 @@ def _key(f: float) -> str:
     return f"{f:g}"
 
 
-def table1_from_predictions(x: np.ndarray, predictions: Mapping[str, np.ndarray],
-                            segments: Sequence[tuple[float, int, int]], dt: float,
-                            ) -> dict[str, dict[str, float]]:
+def table1_from_predictions(
+    x: np.ndarray,
+    predictions: Mapping[str, np.ndarray],
+    segments: Sequence[tuple[float, int, int]],
+    dt: float,
+) -> dict[str, dict[str, float]]:
     """Table 1: ``{label: {"1": max|x − x̂| in steady state [µm], ...}}``."""
-    return {label: {_key(f): float(np.max(np.abs(x - pred)[steady_state_slice(f, lo, hi, dt)]))
-                    for f, lo, hi in segments}
-            for label, pred in predictions.items()}
+    return {
+        label: {_key(f): float(np.max(np.abs(x - pred)[steady_state_slice(f, lo, hi, dt)])) for f, lo, hi in segments}
+        for label, pred in predictions.items()
+    }
 
 
-def adaptation_times(x: np.ndarray, pred: np.ndarray, segments: Sequence[tuple[float, int, int]],
-                     dt: float, factor: float = ADAPTATION_FACTOR) -> dict[str, dict[str, float]]:
+def adaptation_times(
+    x: np.ndarray,
+    pred: np.ndarray,
+    segments: Sequence[tuple[float, int, int]],
+    dt: float,
+    factor: float = ADAPTATION_FACTOR,
+) -> dict[str, dict[str, float]]:
     """Adaptation time per segment (see the module docs): ``{"1": {"s": …, "periods": …}, …}``."""
     err = np.abs(x - pred)
     out: dict[str, dict[str, float]] = {}
     for f, lo, hi in segments:
         p = _period(f, dt)
         count = max(1, (hi - lo) // p)
-        maxima = np.array([np.max(err[lo + k * p: min(hi, lo + (k + 1) * p)]) for k in range(count)])
+        maxima = np.array([np.max(err[lo + k * p : min(hi, lo + (k + 1) * p)]) for k in range(count)])
         steady = float(np.max(err[steady_state_slice(f, lo, hi, dt)]))
         bad = np.flatnonzero(maxima > factor * steady)
         first_good = int(bad[-1]) + 1 if bad.size else 0
@@ -198,6 +230,7 @@ def adaptation_times(x: np.ndarray, pred: np.ndarray, segments: Sequence[tuple[f
 
 
 # --------------------------------------------------------------------------- run
+
 
 def _json_safe(obj: Any) -> Any:
     """Non-finite floats (a parameter set that could not be simulated) become null."""
@@ -214,8 +247,9 @@ def _params_dict(p: Params) -> dict[str, float]:
     return {k: float(v) for k, v in p.to_dict().items()}
 
 
-def _run_online(m: OnlineMethod, u: np.ndarray, x: np.ndarray, dt: float, window: int,
-                init: Params, h0: float, segments) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
+def _run_online(
+    m: OnlineMethod, u: np.ndarray, x: np.ndarray, dt: float, window: int, init: Params, h0: float, segments
+) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
     ident = _make_identifier(m, dt, window, init, h0)
     pred = np.empty_like(x)
     estimates = {}
@@ -225,8 +259,13 @@ def _run_online(m: OnlineMethod, u: np.ndarray, x: np.ndarray, dt: float, window
     return pred, estimates
 
 
-def fixed_parameter_prediction(u: np.ndarray, dt: float, estimates: Mapping[str, Mapping[str, float]],
-                               segments: Sequence[tuple[float, int, int]], h0: float) -> np.ndarray:
+def fixed_parameter_prediction(
+    u: np.ndarray,
+    dt: float,
+    estimates: Mapping[str, Mapping[str, float]],
+    segments: Sequence[tuple[float, int, int]],
+    h0: float,
+) -> np.ndarray:
     """The model run with *fixed* parameters per frequency, as in the paper's Fig. 9.
 
     For each segment, the model with that segment's end-of-frequency estimates
@@ -249,8 +288,7 @@ def _fmt_row(name: str, values: Sequence[float], width: int = 9, fmt: str = "{:.
     return f"{name:<34}" + "".join(f"{fmt.format(v):>{width}}" for v in values)
 
 
-def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions, adapt, sweep,
-                  best_fixed):
+def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions, adapt, sweep, best_fixed):
     heads = [f"{f} Hz" for f in freqs]
     log("")
     log("Table 1  maximum absolute error in steady state [µm]")
@@ -271,9 +309,13 @@ def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions
     log("Adaptation time after each switch [s] (periods of the new frequency)")
     for label in labels:
         a = adapt[f"online_{label}"]
-        log(f"{'online_' + label:<34}" + "".join(
-            f"{a[f]['s']:>9.4f}" for f in freqs) + "   (" + ", ".join(
-            f"{a[f]['periods']}" for f in freqs) + ")")
+        log(
+            f"{'online_' + label:<34}"
+            + "".join(f"{a[f]['s']:>9.4f}" for f in freqs)
+            + "   ("
+            + ", ".join(f"{a[f]['periods']}" for f in freqs)
+            + ")"
+        )
     log("")
     log("Table 2  online estimates at the end of each frequency (paper's value in brackets)")
     for label in labels:
@@ -281,21 +323,33 @@ def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions
         log(f"{'f':>6}" + "".join(f"{n:>20}" for n in _PARAM_NAMES))
         for f in freqs:
             est = table2[f"online_{label}"][f]
-            log(f"{f + ' Hz':>6}" + "".join(
-                f"{est[n]:>11.4g} ({PAPER_TABLE2[f][n]:.3g})".rjust(20) for n in _PARAM_NAMES))
+            log(
+                f"{f + ' Hz':>6}"
+                + "".join(f"{est[n]:>11.4g} ({PAPER_TABLE2[f][n]:.3g})".rjust(20) for n in _PARAM_NAMES)
+            )
     if sweep:
         log("")
         log("Window sweep, online_paper (the windowed method): max steady-state error [µm] per frequency")
         log("(streaming prediction | model with that run's Table 2 values held fixed)")
         for w, rows in sweep.items():
-            log(_fmt_row(f"N = {w}", [rows["streaming"][f] for f in freqs])
-                + "  |" + "".join(f"{rows['fixed'][f]:>9.3f}" for f in freqs))
+            log(
+                _fmt_row(f"N = {w}", [rows["streaming"][f] for f in freqs])
+                + "  |"
+                + "".join(f"{rows['fixed'][f]:>9.3f}" for f in freqs)
+            )
     log("")
 
 
-def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window: int | None = None,
-        seed: int = 0, settings: plant.BenchSettings | None = None, figures: bool = True,
-        log: Callable[[str], None] | None = print) -> dict[str, Any]:
+def run(
+    out_dir: str | os.PathLike = DEFAULT_OUT,
+    *,
+    quick: bool = False,
+    window: int | None = None,
+    seed: int = 0,
+    settings: plant.BenchSettings | None = None,
+    figures: bool = True,
+    log: Callable[[str], None] | None = print,
+) -> dict[str, Any]:
     """Runs the experiment and writes ``results.json``, ``predictions.npz`` and the figures.
 
     Args:
@@ -334,8 +388,10 @@ def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window
     window = int(window)
     freqs = [_key(f) for f, _, _ in segments]
 
-    step(f"measuring {t.size} samples at {1 / dt:.0f} Hz on the simulated bench "
-         f"({', '.join(f'{f:g} Hz for {d:g} s' for f, d in seg_spec)})")
+    step(
+        f"measuring {t.size} samples at {1 / dt:.0f} Hz on the simulated bench "
+        f"({', '.join(f'{f:g} Hz for {d:g} s' for f, d in seg_spec)})"
+    )
     rec = plant.measure(u_cmd, dt, settings, seed=seed)
     u, x = rec.u, rec.x
 
@@ -343,8 +399,10 @@ def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window
     step(f"traditional method: output-error fit on the {freqs[0]} Hz part ({hi1 - lo1} samples)")
     fit_opts = {"n_candidates": 16, "n_starts": 2} if quick else {}
     trad: FitResult = fit(u[lo1:hi1], x[lo1:hi1], dt, seed=seed, **fit_opts)
-    step(f"  {trad.params!r}, h0 = {trad.h0:.4g} µm; rms {trad.rms_um:.4g} µm, max "
-         f"{trad.max_um:.4g} µm, {trad.nfev} simulations, {trad.elapsed_s:.2f} s")
+    step(
+        f"  {trad.params!r}, h0 = {trad.h0:.4g} µm; rms {trad.rms_um:.4g} µm, max "
+        f"{trad.max_um:.4g} µm, {trad.nfev} simulations, {trad.elapsed_s:.2f} s"
+    )
     x_trad, _ = simulate(trad.params, u, dt, trad.h0)
     x_trad = np.asarray(x_trad)
 
@@ -367,12 +425,12 @@ def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window
     table1 = table1_from_predictions(x, predictions, segments, dt)
     table1["online"] = table1[f"online_{default}"]
     step("fixed-parameter check: the model with each frequency's Table 2 estimates")
-    fixed = {f"online_{lab}": fixed_parameter_prediction(u, dt, table2[f"online_{lab}"], segments,
-                                                        trad.h0) for lab in labels}
+    fixed = {
+        f"online_{lab}": fixed_parameter_prediction(u, dt, table2[f"online_{lab}"], segments, trad.h0) for lab in labels
+    }
     table1_fixed = table1_from_predictions(x, fixed, segments, dt)
     table1_fixed["online"] = table1_fixed[f"online_{default}"]
-    adapt = {f"online_{lab}": adaptation_times(x, predictions[f"online_{lab}"], segments, dt)
-             for lab in labels}
+    adapt = {f"online_{lab}": adaptation_times(x, predictions[f"online_{lab}"], segments, dt) for lab in labels}
     adapt["online"] = adapt[f"online_{default}"]
 
     sweep: dict[str, dict[str, float]] = {}
@@ -391,7 +449,7 @@ def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window
         for f, lo, hi in segments:
             r = fit(u[lo:hi], x[lo:hi], dt, init=trad.params, seed=seed)
             ss = steady_state_slice(f, lo, hi, dt)
-            best_fixed[_key(f)] = float(np.max(np.abs(x[ss] - r.x_fit[ss.start - lo: ss.stop - lo])))
+            best_fixed[_key(f)] = float(np.max(np.abs(x[ss] - r.x_fit[ss.start - lo : ss.stop - lo])))
 
     results: dict[str, Any] = {
         "table1": table1,
@@ -404,13 +462,22 @@ def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window
         "adaptation_time_s": {k: {f: v[f]["s"] for f in freqs} for k, v in adapt.items()},
         "adaptation_periods": {k: {f: v[f]["periods"] for f in freqs} for k, v in adapt.items()},
         "default_online_method": default,
-        "online_methods": {m.label: {"method": m.method, "options": dict(m.options),
-                                     "description": m.description} for m in methods},
-        "window": {"samples": window, "s": window * dt,
-                   "rule": "one period of the highest input frequency (see boucwen.experiments.reproduce)"},
-        "input": {"dt_s": dt, "segments": [{"f_hz": f, "duration_s": d, "start": lo, "stop": hi}
-                                           for (f, d), (_, lo, hi) in zip(seg_spec, segments)],
-                  "quick": quick, "seed": seed},
+        "online_methods": {
+            m.label: {"method": m.method, "options": dict(m.options), "description": m.description} for m in methods
+        },
+        "window": {
+            "samples": window,
+            "s": window * dt,
+            "rule": "one period of the highest input frequency (see boucwen.experiments.reproduce)",
+        },
+        "input": {
+            "dt_s": dt,
+            "segments": [
+                {"f_hz": f, "duration_s": d, "start": lo, "stop": hi} for (f, d), (_, lo, hi) in zip(seg_spec, segments)
+            ],
+            "quick": quick,
+            "seed": seed,
+        },
         "traditional_fit": trad.to_dict(),
         "window_sweep": sweep,
         "best_fixed_per_frequency": best_fixed,
@@ -419,16 +486,32 @@ def run(out_dir: str | os.PathLike = DEFAULT_OUT, *, quick: bool = False, window
     results = _json_safe(results)
     with open(out / "results.json", "w", encoding="utf-8") as fh:
         json.dump(results, fh, indent=2, allow_nan=False)
-    np.savez_compressed(out / "predictions.npz", t=t, u=u, x=x, dt=np.float64(dt),
-                        segments=np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
-                        **{f"x_{k}": v for k, v in predictions.items()},
-                        **{f"x_fixed_{k}": v for k, v in fixed.items()})
+    np.savez_compressed(
+        out / "predictions.npz",
+        t=t,
+        u=u,
+        x=x,
+        dt=np.float64(dt),
+        segments=np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
+        **{f"x_{k}": v for k, v in predictions.items()},
+        **{f"x_fixed_{k}": v for k, v in fixed.items()},
+    )
 
     if figures:
         step("figures")
         _figures(out, t, u, x, predictions, fixed, segments, dt)
-    _print_tables(say, freqs, table1, table1_fixed, table2, labels,
-                  {m.label: m.description for m in methods}, adapt, sweep, best_fixed)
+    _print_tables(
+        say,
+        freqs,
+        table1,
+        table1_fixed,
+        table2,
+        labels,
+        {m.label: m.description for m in methods},
+        adapt,
+        sweep,
+        best_fixed,
+    )
     say(f"online = online_{default}; steady state = {STEADY_STATE}")
     step(f"wrote {out / 'results.json'}, {out / 'predictions.npz'} and the figures")
     return results
@@ -445,10 +528,16 @@ def _figures(out: Path, t, u, x, predictions, fixed, segments, dt) -> None:
         before = min(2.0 / f_old, t_sw - t[lo_old])
         after = min(6.0 / f_new, t[hi - 1] - t_sw)
         name = names[k - 1] if k - 1 < len(names) else f"fig_switch_{k}.png"
-        plot_switch(out / name, t, x, predictions, t_sw, (t_sw - before, t_sw + after),
-                    f"frequency switch {f_old:g} Hz → {f_new:g} Hz at t = {t_sw:g} s")
+        plot_switch(
+            out / name,
+            t,
+            x,
+            predictions,
+            t_sw,
+            (t_sw - before, t_sw + after),
+            f"frequency switch {f_old:g} Hz → {f_new:g} Hz at t = {t_sw:g} s",
+        )
     windows = [(f"{f:g} Hz, steady state", steady_state_slice(f, lo, hi, dt)) for f, lo, hi in segments]
     loops = {"traditional": predictions["traditional"]}
     loops.update({f"{k} (Table 2 values, fixed)": v for k, v in fixed.items()})
     plot_loops(out / "fig9_loops.png", u, x, loops, windows)
-

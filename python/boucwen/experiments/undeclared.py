@@ -35,8 +35,17 @@ import numpy as np
 
 from .._core import EffectSet, Params, simulate_extended
 
-__all__ = ["test_input", "make_record", "UndeclaredRecord", "run_table", "PARAM_SETS",
-           "NOISE_LEVELS_UM", "EFFECT_RANGES", "DT", "main"]
+__all__ = [
+    "test_input",
+    "make_record",
+    "UndeclaredRecord",
+    "run_table",
+    "PARAM_SETS",
+    "NOISE_LEVELS_UM",
+    "EFFECT_RANGES",
+    "DT",
+    "main",
+]
 
 #: Sampling interval of the generated records [s] (1 kHz).
 DT = 1e-3
@@ -134,8 +143,12 @@ def _draw_effect(effect: str, rng: np.random.Generator, dt: float) -> dict[str, 
         return {"input_lag": {"fc_hz": float(math.exp(rng.uniform(math.log(lo), math.log(hi))))}}
     if effect == "resonance":
         lo, hi = r["fn_hz"]
-        return {"resonance": {"fn_hz": float(math.exp(rng.uniform(math.log(lo), math.log(hi)))),
-                              "zeta": float(rng.uniform(*r["zeta"]))}}
+        return {
+            "resonance": {
+                "fn_hz": float(math.exp(rng.uniform(math.log(lo), math.log(hi)))),
+                "zeta": float(rng.uniform(*r["zeta"])),
+            }
+        }
     if effect == "drift":
         return {"drift": {"rate_um_per_s": float(rng.choice([-1, 1]) * rng.uniform(*r["abs_rate_um_per_s"]))}}
     if effect == "delay":
@@ -144,8 +157,9 @@ def _draw_effect(effect: str, rng: np.random.Generator, dt: float) -> dict[str, 
     raise ValueError(f"unknown effect {effect!r}")
 
 
-def make_record(effect: str, seed: int = 0, param_set: str = "paper_1hz",
-                noise_um: float = 0.005, dt: float = DT) -> UndeclaredRecord:
+def make_record(
+    effect: str, seed: int = 0, param_set: str = "paper_1hz", noise_um: float = 0.005, dt: float = DT
+) -> UndeclaredRecord:
     """One record holding ``effect`` (a vocabulary name or "none").
 
     Effect parameters are drawn with ``seed`` from :data:`EFFECT_RANGES`; the input is
@@ -166,8 +180,17 @@ def make_record(effect: str, seed: int = 0, param_set: str = "paper_1hz",
     x_true = simulate_extended(params, EffectSet(**fine_kw), u_fine, fine_dt)[::_OVERSAMPLE]
     x = x_true + rng.normal(0.0, noise_um, x_true.size)
     label = f"{effect} {param_set} σ={noise_um * 1e3:g}nm seed={seed}"
-    return UndeclaredRecord(effect=effect, u=u, x=x, x_true=np.ascontiguousarray(x_true), dt=dt,
-                            params=params, effects=EffectSet(**kw), noise_um=noise_um, label=label)
+    return UndeclaredRecord(
+        effect=effect,
+        u=u,
+        x=x,
+        x_true=np.ascontiguousarray(x_true),
+        dt=dt,
+        params=params,
+        effects=EffectSet(**kw),
+        noise_um=noise_um,
+        label=label,
+    )
 
 
 def _describe(effects: EffectSet) -> str:
@@ -203,8 +226,10 @@ def run_table(seeds: int = 3, out=sys.stdout) -> list[dict[str, Any]]:
     from ..diagnose import diagnose
 
     rows = []
-    header = (f"{'effect':10s} {'set':11s} {'noise':>6s} {'seed':>4s}  {'true parameters':28s} "
-              f"{'named':22s} {'RMS vs noise-free before → after [µm]':>38s} {'time':>6s}")
+    header = (
+        f"{'effect':10s} {'set':11s} {'noise':>6s} {'seed':>4s}  {'true parameters':28s} "
+        f"{'named':22s} {'RMS vs noise-free before → after [µm]':>38s} {'time':>6s}"
+    )
     print(header, file=out)
     print("-" * len(header), file=out)
     for effect, seed, pset, noise in cases(seeds):
@@ -216,24 +241,42 @@ def run_table(seeds: int = 3, out=sys.stdout) -> list[dict[str, Any]]:
         after = float(np.sqrt(np.mean((d.x_extended - rec.x_true) ** 2)))
         named = ",".join(d.effects) or "none"
         ok = (named == effect) and (effect == "none" or after < before)
-        rows.append({"effect": effect, "param_set": pset, "noise_um": noise, "seed": seed,
-                     "named": named, "rms_before_um": before, "rms_after_um": after,
-                     "elapsed_s": elapsed, "ok": ok})
-        print(f"{effect:10s} {pset:11s} {noise * 1e3:4g}nm {seed:4d}  {_describe(rec.effects):28s} "
-              f"{named:22s} {before:17.4f} → {after:<17.4f} {elapsed:5.1f}s"
-              f"{'' if ok else '  MISS'}", file=out, flush=True)
+        rows.append(
+            {
+                "effect": effect,
+                "param_set": pset,
+                "noise_um": noise,
+                "seed": seed,
+                "named": named,
+                "rms_before_um": before,
+                "rms_after_um": after,
+                "elapsed_s": elapsed,
+                "ok": ok,
+            }
+        )
+        print(
+            f"{effect:10s} {pset:11s} {noise * 1e3:4g}nm {seed:4d}  {_describe(rec.effects):28s} "
+            f"{named:22s} {before:17.4f} → {after:<17.4f} {elapsed:5.1f}s"
+            f"{'' if ok else '  MISS'}",
+            file=out,
+            flush=True,
+        )
     hits = sum(r["ok"] for r in rows)
     print(f"{hits}/{len(rows)} records diagnosed correctly", file=out)
     return rows
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m boucwen.experiments.undeclared",
-                                     description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m boucwen.experiments.undeclared", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--seeds", type=int, default=3, help="records per effect (default 3)")
-    parser.add_argument("--online", action="store_true",
-                        help="instead: RMS of the offline base, offline extended and online rpem "
-                             "models (markdown table; see boucwen.experiments.undeclared_online)")
+    parser.add_argument(
+        "--online",
+        action="store_true",
+        help="instead: RMS of the offline base, offline extended and online rpem "
+        "models (markdown table; see boucwen.experiments.undeclared_online)",
+    )
     args = parser.parse_args(argv)
     if args.online:
         from .undeclared_online import run_online_table

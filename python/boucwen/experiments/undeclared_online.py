@@ -39,7 +39,7 @@ HELD_OUT_FRACTION = 0.3
 
 
 def _rms(v: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(v ** 2)))
+    return float(np.sqrt(np.mean(v**2)))
 
 
 def online_rows(seeds: int = 1) -> list[dict[str, Any]]:
@@ -62,9 +62,15 @@ def online_rows(seeds: int = 1) -> list[dict[str, Any]]:
         n = rec.u.size
         start = int(round(START_UP_S / rec.dt))
         tail = int(round((1.0 - HELD_OUT_FRACTION) * n))
-        row: dict[str, Any] = {"effect": effect, "param_set": pset, "noise_um": noise, "seed": seed,
-                               "named": ",".join(d.effects) or "none",
-                               "offline_s": t1 - t0, "online_s": t2 - t1}
+        row: dict[str, Any] = {
+            "effect": effect,
+            "param_set": pset,
+            "noise_um": noise,
+            "seed": seed,
+            "named": ",".join(d.effects) or "none",
+            "offline_s": t1 - t0,
+            "online_s": t2 - t1,
+        }
         for key, xm in (("base", base.x_fit), ("extended", d.x_extended), ("rpem", x_online)):
             err = np.asarray(xm) - rec.x_true
             row[f"{key}_rms_um"] = _rms(err[start:])
@@ -76,19 +82,29 @@ def online_rows(seeds: int = 1) -> list[dict[str, Any]]:
 def run_online_table(seeds: int = 1, out: TextIO = sys.stdout) -> list[dict[str, Any]]:
     """Runs :func:`online_rows` and prints a markdown table; returns the rows."""
     rows = online_rows(seeds)
-    print(f"RMS error against the noise-free signal [µm], after the first {START_UP_S:g} s "
-          f"| over the last {HELD_OUT_FRACTION:.0%} of the record", file=out)
+    print(
+        f"RMS error against the noise-free signal [µm], after the first {START_UP_S:g} s "
+        f"| over the last {HELD_OUT_FRACTION:.0%} of the record",
+        file=out,
+    )
     print("", file=out)
-    print("| effect | set | noise | seed | named | offline base | offline extended | online rpem |",
-          file=out)
+    print("| effect | set | noise | seed | named | offline base | offline extended | online rpem |", file=out)
     print("|---|---|---|---|---|---|---|---|", file=out)
     for r in rows:
         cells = [f"{r[f'{k}_rms_um']:.4f} \\| {r[f'{k}_tail_um']:.4f}" for k in ("base", "extended", "rpem")]
-        print(f"| {r['effect']} | {r['param_set']} | {r['noise_um'] * 1e3:g} nm | {r['seed']} | {r['named']} | "
-              + " | ".join(cells) + " |", file=out, flush=True)
+        print(
+            f"| {r['effect']} | {r['param_set']} | {r['noise_um'] * 1e3:g} nm | {r['seed']} | {r['named']} | "
+            + " | ".join(cells)
+            + " |",
+            file=out,
+            flush=True,
+        )
     better = sum(r["rpem_rms_um"] < r["extended_rms_um"] for r in rows)
     print("", file=out)
-    print(f"online rpem below the offline extended fit on {better}/{len(rows)} records "
-          f"(after the start-up); online time per record "
-          f"{np.mean([r['online_s'] for r in rows]):.2f} s", file=out)
+    print(
+        f"online rpem below the offline extended fit on {better}/{len(rows)} records "
+        f"(after the start-up); online time per record "
+        f"{np.mean([r['online_s'] for r in rows]):.2f} s",
+        file=out,
+    )
     return rows
