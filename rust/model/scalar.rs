@@ -1,0 +1,191 @@
+//! The number type the integrator runs on: `f64` for the model, [`Dual`] for its
+//! sensitivities.
+//!
+//! [`Dual<M>`] carries a value and its derivatives with respect to M quantities
+//! (forward-mode automatic differentiation). The integrator in
+//! [`super::integrator`] is written once, generic over [`Scalar`], so that the
+//! simulator, the per-sample model, the identifiers' predictions and their
+//! sensitivities ∂h/∂θ all take the same sub-steps and the same stages. The value
+//! part of a `Dual` is computed by exactly the operations the `f64` instance
+//! performs, so its bits equal the model's.
+
+use core::ops::{Add, Div, Mul, Neg, Sub};
+
+use nalgebra::SVector;
+
+/// For n < 1, below this |h| [µm] the slope n·|h|^(n−1) of |h|^n is taken at |h| = this
+/// value when differentiating (it is unbounded at h = 0). Values are never
+/// changed, only derivatives; 1 nm is below every sensor's noise.
+pub const SLOPE_FLOOR_UM: f64 = 1e-3;
+
+/// A real number for the integrator: `f64`, or a [`Dual`] that carries derivatives.
+pub trait Scalar:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Mul<f64, Output = Self>
+    + Div<f64, Output = Self>
+    + Neg<Output = Self>
+{
+    /// Whether the type carries derivatives (then [`Scalar::abs_pow`] needs ln|h|, for
+    /// the derivative with respect to n, and the implicit step needs ∂f/∂θ).
+    const DERIVATIVES: bool;
+    /// The value.
+    fn re(self) -> f64;
+    /// A constant (zero derivatives).
+    fn cst(v: f64) -> Self;
+    /// |self|^n given `hn` = |re|^n and, when [`Scalar::DERIVATIVES`], `ln_abs` = ln|re|.
+    fn abs_pow(self, n: Self, hn: f64, ln_abs: f64) -> Self;
+    /// The same derivatives with another value.
+    fn with_re(self, v: f64) -> Self;
+    /// The value `v` with zero derivatives (a clamped state no longer depends on θ).
+    fn pinned(v: f64) -> Self {
+        Self::cst(v)
+    }
+    /// The backward-Euler solution h* of h = h₀ + step·f(h, θ), value `h_star`, with
+    /// derivatives by the implicit function theorem: (∂h₀ + step·∂f/∂θ) / (1 − step·∂f/∂h),
+    /// `f_at` being f evaluated at h* held constant and `slope` = ∂f/∂h there.
+    fn implicit(h_star: f64, h0: Self, f_at: Self, slope: f64, step: f64) -> Self;
+    /// Value and every derivative finite.
+    fn all_finite(self) -> bool;
+}
+
+impl Scalar for f64 {
+    const DERIVATIVES: bool = false;
+    #[inline(always)]
+    fn re(self) -> f64 {
+        self
+    }
+    #[inline(always)]
+    fn cst(v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn abs_pow(self, _n: Self, hn: f64, _ln_abs: f64) -> Self {
+        hn
+    }
+    #[inline(always)]
+    fn with_re(self, v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn implicit(h_star: f64, _h0: Self, _f_at: Self, _slope: f64, _step: f64) -> Self {
+        h_star
+    }
+    #[inline(always)]
+    fn all_finite(self) -> bool {
+        self.is_finite()
+    }
+}
+
+/// A value with its derivatives with respect to M quantities.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dual<const M: usize> {
+    /// The value.
+    pub re: f64,
+    /// ∂value/∂θᵢ, i < M.
+    pub du: SVector<f64, M>,
+}
+
+impl<const M: usize> Dual<M> {
+    /// The i-th independent variable with value `v` (∂/∂θᵢ = 1).
+    #[inline(always)]
+    pub fn var(v: f64, i: usize) -> Self {
+        let mut du = SVector::zeros();
+        du[i] = 1.0;
+        Dual { re: v, du }
+    }
+
+    /// A value with the given derivatives.
+    #[inline(always)]
+    pub fn new(re: f64, du: SVector<f64, M>) -> Self {
+        Dual { re, du }
+    }
+}
+
+impl<const M: usize> Add for Dual<M> {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Dual { re: self.re + o.re, du: self.du + o.du }
+    }
+}
+
+impl<const M: usize> Sub for Dual<M> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Dual { re: self.re - o.re, du: self.du - o.du }
+    }
+}
+
+impl<const M: usize> Mul for Dual<M> {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Dual { re: self.re * o.re, du: self.du * o.re + o.du * self.re }
+    }
+}
+
+impl<const M: usize> Mul<f64> for Dual<M> {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, k: f64) -> Self {
+        Dual { re: self.re * k, du: self.du * k }
+    }
+}
+
+impl<const M: usize> Div<f64> for Dual<M> {
+    type Output = Self;
+    #[inline(always)]
+    fn div(self, k: f64) -> Self {
+        Dual { re: self.re / k, du: self.du / k }
+    }
+}
+
+impl<const M: usize> Neg for Dual<M> {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Dual { re: -self.re, du: -self.du }
+    }
+}
+
+impl<const M: usize> Scalar for Dual<M> {
+    const DERIVATIVES: bool = true;
+    #[inline(always)]
+    fn re(self) -> f64 {
+        self.re
+    }
+    #[inline(always)]
+    fn cst(v: f64) -> Self {
+        Dual { re: v, du: SVector::zeros() }
+    }
+    /// d|h|^n = |h|^n·(n·sgn(h)/|h|·dh + ln|h|·dn), with |h| floored at
+    /// [`SLOPE_FLOOR_UM`] in the first term for n < 1 only; both terms are 0 at h = 0.
+    #[inline(always)]
+    fn abs_pow(self, n: Self, hn: f64, ln_abs: f64) -> Self {
+        let a = self.re.abs();
+        if a == 0.0 {
+            return Dual::cst(0.0);
+        }
+        // n·|h|^(n−1), taken at the floor below it.
+        let slope =
+            if a >= SLOPE_FLOOR_UM || n.re >= 1.0 { n.re * hn / a } else { n.re * SLOPE_FLOOR_UM.powf(n.re - 1.0) };
+        let signed = if self.re > 0.0 { slope } else { -slope };
+        Dual { re: hn, du: self.du * signed + n.du * (hn * ln_abs) }
+    }
+    #[inline(always)]
+    fn with_re(self, v: f64) -> Self {
+        Dual { re: v, du: self.du }
+    }
+    #[inline(always)]
+    fn implicit(h_star: f64, h0: Self, f_at: Self, slope: f64, step: f64) -> Self {
+        Dual { re: h_star, du: (h0.du + f_at.du * step) / (1.0 - step * slope).max(1.0) }
+    }
+    #[inline(always)]
+    fn all_finite(self) -> bool {
+        self.re.is_finite() && self.du.iter().all(|v| v.is_finite())
+    }
+}
