@@ -81,11 +81,16 @@ def optional(name: str) -> Any:
         return None
 
 
+def _make(method: str, params: Params) -> Identifier:
+    """An identifier of `method`: the paper's with N = WINDOW, or rpem."""
+    return Identifier.paper(DT, WINDOW, params) if method == "paper" else Identifier.rpem(DT, params)
+
+
 def methods() -> list[str]:
     found = []
     for method in ("paper", "rpem"):
         try:
-            Identifier(DT, WINDOW, Params.paper_1hz(), method=method)
+            _make(method, Params.paper_1hz())
         except ValueError:
             continue
         found.append(method)
@@ -134,13 +139,13 @@ def main(argv: list[str] | None = None) -> int:
     for method in methods():
 
         def push_loop() -> None:
-            ident = Identifier(DT, WINDOW, params, method=method)
+            ident = _make(method, params)
             push = ident.push
             for uk, xk in zip(u.tolist(), x.tolist()):
                 push(uk, xk)
 
         def push_many() -> None:
-            Identifier(DT, WINDOW, params, method=method).push_many(u, x)
+            _make(method, params).push_many(u, x)
 
         t_loop = median_time(push_loop, reps)
         t_many = median_time(push_many, reps)

@@ -92,10 +92,9 @@ fn model_step(c: &mut Criterion) {
 
 /// One warmed push of the output-error method ("rpem"), past the first 1 Hz period.
 fn rpem_push(c: &mut Criterion) {
-    use boucwen::identify::{OutputErrorConfig, OutputErrorIdentifier};
+    use boucwen::identify::{RpemConfig, RpemIdentifier};
     let (u, x) = record();
-    let mut id =
-        OutputErrorIdentifier::new(DT, Params::paper_1hz(), 0.0, OutputErrorConfig::default()).expect("valid config");
+    let mut id = RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, RpemConfig::default()).expect("valid config");
     let mut k = 0usize;
     for _ in 0..12_000 {
         id.push(u[k], x[k]).expect("finite");

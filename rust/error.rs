@@ -15,6 +15,8 @@ pub enum Error {
     InvalidConfig { name: &'static str, value: f64, reason: &'static str },
     /// A sample is NaN or infinite; the state is left as it was.
     NonFiniteSample { name: &'static str, value: f64 },
+    /// A snapshot is truncated, foreign or corrupt: reading stopped at byte `at`.
+    CorruptSnapshot { at: usize, reason: &'static str },
     /// Two arrays that must have the same length do not.
     LengthMismatch { what: &'static str, expected: usize, found: usize },
 }
@@ -31,6 +33,7 @@ impl fmt::Display for Error {
             Error::NonFiniteSample { name, value } => {
                 write!(f, "sample {name} = {value} is not finite; the sample was rejected and the state kept")
             }
+            Error::CorruptSnapshot { at, reason } => write!(f, "corrupt snapshot at byte {at}: {reason}"),
             Error::LengthMismatch { what, expected, found } => {
                 write!(f, "{what}: expected length {expected}, found {found}")
             }

@@ -10,7 +10,7 @@
 //! dh/dt = A·u̇ − β·|u̇|·|h|^(n−1)·h − γ·u̇·|h|^n + δ·u·sgn(u̇)    (5)
 //! ```
 //!
-//! u: voltage [V]; x: displacement [µm]; h: hysteresis state [µm]; t: time [s].
+//! u: voltage \[V\]; x: displacement \[µm\]; h: hysteresis state \[µm\]; t: time \[s\].
 //!
 //! - [`Params`]: the seven parameters and their units.
 //! - [`model`]: the operator, its integrator, the per-sample [`Model`] and [`simulate`].
@@ -23,16 +23,16 @@
 
 pub mod effects;
 pub mod error;
+pub mod format;
 pub mod identify;
 pub mod model;
 pub mod params;
-pub mod snapshot;
 
 #[cfg(feature = "python")]
 mod python;
 
 pub use effects::{simulate_extended, EffectSet, ExtendedModel};
 pub use error::{Error, Result};
+pub use format::Snapshot;
 pub use model::{simulate, simulate_into, Model, ModelState};
 pub use params::Params;
-pub use snapshot::Snapshot;

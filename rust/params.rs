@@ -16,11 +16,11 @@ use crate::error::{Error, Result};
 /// Parameters of the asymmetric Bouc–Wen model (see the module docs for units).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Params {
-    /// Linear gain kv [µm/V].
+    /// Linear gain kv \[µm/V\].
     pub kv: f64,
-    /// Offset x0 [µm].
+    /// Offset x0 \[µm\].
     pub x0: f64,
-    /// Hysteresis gain A [µm/V].
+    /// Hysteresis gain A \[µm/V\].
     pub a: f64,
     /// β [µm^(1−n)/V], weight of the |u̇|·|h|^(n−1)·h term.
     pub beta: f64,

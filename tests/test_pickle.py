@@ -11,6 +11,7 @@ import pytest
 
 import boucwen
 from boucwen import Identifier, Model, Params
+from conftest import make_identifier
 
 DT = 1e-4
 
@@ -27,7 +28,7 @@ def _methods() -> list[str]:
     found = []
     for method in ("paper", "rpem"):
         try:
-            Identifier(DT, 64, Params.paper_1hz(), method=method)
+            make_identifier(method, DT, 64, Params.paper_1hz())
         except ValueError:
             continue
         found.append(method)
@@ -37,7 +38,7 @@ def _methods() -> list[str]:
 @pytest.mark.parametrize("cut", [0, 1, 2, 3, 500, 1001, 1002, 2003, 9_999])
 def test_unpickled_identifier_continues_bit_for_bit(cut: int) -> None:
     u, x = _record()
-    original = Identifier(DT, 1000, Params.paper_1hz(), h0=0.05)
+    original = Identifier.paper(DT, 1000, Params.paper_1hz(), h0=0.05)
     original.push_many(u[:cut], x[:cut])
     data = pickle.dumps(original, protocol=pickle.HIGHEST_PROTOCOL)
     restored = pickle.loads(data)
@@ -60,12 +61,11 @@ def _rpem(with_effects: bool) -> Identifier:
         extra["effects"] = boucwen.EffectSet(
             input_lag={"fc_hz": 800.0}, creep={"tau_s": [0.01, 0.3], "gain_um_per_v": [0.001, 0.0005]}
         )
-    return Identifier(
+    return make_identifier("rpem", 
         DT,
         16,
         Params.paper_1hz().replace(n=1.7),
         h0=0.05,
-        method="rpem",
         memory_travel_v=800.0,
         offset_walk_um=0.02,
         noise_um2=2e-4,
@@ -97,10 +97,10 @@ def test_unpickled_rpem_identifier_continues_bit_for_bit(cut: int, with_effects:
 def test_rpem_snapshot_keeps_the_configuration() -> None:
     # A restored identifier with another tuning would drift apart from the original.
     u, x = _record(4000)
-    tuned = Identifier(DT, 16, Params.paper_1hz(), method="rpem", max_step=0.002, p0=1e-4)
+    tuned = make_identifier("rpem", DT, 16, Params.paper_1hz(), max_step=0.002, p0=1e-4)
     tuned.push_many(u[:2000], x[:2000])
     restored = pickle.loads(pickle.dumps(tuned))
-    default = Identifier(DT, 16, Params.paper_1hz(), method="rpem")
+    default = make_identifier("rpem", DT, 16, Params.paper_1hz())
     default.push_many(u[:2000], x[:2000])
     assert pickle.dumps(default) != pickle.dumps(tuned)
     y_tuned, y_restored = tuned.push_many(u[2000:], x[2000:]), restored.push_many(u[2000:], x[2000:])
@@ -134,7 +134,7 @@ def test_rpem_truncated_and_flipped_snapshots_never_crash(with_effects: bool) ->
 @pytest.mark.parametrize("method", _methods())
 def test_copy_and_deepcopy_are_independent(method: str) -> None:
     u, x = _record(3000)
-    original = Identifier(DT, 500, Params.paper_1hz(), method=method)
+    original = make_identifier(method, DT, 500, Params.paper_1hz())
     original.push_many(u[:1500], x[:1500])
     for clone in (copy.copy(original), copy.deepcopy(original)):
         assert clone is not original
@@ -147,7 +147,7 @@ def test_copy_and_deepcopy_are_independent(method: str) -> None:
 @pytest.mark.parametrize("method", ["paper", "rpem"])
 def test_every_method_pickles(method: str) -> None:
     assert method in _methods()
-    restored = pickle.loads(pickle.dumps(Identifier(DT, 64, Params.paper_1hz(), method=method)))
+    restored = pickle.loads(pickle.dumps(make_identifier(method, DT, 64, Params.paper_1hz())))
     assert restored.method == method
 
 
@@ -180,7 +180,7 @@ def test_corrupt_snapshot_is_a_value_error(garbage: bytes) -> None:
 
 def test_truncated_and_flipped_snapshots_never_crash() -> None:
     u, x = _record(2000)
-    ident = Identifier(DT, 300, Params.paper_1hz())
+    ident = Identifier.paper(DT, 300, Params.paper_1hz())
     ident.push_many(u, x)
     restore, (data,) = ident.__reduce__()
     assert restore(data).params == ident.params

@@ -9,13 +9,9 @@ from hypothesis import strategies as st
 
 import boucwen
 from boucwen import Params, reference
+from conftest import make_identifier
 
 
-def Identifier(*args, **kwargs):
-    """boucwen.Identifier with the paper's method, which these tests are about
-    (the library's default online method is "rpem")."""
-    kwargs.setdefault("method", "paper")
-    return boucwen.Identifier(*args, **kwargs)
 
 
 PAPER = Params.paper_1hz()
@@ -123,7 +119,7 @@ ALL_FITS = {"line_fit", "rate_fit", "shape_fit", "return_fit"}
 )
 def test_rust_identifier_agrees_with_the_reference(dt, window, decomposition, init, options, must_run):
     u, x = _noisy_two_frequency_loop(2500, dt)
-    fast = Identifier(dt, window, init, decomposition=decomposition, **options)
+    fast = make_identifier("paper", dt, window, init, decomposition=decomposition, **options)
     slow = reference.PaperIdentifier(dt, window, init, decomposition=decomposition, **options)
     worst = 0.0
     ran = set()

@@ -87,8 +87,8 @@ def test_table2_is_what_the_online_identifier_ends_with(quick_run):
     out, results, _ = quick_run
     data = np.load(out / "predictions.npz")
     fit = results["traditional_fit"]
-    ident = Identifier(
-        float(data["dt"]), results["window"]["samples"], Params.from_dict(fit["params"]), fit["h0_um"], "paper"
+    ident = Identifier.paper(
+        float(data["dt"]), results["window"]["samples"], Params.from_dict(fit["params"]), fit["h0_um"]
     )
     pred = ident.push_many(data["u"], data["x"])
     np.testing.assert_array_equal(pred, data["x_online_paper"])

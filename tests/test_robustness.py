@@ -27,13 +27,9 @@ from hypothesis import strategies as st
 
 import boucwen
 from boucwen import Model, Params, simulate
+from conftest import make_identifier
 
 
-def Identifier(*args, **kwargs):
-    """boucwen.Identifier with the paper's method, which these tests are about
-    (the library's default online method is "rpem")."""
-    kwargs.setdefault("method", "paper")
-    return boucwen.Identifier(*args, **kwargs)
 
 
 DT = 1e-4
@@ -45,7 +41,7 @@ def _methods() -> list[str]:
     found = []
     for method in ("paper", "rpem"):
         try:
-            Identifier(DT, 64, P, method=method)
+            make_identifier(method, DT, 64, P)
         except ValueError:
             continue
         found.append(method)
@@ -112,21 +108,21 @@ def test_params_rejects(args: tuple, exc: type, match: str) -> None:
         (lambda: Model(P, DT, h0=INF), ValueError, "h0"),
         (lambda: Model(P, DT).step(NAN), ValueError, "not finite"),
         (lambda: Model(P, DT).step("1"), TypeError, ""),
-        (lambda: Identifier(0.0, 100, P), ValueError, "dt"),
-        (lambda: Identifier(-DT, 100, P), ValueError, "dt"),
-        (lambda: Identifier(DT, 15, P), ValueError, "window"),
-        (lambda: Identifier(DT, 0, P), ValueError, "window"),
-        (lambda: Identifier(DT, -5, P), ValueError, "window"),
-        (lambda: Identifier(DT, 1.5, P), TypeError, ""),
-        (lambda: Identifier(DT, 100, P, h0=NAN), ValueError, "h0"),
-        (lambda: Identifier(DT, 100, P, method="magic"), ValueError, "method"),
-        (lambda: Identifier(DT, 100, P, decomposition="none"), ValueError, "decomposition"),
-        (lambda: Identifier(DT, 100, P, h_zero_frac=-1.0), ValueError, "h_zero_frac"),
-        (lambda: Identifier(DT, 100, P, rate_frac=NAN), ValueError, "rate_frac"),
-        (lambda: Identifier(DT, 100, P, min_points=1), ValueError, "min_points"),
-        (lambda: Identifier(DT, 100, P, min_points=1000), ValueError, "min_points"),
-        (lambda: Identifier(DT, 100, P, n_bounds=(2.0, 1.0)), ValueError, "n_bounds"),
-        (lambda: Identifier(DT, 100, "paper"), TypeError, ""),
+        (lambda: make_identifier("paper", 0.0, 100, P), ValueError, "dt"),
+        (lambda: make_identifier("paper", -DT, 100, P), ValueError, "dt"),
+        (lambda: make_identifier("paper", DT, 15, P), ValueError, "window"),
+        (lambda: make_identifier("paper", DT, 0, P), ValueError, "window"),
+        (lambda: make_identifier("paper", DT, -5, P), ValueError, "window"),
+        (lambda: make_identifier("paper", DT, 1.5, P), TypeError, ""),
+        (lambda: make_identifier("paper", DT, 100, P, h0=NAN), ValueError, "h0"),
+        (lambda: make_identifier("magic", DT, 100, P), ValueError, "method"),
+        (lambda: make_identifier("paper", DT, 100, P, decomposition="none"), ValueError, "decomposition"),
+        (lambda: make_identifier("paper", DT, 100, P, h_zero_frac=-1.0), ValueError, "h_zero_frac"),
+        (lambda: make_identifier("paper", DT, 100, P, rate_frac=NAN), ValueError, "rate_frac"),
+        (lambda: make_identifier("paper", DT, 100, P, min_points=1), ValueError, "min_points"),
+        (lambda: make_identifier("paper", DT, 100, P, min_points=1000), ValueError, "min_points"),
+        (lambda: make_identifier("paper", DT, 100, P, n_bounds=(2.0, 1.0)), ValueError, "n_bounds"),
+        (lambda: make_identifier("paper", DT, 100, "paper"), TypeError, ""),
         (lambda: boucwen.paper_input(0.0), ValueError, "dt"),
         (lambda: boucwen.paper_input(DT, tail_s=-1.0), ValueError, "tail_s"),
         (lambda: boucwen.paper_input(DT, tail_s=NAN), ValueError, "tail_s"),
@@ -140,7 +136,7 @@ def test_entry_rejects(call: Callable[[], Any], exc: type, match: str) -> None:
 @pytest.mark.parametrize("method", METHODS)
 def test_rejected_push_leaves_identifier_exactly_as_it_was(method: str) -> None:
     u, x = _record(3000)
-    ident = Identifier(DT, 500, P, method=method)
+    ident = make_identifier(method, DT, 500, P)
     ident.push_many(u, x)
     before = copy.copy(ident)
     for bad in [(NAN, 1.0), (1.0, NAN), (INF, 1.0), (1.0, -INF)]:
@@ -168,7 +164,7 @@ def test_rejected_push_leaves_identifier_exactly_as_it_was(method: str) -> None:
 def test_push_many_rejects_the_whole_call(method: str, u: Any, x: Any, exc: type, match: str) -> None:
     """push_many validates everything first: a bad value anywhere rejects the call and no sample is used."""
     ru, rx = _record(2000)
-    ident = Identifier(DT, 300, P, method=method)
+    ident = make_identifier(method, DT, 300, P)
     ident.push_many(ru, rx)
     before = copy.copy(ident)
     with pytest.raises(exc, match=match or None):
@@ -178,7 +174,7 @@ def test_push_many_rejects_the_whole_call(method: str, u: Any, x: Any, exc: type
 
 @pytest.mark.parametrize("method", METHODS)
 def test_empty_push_many_is_a_no_op(method: str) -> None:
-    ident = Identifier(DT, 100, P, method=method)
+    ident = make_identifier(method, DT, 100, P)
     out = ident.push_many([], [])
     assert out.shape == (0,) and ident.status["samples"] == 0
 
@@ -295,7 +291,7 @@ def test_constant_input_then_excitation(method: str) -> None:
     t = np.arange(20_000) * DT
     u = 50.0 - 45.0 * np.cos(2 * np.pi * t) * (0.8 + 0.2 * np.cos(2 * np.pi * 10 * t))
     x, h_end = simulate(P, u, DT)
-    ident = Identifier(DT, 2000, P.replace(kv=0.17, A=-0.06), method=method)
+    ident = make_identifier(method, DT, 2000, P.replace(kv=0.17, A=-0.06))
     ident.push_many(u, x)
     before = np.sqrt(np.mean((ident.push_many(u, x) - x) ** 2))
     x_hold = P.kv * u[-1] + P.x0 + h_end
@@ -363,7 +359,7 @@ def test_simulate_agrees_with_the_numpy_reference(p: Params, u: list) -> None:
 )
 def test_identifiers_never_return_nan(samples: list, window: int, method: str) -> None:
     u, x = (np.array(v, dtype=float) for v in zip(*samples))
-    ident = Identifier(DT, window, P, method=method)
+    ident = make_identifier(method, DT, window, P)
     y = ident.push_many(u, x)
     assert np.all(np.isfinite(y)) and math.isfinite(ident.h)
     assert all(math.isfinite(v) for v in ident.params.to_array())
@@ -375,7 +371,7 @@ def test_paper_identifier_agrees_with_the_numpy_reference(offset: int, window: i
     reference = pytest.importorskip("boucwen.reference")
     u, x = _record(offset + 600)
     u, x = u[offset:], x[offset:] + 0.01 * np.sin(np.arange(u.size - offset) * 0.37)
-    fast = Identifier(DT, window, P)
+    fast = make_identifier("paper", DT, window, P)
     slow = reference.PaperIdentifier(DT, window, P)
     y_fast = fast.push_many(u, x)
     y_slow = slow.push_many(u, x)
@@ -467,7 +463,7 @@ def test_fuzz_the_python_api() -> None:
     rng = np.random.default_rng(2024)
     arrays = _weird_arrays(rng)
     scalars = _WEIRD_SCALARS
-    good_id = Identifier(DT, 32, P)
+    good_id = make_identifier("paper", DT, 32, P)
     good_model = Model(P, DT)
     for s in scalars:
         _expect_clean(lambda: Params(s, 0, 0, 0, 0, 1, 0))
@@ -476,12 +472,12 @@ def test_fuzz_the_python_api() -> None:
         _expect_clean(lambda: Model(P, s))
         _expect_clean(lambda: Model(P, DT, h0=s))
         _expect_clean(lambda: good_model.step(s))
-        _expect_clean(lambda: Identifier(s, 32, P))
-        _expect_clean(lambda: Identifier(DT, s, P))
-        _expect_clean(lambda: Identifier(DT, 32, P, h0=s))
-        _expect_clean(lambda: Identifier(DT, 32, P, min_points=s))
-        _expect_clean(lambda: Identifier(DT, 32, P, rank_tol=s))
-        _expect_clean(lambda: Identifier(DT, 32, P, n_bounds=(s, s)))
+        _expect_clean(lambda: make_identifier("paper", s, 32, P))
+        _expect_clean(lambda: make_identifier("paper", DT, s, P))
+        _expect_clean(lambda: make_identifier("paper", DT, 32, P, h0=s))
+        _expect_clean(lambda: make_identifier("paper", DT, 32, P, min_points=s))
+        _expect_clean(lambda: make_identifier("paper", DT, 32, P, rank_tol=s))
+        _expect_clean(lambda: make_identifier("paper", DT, 32, P, n_bounds=(s, s)))
         _expect_clean(lambda: good_id.push(s, 1.0))
         _expect_clean(lambda: good_id.push(1.0, s))
         _expect_clean(lambda: simulate(P, [0.0, 1.0], s))
@@ -505,7 +501,7 @@ def test_fuzz_the_python_api() -> None:
             continue
         u = rng.choice([1e300, 1e-300, 1e3, 1.0]) * rng.standard_normal(int(rng.integers(0, 20)))
         _expect_clean(lambda: simulate(p, u, float(rng.choice([1e-300, 1e-4, 1e300]))))
-        _expect_clean(lambda: Identifier(DT, 16, p).push_many(u, u[::-1]))
+        _expect_clean(lambda: make_identifier("paper", DT, 16, p).push_many(u, u[::-1]))
         m = Model(p, DT)
         for uk in u:
             _expect_clean(lambda: m.step(float(uk)))

@@ -1,4 +1,4 @@
-"""The output-error online identifier, ``Identifier(..., method="rpem")``."""
+"""The output-error online identifier, ``make_identifier("rpem", ...)``."""
 
 import copy
 import math
@@ -6,7 +6,9 @@ import math
 import numpy as np
 import pytest
 
+import boucwen
 from boucwen import Identifier, Params, plant, simulate
+from conftest import make_identifier
 
 DT = 1e-4
 TRUTH = Params.paper_1hz()
@@ -33,7 +35,7 @@ def perturbed() -> Params:
 def test_recovers_known_parameters_from_noise_free_data():
     u = rich_input(6.0)
     x, _ = simulate(TRUTH, u, DT)
-    ident = Identifier(DT, 16, perturbed(), 0.0, "rpem", offset_walk_um=0.0)
+    ident = make_identifier("rpem", DT, 16, perturbed(), 0.0, offset_walk_um=0.0)
     pred = ident.push_many(u, x)
     last_second = slice(u.size - 10_000, None)
     assert np.max(np.abs(pred - x)[last_second]) < 0.005
@@ -47,7 +49,7 @@ def test_recovers_known_parameters_from_noise_free_data():
 def test_constant_input_then_excitation_no_wind_up():
     u = rich_input(2.0)
     x, _ = simulate(TRUTH, u, DT)
-    ident = Identifier(DT, 16, TRUTH, 0.0, "rpem")
+    ident = make_identifier("rpem", DT, 16, TRUTH, 0.0)
     ident.push_many(u, x)
     before = ident.params.to_array()
     hold = 300_000
@@ -71,8 +73,8 @@ def test_push_equals_push_many():
     u = rich_input(0.5)
     x, _ = simulate(TRUTH, u, DT)
     x = x + 0.003 * np.random.default_rng(1).standard_normal(u.size)
-    a = Identifier(DT, 16, perturbed(), 0.1, "rpem")
-    b = Identifier(DT, 16, perturbed(), 0.1, "rpem")
+    a = make_identifier("rpem", DT, 16, perturbed(), 0.1)
+    b = make_identifier("rpem", DT, 16, perturbed(), 0.1)
     one_by_one = np.array([a.push(float(ui), float(xi)) for ui, xi in zip(u, x)])
     np.testing.assert_array_equal(one_by_one, b.push_many(u, x))
     assert a.params == b.params and a.h == b.h
@@ -81,7 +83,7 @@ def test_push_equals_push_many():
 def test_non_finite_sample_is_rejected_and_state_kept():
     u = rich_input(0.2)
     x, _ = simulate(TRUTH, u, DT)
-    ident = Identifier(DT, 16, perturbed(), 0.0, "rpem")
+    ident = make_identifier("rpem", DT, 16, perturbed(), 0.0)
     ident.push_many(u[:1000], x[:1000])
     twin = copy.copy(ident)
     params, h, status = ident.params, ident.h, ident.status
@@ -98,7 +100,7 @@ def test_no_nan_and_admissible_parameters_under_wild_input():
     rng = np.random.default_rng(3)
     u = np.concatenate([rng.uniform(-500, 500, 5000), np.zeros(5000), rng.normal(0, 1e3, 5000)])
     x = np.concatenate([rng.normal(0, 100, 5000), np.full(5000, 1e3), rng.normal(0, 1e4, 5000)])
-    ident = Identifier(DT, 16, TRUTH, 0.0, "rpem")
+    ident = make_identifier("rpem", DT, 16, TRUTH, 0.0)
     pred = ident.push_many(u, x)
     assert np.all(np.isfinite(pred))
     p = ident.params
@@ -107,12 +109,12 @@ def test_no_nan_and_admissible_parameters_under_wild_input():
 
 
 def test_method_name_options_and_bad_options():
-    ident = Identifier(
+    ident = make_identifier(
+        "rpem",
         DT,
         16,
         TRUTH,
         0.0,
-        "rpem",
         forgetting=0.9999,
         memory_travel_v=800.0,
         p0=1e-4,
@@ -137,20 +139,28 @@ def test_method_name_options_and_bad_options():
         dict(offset_walk_um=-1.0),
     ]:
         with pytest.raises(ValueError):
-            Identifier(DT, 16, TRUTH, 0.0, "rpem", **bad)
-    # Options of one method given to the other are an error, not silently ignored.
-    with pytest.raises(ValueError, match="rpem"):
-        Identifier(DT, 16, TRUTH, 0.0, "paper", forgetting=0.99)
-    with pytest.raises(ValueError, match="paper"):
-        Identifier(DT, 16, TRUTH, 0.0, "rpem", decomposition="line")
-    with pytest.raises(ValueError, match="rpem"):
-        Identifier(DT, 16, TRUTH, 0.0, "lms")
+            make_identifier("rpem", DT, 16, TRUTH, 0.0, **bad)
+    # Options of one method given to the other are an error, not silently ignored:
+    # each method has its own constructor and its own config class.
+    with pytest.raises(TypeError, match="forgetting"):
+        boucwen.PaperConfig(forgetting=0.99)  # type: ignore[call-arg]
+    with pytest.raises(TypeError, match="decomposition"):
+        boucwen.RpemConfig(decomposition="line")  # type: ignore[call-arg]
+    with pytest.raises(TypeError, match="PaperConfig"):
+        boucwen.Identifier.paper(DT, 16, TRUTH, config=boucwen.RpemConfig())
+    with pytest.raises(TypeError, match="RpemConfig"):
+        boucwen.Identifier.rpem(DT, TRUTH, config=boucwen.PaperConfig())
+    with pytest.raises(TypeError):
+        boucwen.Identifier(DT, 16, TRUTH)  # type: ignore[arg-type]  # no window for rpem
+    with pytest.raises(TypeError):
+        boucwen.Identifier(1e-3, "banana", TRUTH)  # type: ignore[arg-type]
+    assert boucwen.Identifier(DT, TRUTH).method == "rpem"  # the recommended default
 
 
 def test_reset_returns_to_construction_state():
     u = rich_input(0.3)
     x, _ = simulate(TRUTH, u, DT)
-    ident = Identifier(DT, 16, perturbed(), 0.0, "rpem")
+    ident = make_identifier("rpem", DT, 16, perturbed(), 0.0)
     first = ident.push_many(u, x)
     ident.reset()
     np.testing.assert_array_equal(ident.push_many(u, x), first)
@@ -173,8 +183,8 @@ def test_beats_the_paper_method_and_the_fixed_model_on_the_bench():
     u, x = rec.u, rec.x
     init = TRUTH
     fixed, _ = simulate(init, u, DT)
-    paper = Identifier(DT, 50, init, 0.0, "paper").push_many(u, x)
-    rpem = Identifier(DT, 50, init, 0.0, "rpem").push_many(u, x)
+    paper = make_identifier("paper", DT, 50, init, 0.0).push_many(u, x)
+    rpem = make_identifier("rpem", DT, 50, init, 0.0).push_many(u, x)
     e_fixed, e_paper, e_rpem = (_steady_max(x, p, segments) for p in (fixed, paper, rpem))
     for f, _, _ in segments:
         assert e_rpem[f] < e_paper[f], (f, e_rpem, e_paper)
@@ -213,8 +223,8 @@ def test_identifies_input_lag_and_creep_online(fc, scale):
     u = creep_input(8.0)
     x = simulate_extended(TRUTH, truth, u, DT) + 0.002 * np.random.default_rng(0).standard_normal(u.size)
 
-    base = Identifier(DT, 16, TRUTH, 0.0, "rpem")
-    ext = Identifier(DT, 16, TRUTH, 0.0, "rpem", effects=start)
+    base = make_identifier("rpem", DT, 16, TRUTH, 0.0)
+    ext = make_identifier("rpem", DT, 16, TRUTH, 0.0, effects=start)
     assert base.effects == EffectSet() and ext.effects == start
     pred_base, pred_ext = base.push_many(u, x), ext.push_many(u, x)
     assert np.all(np.isfinite(pred_ext)) and np.all(np.isfinite(ext.params.to_array()))
@@ -242,19 +252,19 @@ def test_effects_option_errors_and_round_trip():
     from boucwen import EffectSet
 
     lag = EffectSet(input_lag={"fc_hz": 500.0})
-    with pytest.raises(ValueError, match="rpem"):
-        Identifier(DT, 16, TRUTH, 0.0, "paper", effects=lag)
-    with pytest.raises(ValueError, match="rpem"):
-        Identifier(DT, 16, TRUTH, 0.0, "paper", p0_effects=0.01)
+    with pytest.raises(TypeError, match="effects"):
+        boucwen.Identifier.paper(DT, 16, TRUTH, effects=lag)  # type: ignore[call-arg]
+    with pytest.raises(TypeError, match="p0_effects"):
+        boucwen.PaperConfig(p0_effects=0.01)  # type: ignore[call-arg]
     with pytest.raises(ValueError):
-        Identifier(DT, 16, TRUTH, 0.0, "rpem", effects=EffectSet(drift={"rate_um_per_s": 0.1}))
+        make_identifier("rpem", DT, 16, TRUTH, 0.0, effects=EffectSet(drift={"rate_um_per_s": 0.1}))
     with pytest.raises(ValueError):
-        Identifier(DT, 16, TRUTH, 0.0, "rpem", effects=lag, p0_effects=-1.0)
-    assert Identifier(DT, 16, TRUTH, 0.0, "paper").effects is None
+        make_identifier("rpem", DT, 16, TRUTH, 0.0, effects=lag, p0_effects=-1.0)
+    assert make_identifier("paper", DT, 16, TRUTH, 0.0).effects is None
     # A lag alone: estimates move, the pushes stay finite, reset restores the start.
     u = rich_input(1.0)
     x, _ = simulate(TRUTH, u, DT)
-    ident = Identifier(DT, 16, TRUTH, 0.0, "rpem", effects=lag)
+    ident = make_identifier("rpem", DT, 16, TRUTH, 0.0, effects=lag)
     first = ident.push_many(u, x)
     assert np.all(np.isfinite(first))
     ident.reset()

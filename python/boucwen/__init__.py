@@ -7,18 +7,22 @@ u: voltage [V]; x, h: displacement [µm]; t: time [s] (Zhu, Bian & Rui,
 Precision Engineering 38 (2014) 921–927).
 
 - :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
-- :class:`Identifier` identifies them online, one sample at a time;
+- :class:`Identifier` identifies them online, one sample at a time (configured by
+  :class:`RpemConfig` or :class:`PaperConfig`);
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
 from ._core import Identifier, Model, Params, __version__, paper_input, simulate
 from ._core import EffectSet, simulate_extended
+from .config import PaperConfig, RpemConfig
 from .diagnose import Diagnosis, diagnose
 from .fit import FitResult, fit
 
 __all__ = [
     "Identifier",
+    "PaperConfig",
+    "RpemConfig",
     "Model",
     "Params",
     "__version__",

@@ -17,11 +17,13 @@ part is one new section (and one line in ``__all__``):
 - module constants
 - parameters: ``Params``
 - simulation: ``simulate``, ``paper_input``, ``Model``
-- online identification: ``_IdentifierMethod``, ``_SubFitOutcome`` and
-  ``_IdentifierStatus`` (type-only names, absent at run time), ``Identifier``
+- online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
+  ``_RpemStatus`` (type-only names, absent at run time), ``Identifier``
 """
 
-from typing import ClassVar, Dict, List, Literal, Optional, Tuple, TypedDict, final
+from typing import Any, ClassVar, Dict, List, Literal, Optional, Tuple, TypedDict, Union, final
+
+from .config import PaperConfig, RpemConfig
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -33,6 +35,8 @@ __all__ = [
     "paper_input",
     "Model",
     "Identifier",
+    "_config_defaults",
+    "_validate_config",
     "EffectSet",
     "simulate_extended",
 ]
@@ -157,14 +161,14 @@ class Model:
 # ---------------------------------------------------------------- online identification
 
 _IdentifierMethod = Literal["paper", "rpem"]
-"""Names accepted by ``Identifier(method=...)``."""
+"""The online methods: ``Identifier.rpem`` (the default) and ``Identifier.paper``."""
 
 _SubFitOutcome = Literal["ran", "reduced", "held"]
 """What a sub-fit did in the last push: ran in full, ran on fewer unknowns
 (rank-deficient data; the rest kept), or held the previous estimate."""
 
-class _IdentifierStatus(TypedDict):
-    """``Identifier.status``: what the last push did."""
+class _PaperStatus(TypedDict):
+    """``Identifier.status`` of the paper's method: what the last push did."""
 
     samples: int
     """Samples pushed since construction or reset."""
@@ -181,6 +185,32 @@ class _IdentifierStatus(TypedDict):
     return_fit: _SubFitOutcome
     """Step 4, γ − β."""
 
+class _RpemStatus(TypedDict):
+    """``Identifier.status`` of the rpem method: what the last push did."""
+
+    samples: int
+    """Samples pushed since construction or reset."""
+    updated: bool
+    """The estimates were updated (false on the first sample and after a dropped step)."""
+    step_limited: bool
+    """The trust region scaled the step down."""
+    projected: bool
+    """The projection onto the well-posed region moved n, β or γ."""
+    trace_capped: bool
+    """The bound on tr P scaled the covariance down."""
+    restarted: bool
+    """A non-finite step, covariance or sensitivity was dropped (P restarted)."""
+    innovation_um: float
+    """Prediction error e = x − x̂ of the sample [µm]."""
+    trace: float
+    """tr P after the push (scaled units)."""
+
+def _config_defaults(method: _IdentifierMethod) -> Dict[str, Any]:
+    """Default options of a method's config (``boucwen.config`` takes them from here)."""
+
+def _validate_config(method: _IdentifierMethod, config: object) -> None:
+    """``ValueError`` naming the offending option of a method's config object."""
+
 @final
 class Identifier:
     """Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
@@ -191,85 +221,57 @@ class Identifier:
     then it updates the estimates. A non-finite sample raises ``ValueError``
     and leaves the identifier exactly as it was.
 
-    Arguments: ``dt`` sampling interval [s]; ``window`` limited memory N
-    [samples] (16 to 10 000 000); ``init`` starting parameters (e.g. an offline fit);
-    ``h0`` initial h [µm]; ``method`` the online method: "rpem" (default, the
-    output-error method) or "paper" (the paper's method; ``window`` is its N).
+    One constructor per method, each with its own frozen config class:
 
-    Options of ``method="paper"`` (default in brackets; ``None`` keeps it):
-    ``decomposition`` "model" (line through x − h_model) or "line" (the
-    paper, literal: line through the loop) ["model"]; ``h_zero_frac``: |h|
-    below this fraction of the window's std(x) counts as h ≈ 0 [0.005];
-    ``rate_frac``: points with |u̇| below this fraction of rms(u̇) are left out
-    [0.2]; ``min_points``: fewest points for a sub-fit [8]; ``rank_tol``: step 2
-    fits δ only when 1 − corr²(u̇, u) exceeds it [1e-3]; ``min_log_spread``:
-    fewest std(ln h) for fitting n [0.05]; ``min_r2``: least squared correlation
-    of the log–log points [0.9]; ``min_arg_frac``: steps 3–4 use a point only when
-    |A − r| ≥ this fraction of |A| [0.05]; ``min_line_t``: kv, x0 are updated only
-    when |kv| is at least this many standard errors [10]; ``noise_gate``: steps 3–4
-    use a point only when |A − r| exceeds this many noise standard deviations [3.0];
-    ``min_delta_t``: δ is updated only when
-    resolved to this many standard errors [3.0]; ``min_u_std_v``: step 1 runs only
-    while std(u) over the window exceeds this [1e-6 V]; ``n_bounds``: accepted
-    range of n [(0.5, 4.0)].
+    - ``Identifier(dt, init)``: the recommended method, rpem (as ``Identifier.rpem``);
+    - ``Identifier.rpem(dt, init, h0=0.0, *, config=None, effects=None)``: recursive
+      prediction-error method on the model's output error, sensitivities ∂h/∂θ
+      propagated through the integrator; ``config`` a :class:`boucwen.RpemConfig`;
+      ``effects`` an :class:`EffectSet` (e.g. from ``boucwen.diagnose``) whose
+      ``input_lag`` fc and ``creep`` gains are identified too (creep time constants
+      fixed, at most 4 elements, other effects rejected; with creep the default
+      config has ``offset_walk_um = 0``);
+    - ``Identifier.paper(dt, window, init, h0=0.0, *, config=None)``: the paper's
+      limited-memory RLS and least-squares sub-fits over the newest ``window`` samples
+      (16 to 10 000 000); ``config`` a :class:`boucwen.PaperConfig`.
 
-    Options of ``method="rpem"`` (recursive prediction-error method on the
-    model's output error, sensitivities ∂h/∂θ propagated through the
-    integrator; ``window`` is not used): ``forgetting`` λ per sample [1.0];
-    ``memory_travel_v`` memory in input travel [2000 V = ten periods of a
-    0–100 V sine]; ``p0`` initial covariance of θᵢ/scaleᵢ [1e-3];
-    ``noise_um2`` expected prediction-error variance R [1e-4 µm²];
-    ``max_trace`` bound on tr P [1.0]; ``max_step`` largest change per sample
-    as a fraction of each parameter's scale [0.01]; ``max_offset_step_um``
-    largest change of x0 per sample [0.5 µm]; ``offset_walk_um`` random walk
-    of x0 per sample [0.05 µm]; ``n_bounds`` [(1.0, 4.0)]; ``margin`` least
-    β + γ and β − γ [1e-6]; ``effects`` an :class:`EffectSet` (e.g. from
-    ``boucwen.effects.fit_extended`` or ``boucwen.diagnose``) whose ``input_lag`` fc
-    and ``creep`` gains are identified too, from the values given (creep time
-    constants fixed, at most 4 elements, other effects rejected) [None];
-    ``p0_effects`` initial covariance of ln fc and of the gains' logistic
-    coordinates, a relative standard deviation of about √p0_effects [0.05]. With
-    ``creep`` among the effects ``offset_walk_um`` defaults to 0. Options of one
-    method given to the other raise ``ValueError``.
+    ``dt`` sampling interval [s]; ``init`` starting parameters (e.g. an offline fit,
+    used as given); ``h0`` initial h [µm].
     """
 
     def __new__(
         cls,
         dt: float,
+        init: Params,
+        h0: float = 0.0,
+        *,
+        config: Optional[RpemConfig] = None,
+        effects: Optional[EffectSet] = None,
+    ) -> "Identifier": ...
+    @staticmethod
+    def rpem(
+        dt: float,
+        init: Params,
+        h0: float = 0.0,
+        *,
+        config: Optional[RpemConfig] = None,
+        effects: Optional[EffectSet] = None,
+    ) -> "Identifier":
+        """The output-error method ("rpem")."""
+    @staticmethod
+    def paper(
+        dt: float,
         window: int,
         init: Params,
         h0: float = 0.0,
-        method: _IdentifierMethod = "rpem",
         *,
-        decomposition: Literal["model", "line"] = "model",
-        h_zero_frac: Optional[float] = None,
-        rate_frac: Optional[float] = None,
-        min_points: Optional[int] = None,
-        rank_tol: Optional[float] = None,
-        min_log_spread: Optional[float] = None,
-        min_r2: Optional[float] = None,
-        min_arg_frac: Optional[float] = None,
-        min_line_t: Optional[float] = None,
-        noise_gate: Optional[float] = None,
-        min_delta_t: Optional[float] = None,
-        min_u_std_v: Optional[float] = None,
-        n_bounds: Optional[Tuple[float, float]] = None,
-        forgetting: Optional[float] = None,
-        memory_travel_v: Optional[float] = None,
-        p0: Optional[float] = None,
-        noise_um2: Optional[float] = None,
-        max_trace: Optional[float] = None,
-        max_step: Optional[float] = None,
-        margin: Optional[float] = None,
-        offset_walk_um: Optional[float] = None,
-        max_offset_step_um: Optional[float] = None,
-        effects: Optional[EffectSet] = None,
-        p0_effects: Optional[float] = None,
-    ) -> "Identifier": ...
+        config: Optional[PaperConfig] = None,
+    ) -> "Identifier":
+        """The paper's method over a window of ``window`` samples."""
     @property
     def effects(self) -> Optional[EffectSet]:
-        """Current effect estimates (fc [Hz], creep gains [µm/V]) of ``method="rpem"``
-        (an empty EffectSet without effects); None for ``method="paper"``."""
+        """Current effect estimates (fc [Hz], creep gains [µm/V]) of rpem (an empty
+        EffectSet without effects); None for the paper's method."""
     def push(self, u: float, x: float) -> float:
         """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
@@ -286,8 +288,14 @@ class Identifier:
     def method(self) -> _IdentifierMethod:
         """The online method in use."""
     @property
-    def status(self) -> _IdentifierStatus:
-        """What the last push did (a new dict at each read)."""
+    def config(self) -> Union[RpemConfig, PaperConfig]:
+        """The configuration in use."""
+    @property
+    def window(self) -> Optional[int]:
+        """The paper method's window N [samples]; None for rpem."""
+    @property
+    def status(self) -> Union[_PaperStatus, _RpemStatus]:
+        """What the last push did, the method's own report (a new dict at each read)."""
     def __copy__(self) -> "Identifier":
         """An independent copy that continues exactly like this one."""
     def __deepcopy__(self, _memo: Dict[int, object], /) -> "Identifier":

@@ -509,7 +509,7 @@ class _Raw:
 class PaperIdentifier:
     """The paper's online identifier, O(N) per sample (see the module docs).
 
-    Mirrors ``boucwen.Identifier(method="paper")``: ``push(u, x)`` predicts
+    Mirrors ``boucwen.Identifier.paper``: ``push(u, x)`` predicts
     x̂ = kv·u + x0 + h [µm] with the estimates from before the sample and the
     model's own simulated h, then completes the sample two back (five-point central
     differences), lets it enter the window of the newest ``window`` points and

@@ -6,7 +6,7 @@
 //! τ_i·dc_i/dt = g_i·u_a − c_i,     c = Σ_i c_i   (added to x)
 //! ```
 //!
-//! u_a: voltage on the stack [V]; c: creep displacement [µm]; τ_i [s]; g_i [µm/V].
+//! u_a: voltage on the stack \[V\]; c: creep displacement \[µm\]; τ_i \[s\]; g_i \[µm/V\].
 //! With log-spaced τ_i the step response grows roughly linearly in log(t), the usual
 //! creep law of piezo stacks. For fixed τ_i the output is linear in the gains, which
 //! makes them cheap to fit. Each element starts in equilibrium with the first voltage.
@@ -20,9 +20,9 @@ pub const MAX_ELEMENTS: usize = 16;
 /// Creep as a sum of first-order elements.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Creep {
-    /// Time constants τ_i [s] (finite, > 0).
+    /// Time constants τ_i \[s\] (finite, > 0).
     pub tau_s: Vec<f64>,
-    /// Static gains g_i [µm/V] (finite; same length as `tau_s`).
+    /// Static gains g_i \[µm/V\] (finite; same length as `tau_s`).
     pub gain_um_per_v: Vec<f64>,
 }
 
@@ -67,7 +67,7 @@ impl Effect for Creep {
 }
 
 impl Creep {
-    /// `count` time constants log-spaced from `tau_min_s` to `tau_max_s` [s], all gains 0.
+    /// `count` time constants log-spaced from `tau_min_s` to `tau_max_s` \[s\], all gains 0.
     pub fn log_spaced(tau_min_s: f64, tau_max_s: f64, count: usize) -> Result<Self> {
         if !(tau_min_s.is_finite() && tau_min_s > 0.0 && tau_max_s.is_finite() && tau_max_s >= tau_min_s) {
             return Err(Error::InvalidConfig {
@@ -87,7 +87,7 @@ impl Creep {
         Ok(creep)
     }
 
-    /// Σ g_i [µm/V]: the creep's share of the static gain.
+    /// Σ g_i \[µm/V\]: the creep's share of the static gain.
     pub fn total_gain(&self) -> f64 {
         self.gain_um_per_v.iter().sum()
     }
@@ -97,7 +97,7 @@ impl Creep {
     }
 
     /// Advances every element over one interval in which u_a moves linearly from
-    /// `ua0` to `ua1` [V] and returns c [µm].
+    /// `ua0` to `ua1` \[V\] and returns c \[µm\].
     #[inline]
     pub(crate) fn advance(&self, states: &mut [f64], decays: &[f64], ua0: f64, ua1: f64, dt: f64) -> f64 {
         let mut total = 0.0;

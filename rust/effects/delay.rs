@@ -1,19 +1,19 @@
 //! `delay`: the measurement lags the command by a whole number of samples.
 //!
 //! ```text
-//! x_measured[k] = x[k − d]     (x[0] for k < d)
+//! x_measured[k] = x[k − d]     (x\[0\] for k < d)
 //! ```
 
 use super::Effect;
 use crate::error::{Error, Result};
 
-/// Largest delay accepted [samples].
+/// Largest delay accepted \[samples\].
 pub const MAX_DELAY_SAMPLES: usize = 1_000_000;
 
 /// A pure delay of whole samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Delay {
-    /// Delay d [samples] (0 … [`MAX_DELAY_SAMPLES`]).
+    /// Delay d \[samples\] (0 … [`MAX_DELAY_SAMPLES`]).
     pub samples: usize,
 }
 

@@ -4,7 +4,7 @@
 //! x ← x + rate·t
 //! ```
 //!
-//! t [s] counts from the first sample of the record; rate [µm/s]. The offset at
+//! t \[s\] counts from the first sample of the record; rate \[µm/s\]. The offset at
 //! t = 0 is the base model's x0.
 
 use super::Effect;
@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 /// A linear trend in time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Drift {
-    /// Trend rate [µm/s] (finite).
+    /// Trend rate \[µm/s\] (finite).
     pub rate_um_per_s: f64,
 }
 
@@ -33,7 +33,7 @@ impl Effect for Drift {
 }
 
 impl Drift {
-    /// The trend [µm] at time `t_s` [s] after the first sample.
+    /// The trend \[µm\] at time `t_s` \[s\] after the first sample.
     #[inline]
     pub fn at(&self, t_s: f64) -> f64 {
         self.rate_um_per_s * t_s

@@ -4,7 +4,7 @@
 //! τ·du_a/dt = u − u_a,   τ = 1/(2π·fc)
 //! ```
 //!
-//! u: commanded voltage [V]; u_a: voltage on the stack [V]; fc: corner frequency [Hz].
+//! u: commanded voltage \[V\]; u_a: voltage on the stack \[V\]; fc: corner frequency \[Hz\].
 //! The command is a straight line between samples, for which the step below is exact.
 
 use super::{first_order_coefficient, first_order_step, Effect};
@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 /// First-order low-pass between the command and the stack.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InputLag {
-    /// Corner frequency fc [Hz] (> 0, finite).
+    /// Corner frequency fc \[Hz\] (> 0, finite).
     pub fc_hz: f64,
 }
 
@@ -33,12 +33,12 @@ impl Effect for InputLag {
 }
 
 impl InputLag {
-    /// Time constant τ = 1/(2π·fc) [s].
+    /// Time constant τ = 1/(2π·fc) \[s\].
     pub fn tau_s(&self) -> f64 {
         1.0 / (2.0 * std::f64::consts::PI * self.fc_hz)
     }
 
-    /// The per-sample coefficients for a sampling interval `dt` [s].
+    /// The per-sample coefficients for a sampling interval `dt` \[s\].
     pub(crate) fn stage(&self, dt: f64) -> LagStage {
         LagStage { tau: self.tau_s(), decay: first_order_coefficient(self.tau_s(), dt) }
     }

@@ -1,6 +1,6 @@
 //! Effects: small physical models around the asymmetric Bouc–Wen core.
 //!
-//! The signal chain, per sample interval `dt` [s]:
+//! The signal chain, per sample interval `dt` \[s\]:
 //!
 //! ```text
 //! u (command, V) ─► input_lag ─► u_a (on the stack, V)
@@ -20,8 +20,8 @@
 //! the chain runs on [`RESONANCE_SUBSTEPS`] sub-intervals per sample, because the
 //! stack's displacement is not a straight line within a fast voltage step (h bends)
 //! and a lightly damped resonance responds to that shape. Everything starts
-//! at rest in equilibrium with the first sample: u_a = u[0], c_i = g_i·u[0],
-//! z = y[0], ż = 0, no trend, the delay line full of the first value.
+//! at rest in equilibrium with the first sample: u_a = u\[0\], c_i = g_i·u\[0\],
+//! z = y\[0\], ż = 0, no trend, the delay line full of the first value.
 
 pub mod creep;
 pub mod delay;
@@ -147,7 +147,7 @@ pub struct ExtendedModel {
 
 impl ExtendedModel {
     /// A model with base parameters `params`, effects `effects`, sampling interval
-    /// `dt` [s] and initial hysteresis state `h0` [µm].
+    /// `dt` \[s\] and initial hysteresis state `h0` \[µm\].
     pub fn new(params: Params, effects: EffectSet, dt: f64, h0: f64) -> Result<Self> {
         params.validate()?;
         effects.validate()?;
@@ -184,8 +184,8 @@ impl ExtendedModel {
         })
     }
 
-    /// Takes the commanded voltage `u` [V] of the next sample; returns the sensor's
-    /// displacement x [µm]. A non-finite `u` is rejected and the state kept.
+    /// Takes the commanded voltage `u` \[V\] of the next sample; returns the sensor's
+    /// displacement x \[µm\]. A non-finite `u` is rejected and the state kept.
     pub fn step(&mut self, u: f64) -> Result<f64> {
         finite_sample("u", u)?;
         let y = if !self.started {
@@ -243,7 +243,7 @@ impl ExtendedModel {
         &self.effects
     }
 
-    /// Current hysteresis state h [µm].
+    /// Current hysteresis state h \[µm\].
     pub fn h(&self) -> f64 {
         self.h
     }
@@ -259,7 +259,7 @@ impl ExtendedModel {
 }
 
 /// Simulates the base model with `effects` over a record of commanded voltages `u`
-/// [V] sampled every `dt` [s], from h = `h0` [µm]; writes x [µm] into `x_out`.
+/// \[V\] sampled every `dt` \[s\], from h = `h0` \[µm\]; writes x \[µm\] into `x_out`.
 /// Input with a non-finite value is rejected before anything is computed.
 pub fn simulate_extended_into(
     params: &Params,

@@ -4,8 +4,8 @@
 //! z̈ + 2ζω·ż + ω²·z = ω²·y,     ω = 2π·fn
 //! ```
 //!
-//! y: the stack's displacement (base model + creep) [µm]; z: what the sensor sees [µm];
-//! fn: natural frequency [Hz]; ζ: damping ratio [-]. The static gain is 1.
+//! y: the stack's displacement (base model + creep) \[µm\]; z: what the sensor sees \[µm\];
+//! fn: natural frequency \[Hz\]; ζ: damping ratio \[-\]. The static gain is 1.
 //!
 //! y is a straight line between samples. The step is exact for such an input: the
 //! matrix exponential of the augmented system `[z, ż, y, Δy]` over one interval,
@@ -20,9 +20,9 @@ use crate::error::{Error, Result};
 /// A second-order low-pass of unit static gain.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Resonance {
-    /// Natural frequency fn [Hz] (> 0, below the Nyquist frequency).
+    /// Natural frequency fn \[Hz\] (> 0, below the Nyquist frequency).
     pub fn_hz: f64,
-    /// Damping ratio ζ [-] (> 0).
+    /// Damping ratio ζ \[-\] (> 0).
     pub zeta: f64,
 }
 
@@ -49,7 +49,7 @@ impl Effect for Resonance {
 }
 
 impl Resonance {
-    /// The exact one-interval map for sampling interval `dt` [s].
+    /// The exact one-interval map for sampling interval `dt` \[s\].
     pub(crate) fn stage(&self, dt: f64) -> Result<ResonanceStage> {
         self.validate()?;
         if self.fn_hz >= 0.5 / dt {

@@ -37,7 +37,7 @@ pub const NEWTON_ITERATIONS: usize = 4;
 /// Largest |∂ḣ/∂h|·Δt allowed in one RK4 sub-step (set for accuracy: stability
 /// alone would allow about 2.5).
 pub const STIFFNESS_STEP: f64 = 0.25;
-/// |h| is held within this bound [µm] (no piezo stack moves a centimetre).
+/// |h| is held within this bound \[µm\] (no piezo stack moves a centimetre).
 pub const H_LIMIT_UM: f64 = 1.0e4;
 
 /// sgn with sgn(0) = 0.
@@ -67,13 +67,13 @@ pub(crate) fn abs_pow(h: f64, n: f64) -> f64 {
 /// (constants for the model, seeded duals for the sensitivities).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Coefficients<S> {
-    /// A [µm/V].
+    /// A \[µm/V\].
     pub a: S,
     /// β [µm^(1−n)/V].
     pub beta: S,
     /// γ [µm^(1−n)/V].
     pub gamma: S,
-    /// n [-].
+    /// n \[-\].
     pub n: S,
     /// δ [µm/(V·s)].
     pub delta: S,
@@ -87,7 +87,7 @@ impl Coefficients<f64> {
     }
 }
 
-/// dh/dt of eq. (5) [µm/s] at hysteresis state `h` [µm], voltage `u` [V] and rate `udot` [V/s].
+/// dh/dt of eq. (5) \[µm/s\] at hysteresis state `h` \[µm\], voltage `u` \[V\] and rate `udot` \[V/s\].
 #[inline(always)]
 pub fn hysteresis_rate(p: &Params, h: f64, u: f64, udot: f64) -> f64 {
     rate(&Coefficients::of(p), h, abs_pow(h, p.n), u, udot, sgn(udot))
@@ -100,7 +100,7 @@ fn rate<S: Scalar>(c: &Coefficients<S>, h: S, hn: S, u: S, udot: S, su: f64) -> 
     c.a * udot - (c.beta * (udot * su) * sh + c.gamma * udot) * hn + c.delta * u * su
 }
 
-/// ∂(dh/dt)/∂h [1/s].
+/// ∂(dh/dt)/∂h \[1/s\].
 #[inline(always)]
 fn rate_slope(p: &Params, h: f64, udot: f64) -> f64 {
     let a = h.abs();
@@ -245,8 +245,8 @@ impl NearPower {
     }
 }
 
-/// Advances h over one sample interval of length `dt` [s] while u moves linearly
-/// from `u0` to `u1` [V]: the model's integrator. Returns the new h [µm]; never NaN
+/// Advances h over one sample interval of length `dt` \[s\] while u moves linearly
+/// from `u0` to `u1` \[V\]: the model's integrator. Returns the new h \[µm\]; never NaN
 /// for finite input.
 #[inline]
 pub fn advance_h(p: &Params, h: f64, u0: f64, u1: f64, dt: f64) -> f64 {

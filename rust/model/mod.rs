@@ -14,6 +14,7 @@ pub mod integrator;
 pub mod scalar;
 
 use crate::error::{finite_sample, positive_dt, Error, Result};
+use crate::format::{corrupt, Reader, Snapshot, Writer, KIND_MODEL};
 use crate::params::Params;
 
 pub use integrator::{
@@ -21,7 +22,7 @@ pub use integrator::{
     NEWTON_ITERATIONS, STIFFNESS_STEP,
 };
 
-/// Output equation (3): x = kv·u + x0 + h [µm].
+/// Output equation (3): x = kv·u + x0 + h \[µm\].
 #[inline(always)]
 pub fn output(p: &Params, u: f64, h: f64) -> f64 {
     p.kv * u + p.x0 + h
@@ -30,9 +31,9 @@ pub fn output(p: &Params, u: f64, h: f64) -> f64 {
 /// The state a [`Model`] carries between samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelState {
-    /// Hysteresis state h [µm] at the last sample.
+    /// Hysteresis state h \[µm\] at the last sample.
     pub h: f64,
-    /// The last voltage [V]; `None` before the first sample.
+    /// The last voltage \[V\]; `None` before the first sample.
     pub u_prev: Option<f64>,
 }
 
@@ -48,7 +49,7 @@ pub struct Model {
 }
 
 impl Model {
-    /// A model with parameters `params`, sampling interval `dt` [s] and initial h `h0` [µm].
+    /// A model with parameters `params`, sampling interval `dt` \[s\] and initial h `h0` \[µm\].
     pub fn new(params: Params, dt: f64, h0: f64) -> Result<Self> {
         params.validate()?;
         positive_dt(dt)?;
@@ -56,7 +57,7 @@ impl Model {
         Ok(Model { params, dt, state: ModelState { h: h0, u_prev: None } })
     }
 
-    /// Takes the voltage `u` [V] of the next sample and returns the displacement x [µm].
+    /// Takes the voltage `u` \[V\] of the next sample and returns the displacement x \[µm\].
     /// A non-finite `u` is rejected and the state kept. Allocation-free.
     #[inline]
     pub fn step(&mut self, u: f64) -> Result<f64> {
@@ -80,12 +81,12 @@ impl Model {
         Ok(())
     }
 
-    /// Sampling interval [s].
+    /// Sampling interval \[s\].
     pub fn dt(&self) -> f64 {
         self.dt
     }
 
-    /// Current hysteresis state h [µm].
+    /// Current hysteresis state h \[µm\].
     pub fn h(&self) -> f64 {
         self.state.h
     }
@@ -111,10 +112,10 @@ impl Model {
     }
 }
 
-/// Simulates a whole record into `x_out` and returns the final h [µm].
+/// Simulates a whole record into `x_out` and returns the final h \[µm\].
 ///
-/// `x_out[k] = kv·u[k] + x0 + h[k]`. With `u_prev = None`, h[0] = `h0`; with
-/// `Some(v)`, the first interval runs from v to u[0] starting at h = `h0`, so a long
+/// `x_out[k] = kv·u[k] + x0 + h[k]`. With `u_prev = None`, h\[0\] = `h0`; with
+/// `Some(v)`, the first interval runs from v to u\[0\] starting at h = `h0`, so a long
 /// record can be streamed in chunks (pass the previous chunk's final h and last u)
 /// with the same result as one call. Input with a non-finite value is rejected
 /// before anything is computed.
@@ -147,7 +148,7 @@ pub fn simulate(params: &Params, u: &[f64], dt: f64, h0: f64, u_prev: Option<f64
     Ok((x, h))
 }
 
-/// The paper's input, u = 50 + 50·sin(2πft − π/2), sampled every `dt` [s], with
+/// The paper's input, u = 50 + 50·sin(2πft − π/2), sampled every `dt` \[s\], with
 /// f = 1 Hz for t < 3 s, 10 Hz up to 3.3 s, 100 Hz up to 3.33 s and 200 Hz for
 /// `tail_s` seconds after that. Each switch falls on a minimum (u = 0), so the
 /// phase restarts there and u is continuous.
@@ -166,6 +167,31 @@ pub fn paper_input(dt: f64, tail_s: f64) -> Vec<f64> {
             50.0 + 50.0 * (2.0 * std::f64::consts::PI * f * (t - start) - std::f64::consts::FRAC_PI_2).sin()
         })
         .collect()
+}
+
+impl Snapshot for Model {
+    fn to_bytes(&self) -> Vec<u8> {
+        let mut w = Writer::new(KIND_MODEL);
+        w.params(self.params());
+        w.f64(self.dt());
+        let s = self.state();
+        w.f64(s.h);
+        w.opt_f64(s.u_prev);
+        w.finish()
+    }
+
+    fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        let mut r = Reader::new(bytes, KIND_MODEL)?;
+        let params = r.params()?;
+        let at = r.offset();
+        let dt = r.f64()?;
+        let h = r.finite()?;
+        let u_prev = r.opt_f64()?;
+        r.end()?;
+        let mut m = Model::new(params, dt, h).map_err(|_| corrupt(at, "snapshot holds an invalid time step"))?;
+        m.set_state(ModelState { h, u_prev })?;
+        Ok(m)
+    }
 }
 
 #[cfg(test)]
@@ -232,5 +258,23 @@ mod tests {
         let before = m.clone();
         assert!(m.step(f64::NAN).is_err());
         assert_eq!(m, before);
+    }
+
+    #[test]
+    fn model_round_trips_and_rejects_garbage() {
+        let mut m = Model::new(Params::paper_1hz(), 1e-4, 0.0).unwrap();
+        for k in 0..100 {
+            m.step((k as f64 * 0.1).sin() * 40.0).unwrap();
+        }
+        let bytes = m.to_bytes();
+        let r = Model::from_bytes(&bytes).unwrap();
+        assert_eq!(r, m);
+        for cut in 0..bytes.len() {
+            assert!(Model::from_bytes(&bytes[..cut]).is_err());
+        }
+        let mut bad = bytes.clone();
+        bad[6 + 5 * 8..6 + 6 * 8].copy_from_slice(&(-1.0f64).to_bits().to_le_bytes()); // n = -1
+        assert!(Model::from_bytes(&bad).is_err());
+        assert!(crate::identify::AnyIdentifier::from_snapshot(&bytes).is_err());
     }
 }

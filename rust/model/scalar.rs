@@ -13,7 +13,7 @@ use core::ops::{Add, Div, Mul, Neg, Sub};
 
 use nalgebra::SVector;
 
-/// For n < 1, below this |h| [µm] the slope n·|h|^(n−1) of |h|^n is taken at |h| = this
+/// For n < 1, below this |h| \[µm\] the slope n·|h|^(n−1) of |h|^n is taken at |h| = this
 /// value when differentiating (it is unbounded at h = 0). Values are never
 /// changed, only derivatives; 1 nm is below every sensor's noise.
 pub const SLOPE_FLOOR_UM: f64 = 1e-3;

@@ -14,11 +14,11 @@ use crate::effects::{Creep, Delay, Drift, EffectSet, InputLag, Resonance};
 /// Each argument is ``None`` (effect absent) or a dict of the effect's parameters:
 ///
 /// - ``creep={"tau_s": [τ_i …], "gain_um_per_v": [g_i …]}``: τ_i·ċ_i = g_i·u_a − c_i,
-///   x += Σ c_i (τ_i [s] > 0, g_i [µm/V]);
-/// - ``input_lag={"fc_hz": fc}``: first-order lag of the voltage, corner fc [Hz] > 0;
+///   x += Σ c_i (τ_i \[s\] > 0, g_i \[µm/V\]);
+/// - ``input_lag={"fc_hz": fc}``: first-order lag of the voltage, corner fc \[Hz\] > 0;
 /// - ``resonance={"fn_hz": fn, "zeta": ζ}``: z̈ + 2ζω·ż + ω²·z = ω²·y between the stack
-///   and the sensor, ω = 2π·fn (fn [Hz] > 0 and below Nyquist, ζ > 0);
-/// - ``drift={"rate_um_per_s": r}``: x += r·t, t [s] from the first sample;
+///   and the sensor, ω = 2π·fn (fn \[Hz\] > 0 and below Nyquist, ζ > 0);
+/// - ``drift={"rate_um_per_s": r}``: x += r·t, t \[s\] from the first sample;
 /// - ``delay={"samples": d}``: the sensor reads x[k − d], d ≥ 0 whole samples.
 ///
 /// Immutable, comparable, picklable; ``to_dict``/``from_dict`` round-trip.
@@ -219,8 +219,8 @@ impl PyEffectSet {
 /// Simulates the base model with effects over a record.
 ///
 /// ``params``: the base :class:`Params`; ``effects``: an :class:`EffectSet` (or None
-/// for none); ``u``: commanded voltage [V], piecewise linear between samples ``dt``
-/// [s] apart; ``h0``: initial hysteresis state [µm]. Returns x [µm] as the sensor
+/// for none); ``u``: commanded voltage \[V\], piecewise linear between samples ``dt``
+/// \[s\] apart; ``h0``: initial hysteresis state \[µm\]. Returns x \[µm\] as the sensor
 /// reads it. The chain is u → input_lag → (Bouc–Wen + creep) → resonance → + drift →
 /// delay; everything starts at rest with the first sample. The GIL is released while
 /// it runs.

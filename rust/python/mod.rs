@@ -1,6 +1,7 @@
 //! Python bindings: conversions and error mapping only; the numerics live in the
 //! crate's other modules. Compiled with the `python` feature into `boucwen._core`.
 
+mod config;
 mod effects;
 mod identifier;
 mod model;
@@ -61,6 +62,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<params::PyParams>()?;
     m.add_class::<model::PyModel>()?;
     m.add_class::<identifier::PyIdentifier>()?;
+    m.add_function(wrap_pyfunction!(config::_config_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(config::_validate_config, m)?)?;
     m.add_function(wrap_pyfunction!(model::simulate, m)?)?;
     m.add_class::<effects::PyEffectSet>()?;
     m.add_function(wrap_pyfunction!(effects::simulate_extended, m)?)?;

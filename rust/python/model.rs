@@ -10,10 +10,10 @@ use crate::{Model, ModelState};
 
 /// Simulates the asymmetric Bouc–Wen model over a record.
 ///
-/// u [V] is taken as piecewise linear between samples `dt` [s] apart. Returns
-/// `(x, h_final)`: x[k] = kv·u[k] + x0 + h[k] [µm] and h after the last sample [µm].
-/// With `u_prev=None`, h[0] = h0; with `u_prev=v`, the first interval runs from v
-/// to u[0], so `simulate(p, u[k:], dt, h0=h_final, u_prev=u[k-1])` continues a
+/// u \[V\] is taken as piecewise linear between samples `dt` \[s\] apart. Returns
+/// `(x, h_final)`: x[k] = kv·u[k] + x0 + h[k] \[µm\] and h after the last sample \[µm\].
+/// With `u_prev=None`, h\[0\] = h0; with `u_prev=v`, the first interval runs from v
+/// to u\[0\], so `simulate(p, u[k:], dt, h0=h_final, u_prev=u[k-1])` continues a
 /// record split at k exactly as one call would. The GIL is released while it runs.
 #[pyfunction]
 #[pyo3(signature = (params, u, dt, h0 = 0.0, u_prev = None))]
@@ -31,8 +31,8 @@ pub fn simulate<'py>(
     Ok((PyArray1::from_vec(py, x), h))
 }
 
-/// The paper's input u = 50 + 50·sin(2πft − π/2) [V], sampled every `dt` [s]:
-/// 1 Hz for 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for `tail_s` [s].
+/// The paper's input u = 50 + 50·sin(2πft − π/2) \[V\], sampled every `dt` \[s\]:
+/// 1 Hz for 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for `tail_s` \[s\].
 #[pyfunction]
 #[pyo3(signature = (dt, tail_s = 0.05))]
 pub fn paper_input<'py>(py: Python<'py>, dt: f64, tail_s: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
@@ -46,7 +46,7 @@ pub fn paper_input<'py>(py: Python<'py>, dt: f64, tail_s: f64) -> PyResult<Bound
 
 /// A per-sample asymmetric Bouc–Wen model for control loops: `step(u) -> x`.
 ///
-/// `params`: the model; `dt`: sampling interval [s]; `h0`: initial h [µm]. The
+/// `params`: the model; `dt`: sampling interval \[s\]; `h0`: initial h \[µm\]. The
 /// first sample keeps h = h0; each later one integrates eq. (5) from the
 /// previous voltage. A non-finite u raises ValueError and changes nothing.
 #[pyclass(name = "Model", module = "boucwen")]
@@ -63,12 +63,12 @@ impl PyModel {
         Model::new(params.inner, dt, h0).map(|inner| PyModel { inner }).map_err(value_error)
     }
 
-    /// Takes the next voltage u [V]; returns the displacement x [µm].
+    /// Takes the next voltage u \[V\]; returns the displacement x \[µm\].
     fn step(&mut self, u: f64) -> PyResult<f64> {
         self.inner.step(u).map_err(value_error)
     }
 
-    /// Current hysteresis state h [µm].
+    /// Current hysteresis state h \[µm\].
     #[getter]
     fn h(&self) -> f64 {
         self.inner.h()
@@ -80,13 +80,13 @@ impl PyModel {
         PyParams { inner: *self.inner.params() }
     }
 
-    /// Sampling interval [s].
+    /// Sampling interval \[s\].
     #[getter]
     fn dt(&self) -> f64 {
         self.inner.dt()
     }
 
-    /// Forgets the past: h = h0 [µm], no previous sample.
+    /// Forgets the past: h = h0 \[µm\], no previous sample.
     #[pyo3(signature = (h0 = 0.0))]
     fn reset(&mut self, h0: f64) -> PyResult<()> {
         self.inner.reset(h0).map_err(value_error)

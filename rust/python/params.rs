@@ -13,7 +13,7 @@ use crate::Params;
 ///     x = kv·u + x0 + h
 ///     dh/dt = A·u̇ − β·|u̇|·|h|^(n−1)·h − γ·u̇·|h|^n + δ·u·sgn(u̇)
 ///
-/// kv [µm/V], x0 [µm], A [µm/V], beta and gamma [µm^(1−n)/V], n [-] (> 0),
+/// kv \[µm/V\], x0 \[µm\], A \[µm/V\], beta and gamma [µm^(1−n)/V], n \[-\] (> 0),
 /// delta [µm/(V·s)]. Immutable; all values finite.
 #[pyclass(name = "Params", module = "boucwen", frozen, eq)]
 #[derive(Clone, Copy, PartialEq)]
@@ -21,6 +21,8 @@ pub struct PyParams {
     pub inner: Params,
 }
 
+// PyO3 methods take `&self`, even on a `Copy` class.
+#[allow(clippy::wrong_self_convention)]
 #[pymethods]
 impl PyParams {
     #[new]
@@ -42,17 +44,17 @@ impl PyParams {
         Params::NAMES.to_vec()
     }
 
-    /// Linear gain kv [µm/V].
+    /// Linear gain kv \[µm/V\].
     #[getter]
     fn kv(&self) -> f64 {
         self.inner.kv
     }
-    /// Offset x0 [µm].
+    /// Offset x0 \[µm\].
     #[getter]
     fn x0(&self) -> f64 {
         self.inner.x0
     }
-    /// Hysteresis gain A [µm/V].
+    /// Hysteresis gain A \[µm/V\].
     #[getter(A)]
     fn a(&self) -> f64 {
         self.inner.a
@@ -67,7 +69,7 @@ impl PyParams {
     fn gamma(&self) -> f64 {
         self.inner.gamma
     }
-    /// Shape exponent n [-].
+    /// Shape exponent n \[-\].
     #[getter]
     fn n(&self) -> f64 {
         self.inner.n

@@ -14,9 +14,7 @@
 
 use std::time::Instant;
 
-use boucwen::identify::{
-    AnyIdentifier, OnlineIdentifier, OutputErrorConfig, OutputErrorIdentifier, PaperConfig, PaperIdentifier,
-};
+use boucwen::identify::{AnyIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier};
 use boucwen::model::{paper_input, H_LIMIT_UM};
 use boucwen::{simulate, Model, Params, Snapshot};
 use proptest::prelude::*;
@@ -87,11 +85,11 @@ fn methods(window: usize) -> Vec<AnyIdentifier> {
     let init = Params { kv: 0.17, a: -0.06, beta: 0.024, gamma: -0.015, n: 1.4, delta: 0.006, ..Params::paper_1hz() };
     vec![
         AnyIdentifier::Paper(PaperIdentifier::new(DT, init, 0.0, PaperConfig::with_window(window)).unwrap()),
-        AnyIdentifier::OutputError(OutputErrorIdentifier::new(DT, init, 0.0, OutputErrorConfig::default()).unwrap()),
+        AnyIdentifier::Rpem(RpemIdentifier::new(DT, init, 0.0, RpemConfig::default()).unwrap()),
     ]
 }
 
-/// Root-mean-square prediction error [µm] of `id` over `u`, `x`, checking every output.
+/// Root-mean-square prediction error \[µm\] of `id` over `u`, `x`, checking every output.
 fn feed(id: &mut AnyIdentifier, u: &[f64], x: &[f64]) -> f64 {
     let mut sq = 0.0;
     for (&u, &x) in u.iter().zip(x) {

@@ -57,6 +57,7 @@ import numpy as np
 
 from .. import plant
 from .._core import Identifier, Params, simulate
+from ..config import PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 
 __all__ = [
@@ -149,7 +150,9 @@ ONLINE_METHODS: tuple[OnlineMethod, ...] = (
 
 
 def _make_identifier(m: OnlineMethod, dt: float, window: int, init: Params, h0: float) -> Identifier:
-    return Identifier(dt, window, init, h0, m.method, **dict(m.options))
+    if m.method == "paper":
+        return Identifier.paper(dt, window, init, h0, config=PaperConfig(**dict(m.options)))
+    return Identifier.rpem(dt, init, h0, config=RpemConfig(**dict(m.options)))
 
 
 def available_online_methods(

@@ -7,7 +7,7 @@ and compares three models of each against the *noise-free* signal:
 - **offline base**: :func:`boucwen.fit` of the base model on the whole record;
 - **offline extended**: :func:`boucwen.diagnose`'s final fit, the base model with
   the effects it named, on the whole record;
-- **online rpem**: ``Identifier(method="rpem")`` with its default tuning, started
+- **online rpem**: ``Identifier.rpem`` with its default tuning, started
   from the offline base fit (parameters and h0) and pushed through the record one
   sample at a time; its error is that of the prediction ``push`` returns, made
   with the estimates from before each sample (one step ahead, h simulated, never
@@ -56,7 +56,7 @@ def online_rows(seeds: int = 1) -> list[dict[str, Any]]:
         base = fit(rec.u, rec.x, rec.dt, seed=seed)
         d = diagnose(rec.u, rec.x, rec.dt, seed=seed)
         t1 = time.perf_counter()
-        ident = Identifier(rec.dt, 16, base.params, h0=base.h0, method="rpem")
+        ident = Identifier.rpem(rec.dt, base.params, h0=base.h0)
         x_online = ident.push_many(rec.u, rec.x)
         t2 = time.perf_counter()
         n = rec.u.size

@@ -92,13 +92,13 @@ impl<const K: usize> WindowSums<K> {
     /// sample leaving. Returns `true` when this call refreshed the sums exactly.
     #[inline]
     pub fn slide(&mut self, entering: &[f64; K], leaving: Option<&[f64; K]>) -> bool {
-        for i in 0..K {
-            self.sums[i] += entering[i];
-            self.shadow[i] += entering[i];
+        for ((sum, shadow), &v) in self.sums.iter_mut().zip(&mut self.shadow).zip(entering) {
+            *sum += v;
+            *shadow += v;
         }
         if let Some(old) = leaving {
-            for i in 0..K {
-                self.sums[i] -= old[i];
+            for (sum, &v) in self.sums.iter_mut().zip(old) {
+                *sum -= v;
             }
         }
         self.shadow_count += 1;
@@ -160,8 +160,8 @@ mod tests {
             }
         }
         let exact: [f64; 2] = ring.iter().fold([0.0; 2], |acc, it| [acc[0] + it[0], acc[1] + it[1]]);
-        for i in 0..2 {
-            let rel = ((sums.get()[i] - exact[i]) / exact[i]).abs();
+        for (i, (&got, &want)) in sums.get().iter().zip(&exact).enumerate() {
+            let rel = ((got - want) / want).abs();
             assert!(rel <= 1e-12, "sum {i}: relative error {rel}");
         }
     }

@@ -33,6 +33,7 @@
 //!    - step 5: β, γ from β+γ and γ−β, accepted only where h stays bounded for
 //!      every input (β + γ > 0 and β − γ > 0, as in the paper's Table 2);
 //!      otherwise β, γ and n are held.
+//!
 //!    Steps 3–4 leave out points whose |A − r| is below `min_arg_frac`·|A| (a
 //!    small difference of nearly equal numbers: its logarithm is mostly error) or
 //!    below `noise_gate` standard deviations of the noise of r.
@@ -42,128 +43,20 @@
 
 use nalgebra::{Matrix2, Vector2};
 
-use super::window::{Ring, WindowSums};
-use super::{OnlineIdentifier, PushStatus, SubFit};
+mod config;
+mod snapshot;
+mod status;
+#[cfg(test)]
+mod tests;
+pub mod window;
+
+use super::OnlineIdentifier;
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::model::{advance_h, output};
 use crate::params::Params;
-
-/// How the linear part kv·u + x0 is separated from h in step 1.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Decomposition {
-    /// The paper, literal: the least-squares line through the measured loop.
-    Line,
-    /// Default: the least-squares line through x − h, h simulated by the model.
-    #[default]
-    Model,
-}
-
-/// Tuning of [`PaperIdentifier`]; every tolerance the paper leaves open.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PaperConfig {
-    /// Limited memory N [samples] (≥ [`PaperConfig::MIN_WINDOW`]).
-    pub window_len: usize,
-    /// See [`Decomposition`].
-    pub decomposition: Decomposition,
-    /// |h| below this fraction of the window's std(x) counts as h ≈ 0 (step 2);
-    /// h above it counts as h > 0 (steps 3–4). Default 0.005.
-    pub h_zero_frac: f64,
-    /// Points with |u̇| below this fraction of the window's rms(u̇) are left out of
-    /// steps 2–4. Default 0.2.
-    pub rate_frac: f64,
-    /// Fewest points for a sub-fit. Default 8.
-    pub min_points: usize,
-    /// Step 2 fits both A + kv and δ only when 1 − corr²(u̇, u) over its points
-    /// exceeds this. Default 1e-3.
-    pub rank_tol: f64,
-    /// Step 3 fits n only when std(ln h) over its points exceeds this. Default 0.05.
-    pub min_log_spread: f64,
-    /// Steps 3–4 use a point only when |A − r| is at least this fraction of |A|:
-    /// smaller values are a difference of two nearly equal numbers, dominated by
-    /// the error of A and of the finite differences. Default 0.05.
-    pub min_arg_frac: f64,
-    /// Steps 3–4 use a point only when |A − r| is at least this many standard
-    /// deviations of the noise of r (that of ẋ over |u̇|; ẋ's noise is estimated
-    /// over the window from the difference of the five- and three-point
-    /// derivatives). Default 3.
-    pub noise_gate: f64,
-    /// Step 2 updates δ only when |δ| is at least this many standard errors of
-    /// its estimate (else it fits A + kv alone). Default 3.
-    pub min_delta_t: f64,
-    /// Step 3 fits n only when the log–log points lie on a line: squared
-    /// correlation of ln h and ln|A − r| at least this. Default 0.9.
-    pub min_r2: f64,
-    /// Step 1 updates kv, x0 only when |kv| is at least this many standard errors
-    /// of its window estimate. Default 10.
-    pub min_line_t: f64,
-    /// Step 1 runs only while std(u) over the window exceeds this [V]. Default 1e-6 V.
-    pub min_u_std_v: f64,
-    /// A slope outside these bounds is taken as a failed fit and n is kept. Default 0.5 to 4.
-    pub n_bounds: (f64, f64),
-}
-
-impl PaperConfig {
-    /// Smallest accepted window.
-    pub const MIN_WINDOW: usize = 16;
-    /// Largest accepted window (the points are held in memory, 56 bytes each).
-    pub const MAX_WINDOW: usize = 10_000_000;
-
-    /// Defaults with window N = `window_len`.
-    pub fn with_window(window_len: usize) -> Self {
-        PaperConfig {
-            window_len,
-            decomposition: Decomposition::Model,
-            h_zero_frac: 0.005,
-            rate_frac: 0.2,
-            min_points: 8,
-            rank_tol: 1e-3,
-            min_log_spread: 0.05,
-            min_r2: 0.9,
-            min_arg_frac: 0.05,
-            min_line_t: 10.0,
-            noise_gate: 3.0,
-            min_delta_t: 3.0,
-            min_u_std_v: 1e-6,
-            n_bounds: (0.5, 4.0),
-        }
-    }
-
-    /// Checks every value; the error names the offending option.
-    pub fn validate(&self) -> Result<()> {
-        let bad = |name, value: f64, reason| Err(Error::InvalidConfig { name, value, reason });
-        if self.window_len < Self::MIN_WINDOW {
-            return bad("window", self.window_len as f64, "the window must hold at least 16 samples");
-        }
-        if self.window_len > Self::MAX_WINDOW {
-            return bad("window", self.window_len as f64, "the window may hold at most 10 000 000 samples");
-        }
-        if self.min_points < 2 || self.min_points > self.window_len {
-            return bad("min_points", self.min_points as f64, "must be between 2 and the window length");
-        }
-        let fractions = [
-            ("h_zero_frac", self.h_zero_frac),
-            ("rate_frac", self.rate_frac),
-            ("rank_tol", self.rank_tol),
-            ("min_log_spread", self.min_log_spread),
-            ("min_r2", self.min_r2),
-            ("min_delta_t", self.min_delta_t),
-            ("min_arg_frac", self.min_arg_frac),
-            ("min_line_t", self.min_line_t),
-            ("noise_gate", self.noise_gate),
-            ("min_u_std_v", self.min_u_std_v),
-        ];
-        for (name, v) in fractions {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(name, v, "must be finite and >= 0");
-            }
-        }
-        let (lo, hi) = self.n_bounds;
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
-            return bad("n_bounds", lo, "need 0 < n_min <= n_max, both finite");
-        }
-        Ok(())
-    }
-}
+pub use config::{Decomposition, PaperConfig};
+pub use status::{PaperStatus, SubFit};
+use window::{Ring, WindowSums};
 
 /// Which sub-fit a window point feeds, decided when it enters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -190,7 +83,7 @@ struct Point {
     a: f64,
     /// ln|A − r| for steps 3–4.
     b: f64,
-    /// Five-point minus three-point estimate of ẋ [µm/s]: mostly noise (for the
+    /// Five-point minus three-point estimate of ẋ \[µm/s\]: mostly noise (for the
     /// noise estimate of the gate of steps 3–4).
     dx_diff: f64,
     class: Class,
@@ -431,14 +324,14 @@ pub struct PaperIdentifier {
     window: Ring<Point>,
     sums: WindowSums<NSUMS>,
     rls: LineRls,
-    status: PushStatus,
+    status: PaperStatus,
     /// Point classes that entered or left since the last refit ([`TOUCH_ALL`] after a refresh).
     touched: u8,
     cache: SubFitCache,
 }
 
 impl PaperIdentifier {
-    /// An identifier for samples every `dt` [s], starting from `init` with model state `h0` [µm].
+    /// An identifier for samples every `dt` \[s\], starting from `init` with model state `h0` \[µm\].
     pub fn new(dt: f64, init: Params, h0: f64, config: PaperConfig) -> Result<Self> {
         positive_dt(dt)?;
         init.validate()?;
@@ -455,7 +348,7 @@ impl PaperIdentifier {
             window: Ring::with_capacity(config.window_len),
             sums: WindowSums::new(config.window_len),
             rls: LineRls { theta: Vector2::new(init.kv, init.x0), p: Matrix2::zeros(), active: false },
-            status: PushStatus::default(),
+            status: PaperStatus::default(),
             touched: TOUCH_ALL,
             cache: SubFitCache::default(),
         })
@@ -541,7 +434,7 @@ impl PaperIdentifier {
     }
 
     /// Steps 1–5 from the sums; returns the new estimates and what ran.
-    fn refit(&mut self) -> (Params, PushStatus) {
+    fn refit(&mut self) -> (Params, PaperStatus) {
         let cfg = self.config;
         let s = self.sums.get();
         let mut p = self.params;
@@ -621,6 +514,8 @@ impl PaperIdentifier {
 }
 
 impl OnlineIdentifier for PaperIdentifier {
+    type Status = PaperStatus;
+
     fn push(&mut self, u: f64, x: f64) -> Result<f64> {
         finite_sample("u", u)?;
         finite_sample("x", x)?;
@@ -668,7 +563,7 @@ impl OnlineIdentifier for PaperIdentifier {
         self.h_model
     }
 
-    fn status(&self) -> PushStatus {
+    fn status(&self) -> PaperStatus {
         self.status
     }
 
@@ -679,245 +574,8 @@ impl OnlineIdentifier for PaperIdentifier {
         self.window.clear();
         self.sums.clear();
         self.rls = LineRls { theta: Vector2::new(self.init.kv, self.init.x0), p: Matrix2::zeros(), active: false };
-        self.status = PushStatus::default();
+        self.status = PaperStatus::default();
         self.touched = TOUCH_ALL;
         self.cache = SubFitCache::default();
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::model::{paper_input, simulate};
-
-    fn run(decomposition: Decomposition) -> (Vec<f64>, Vec<f64>, PaperIdentifier) {
-        let dt = 1e-4;
-        let u = paper_input(dt, 0.05);
-        let truth = Params::paper_1hz();
-        let (x, _) = simulate(&truth, &u, dt, 0.0, None).unwrap();
-        let cfg = PaperConfig { decomposition, ..PaperConfig::with_window(10_000) };
-        let mut id = PaperIdentifier::new(dt, truth, 0.0, cfg).unwrap();
-        let pred: Vec<f64> = u.iter().zip(&x).map(|(&u, &x)| id.push(u, x).unwrap()).collect();
-        (x, pred, id)
-    }
-
-    #[test]
-    fn started_from_the_truth_it_stays_close() {
-        let (x, pred, id) = run(Decomposition::Model);
-        let worst = x.iter().zip(&pred).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        assert!(worst < 0.5, "max prediction error {worst} µm");
-        assert!(id.params().validate().is_ok());
-    }
-
-    #[test]
-    fn rls_recursion_agrees_with_the_exact_window_fit() {
-        let (_, _, id) = run(Decomposition::Line);
-        let (rls, exact) = id.line_fit_check().expect("step 1 active");
-        // The recursion re-synchronises every N samples; in between, rank-one
-        // updates on a 2×2 system with |u| ≤ 100 lose at most a few ulps per step.
-        for i in 0..2 {
-            assert!((rls[i] - exact[i]).abs() <= 1e-8 * (1.0 + exact[i].abs()), "{rls:?} vs {exact:?}");
-        }
-    }
-
-    #[test]
-    fn rejected_samples_leave_no_trace() {
-        let cfg = PaperConfig::with_window(64);
-        let mut id = PaperIdentifier::new(1e-3, Params::paper_1hz(), 0.0, cfg).unwrap();
-        for k in 0..200 {
-            let u = 50.0 + 50.0 * (k as f64 * 0.05).sin();
-            id.push(u, 0.18 * u).unwrap();
-        }
-        let before = id.clone();
-        assert!(id.push(f64::NAN, 1.0).is_err());
-        assert!(id.push(1.0, f64::INFINITY).is_err());
-        assert_eq!(id, before);
-    }
-
-    #[test]
-    fn constant_input_holds_the_estimates() {
-        let cfg = PaperConfig::with_window(64);
-        let mut id = PaperIdentifier::new(1e-3, Params::paper_1hz(), 0.0, cfg).unwrap();
-        for _ in 0..10_000 {
-            let x = id.push(20.0, 3.8).unwrap();
-            assert!(x.is_finite());
-        }
-        assert!(id.params().to_array().iter().all(|v| v.is_finite()));
-        assert_eq!(id.status().line_fit, SubFit::Held);
-    }
-}
-
-// Save and restore (see `crate::snapshot`): every field the identifier carries
-// between samples. The shadow half of the window sums is not stored: it is the
-// sum, in arrival order, of the newest `(samples − 2) mod N` window points, and
-// is recomputed from them with the same additions.
-impl crate::snapshot::Snapshot for PaperIdentifier {
-    fn to_bytes(&self) -> Vec<u8> {
-        use crate::snapshot::Writer;
-        let mut w = Writer::new(crate::snapshot::KIND_PAPER);
-        let c = &self.config;
-        w.u64(c.window_len as u64);
-        w.u8(match c.decomposition {
-            Decomposition::Line => 0,
-            Decomposition::Model => 1,
-        });
-        w.f64s(&[c.h_zero_frac, c.rate_frac]);
-        w.u64(c.min_points as u64);
-        w.f64s(&[
-            c.rank_tol,
-            c.min_log_spread,
-            c.min_r2,
-            c.min_arg_frac,
-            c.min_line_t,
-            c.noise_gate,
-            c.min_delta_t,
-            c.min_u_std_v,
-            c.n_bounds.0,
-            c.n_bounds.1,
-        ]);
-        w.f64(self.dt);
-        w.params(&self.init);
-        w.f64(self.h0);
-        w.params(&self.params);
-        w.f64(self.h_model);
-        for raw in self.raw {
-            match raw {
-                Some(r) => {
-                    w.u8(1);
-                    w.f64s(&[r.u, r.x, r.h_model]);
-                }
-                None => w.u8(0),
-            }
-        }
-        w.u64(self.window.len() as u64);
-        for p in self.window.iter() {
-            w.f64s(&[p.u, p.x, p.y, p.udot, p.a, p.b, p.dx_diff]);
-            w.u8(match p.class {
-                Class::Unused => 0,
-                Class::Crossing => 1,
-                Class::Loading { positive: true } => 2,
-                Class::Loading { positive: false } => 3,
-                Class::Unloading { positive: true } => 4,
-                Class::Unloading { positive: false } => 5,
-            });
-        }
-        w.f64s(self.sums.get());
-        w.f64s(self.rls.theta.as_slice());
-        w.f64s(self.rls.p.as_slice());
-        w.u8(self.rls.active as u8);
-        let s = &self.status;
-        w.u64(s.samples);
-        w.u8(s.window_full as u8);
-        w.u8(s.refreshed as u8);
-        for f in [s.line_fit, s.rate_fit, s.shape_fit, s.return_fit] {
-            w.u8(match f {
-                SubFit::Held => 0,
-                SubFit::Reduced => 1,
-                SubFit::Ran => 2,
-            });
-        }
-        w.finish()
-    }
-
-    fn from_bytes(bytes: &[u8]) -> Result<Self> {
-        use crate::snapshot::{corrupt, rebuild_window_sums, Reader};
-        let mut r = Reader::new(bytes, crate::snapshot::KIND_PAPER)?;
-        let at = r.offset();
-        let window_len = usize::try_from(r.u64()?)
-            .ok()
-            .filter(|&n| n <= crate::snapshot::MAX_WINDOW_LEN)
-            .ok_or_else(|| corrupt(at, "window length out of range"))?;
-        let decomposition = match r.u8()? {
-            0 => Decomposition::Line,
-            1 => Decomposition::Model,
-            _ => return Err(corrupt(r.offset() - 1, "unknown decomposition tag")),
-        };
-        let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
-        let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, min_delta_t, min_u_std_v, n_lo, n_hi] =
-            r.f64s::<10>()?;
-        let config = PaperConfig {
-            window_len,
-            decomposition,
-            h_zero_frac,
-            rate_frac,
-            min_points,
-            rank_tol,
-            min_log_spread,
-            min_r2,
-            min_arg_frac,
-            min_line_t,
-            noise_gate,
-            min_delta_t,
-            min_u_std_v,
-            n_bounds: (n_lo, n_hi),
-        };
-        let dt = r.f64()?;
-        let init = r.params()?;
-        let h0 = r.finite()?;
-        // Validates dt, init, h0 and the whole configuration.
-        let mut id = PaperIdentifier::new(dt, init, h0, config)?;
-        id.params = r.params()?;
-        id.h_model = r.finite()?;
-        for slot in 0..RAW_HISTORY {
-            id.raw[slot] =
-                if r.bool()? { Some(Raw { u: r.finite()?, x: r.finite()?, h_model: r.finite()? }) } else { None };
-        }
-        let at = r.offset();
-        let points = r.u64()?;
-        if points > window_len as u64 {
-            return Err(corrupt(at, "more window points than the window holds"));
-        }
-        for _ in 0..points {
-            let [u, x, y, udot, a, b, dx_diff] = r.f64s::<7>()?;
-            let class = match r.u8()? {
-                0 => Class::Unused,
-                1 => Class::Crossing,
-                2 => Class::Loading { positive: true },
-                3 => Class::Loading { positive: false },
-                4 => Class::Unloading { positive: true },
-                5 => Class::Unloading { positive: false },
-                _ => return Err(corrupt(r.offset() - 1, "unknown window point class")),
-            };
-            id.window.push(Point { u, x, y, udot, a, b, dx_diff, class });
-        }
-        let sums = r.f64s::<NSUMS>()?;
-        let theta = r.f64s::<2>()?;
-        let p = r.f64s::<4>()?;
-        id.rls =
-            LineRls { theta: Vector2::from_column_slice(&theta), p: Matrix2::from_column_slice(&p), active: r.bool()? };
-        let at = r.offset();
-        let samples = r.u64()?;
-        let window_full = r.bool()?;
-        let refreshed = r.bool()?;
-        let mut fits = [SubFit::Held; 4];
-        for f in fits.iter_mut() {
-            *f = match r.u8()? {
-                0 => SubFit::Held,
-                1 => SubFit::Reduced,
-                2 => SubFit::Ran,
-                _ => return Err(corrupt(r.offset() - 1, "unknown sub-fit status")),
-            };
-        }
-        r.end()?;
-        let [line_fit, rate_fit, shape_fit, return_fit] = fits;
-        id.status = PushStatus { samples, window_full, refreshed, line_fit, rate_fit, shape_fit, return_fit };
-
-        // One window point per push from the third on; the shadow sum holds the
-        // newest `slides mod N` of them.
-        let slides = samples.saturating_sub(RAW_HISTORY as u64);
-        let raws = id.raw.iter().filter(|r| r.is_some()).count() as u64;
-        if points != slides.min(window_len as u64) || raws != samples.min(RAW_HISTORY as u64) {
-            return Err(corrupt(at, "sample count does not match the stored window"));
-        }
-        let count = (slides % window_len as u64) as usize;
-        let mut shadow = [0.0; NSUMS];
-        for p in id.window.iter().skip(points as usize - count) {
-            for (s, c) in shadow.iter_mut().zip(p.contribution()) {
-                *s += c;
-            }
-        }
-        id.sums = rebuild_window_sums(window_len, &sums, &shadow, count);
-        Ok(id)
     }
 }

@@ -1,7 +1,10 @@
-//! The per-sample paths do no heap allocation: `PaperIdentifier::push` and
-//! `OutputErrorIdentifier::push` (after construction and warm-up), their run-time
-//! dispatch `AnyIdentifier::push_many`, and `Model::step`, proved with a counting
-//! global allocator.
+//! The conformance suite every online method passes ([`conformance`], generic over
+//! the method): a rejected sample leaves the state unchanged, `push_many` equals a loop
+//! of `push`, a snapshot continues bit for bit, `reset` equals a fresh identifier, and
+//! `push` does no heap allocation. Then the method-specific allocation checks (the
+//! paper method's sub-fits and window refresh ran while counting) and `Model::step`.
+//!
+//! Allocations are proved with a counting global allocator.
 //!
 //! The counter is thread-local, so allocations made meanwhile by the test harness on
 //! other threads are not charged to the code under test.
@@ -11,12 +14,11 @@ use std::cell::Cell;
 
 use boucwen::effects::{Creep, InputLag};
 use boucwen::identify::{
-    AnyIdentifier, Decomposition, OnlineIdentifier, OutputErrorConfig, OutputErrorIdentifier, PaperConfig,
-    PaperIdentifier, SubFit,
+    AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier, SubFit,
 };
 use boucwen::model::paper_input;
 use boucwen::EffectSet;
-use boucwen::{simulate, Model, Params};
+use boucwen::{simulate, Model, Params, Snapshot};
 
 struct CountingAllocator;
 
@@ -75,6 +77,86 @@ fn record() -> (Vec<f64>, Vec<f64>) {
     (u, x)
 }
 
+/// The suite every online method passes; `make` builds a fresh identifier.
+fn conformance<I>(make: impl Fn() -> I, what: &str)
+where
+    I: OnlineIdentifier + Clone + PartialEq + core::fmt::Debug + Snapshot,
+{
+    let (u, x) = record();
+    let cut = 12_345;
+    // push_many == a loop of push, to the bit, and the same final state.
+    let mut looped = make();
+    let one: Vec<f64> = u.iter().zip(&x).map(|(&a, &b)| looped.push(a, b).expect("finite")).collect();
+    let mut batched = make();
+    let mut many = vec![0.0; u.len()];
+    batched.push_many(&u, &x, &mut many).expect("finite");
+    assert_eq!(one, many, "{what}: push_many differs from push");
+    assert!(looped == batched, "{what}: states differ after push and push_many");
+    // A rejected sample, alone or inside push_many, leaves the state exactly as it was.
+    let mut id = make();
+    id.push_many(&u[..cut], &x[..cut], &mut vec![0.0; cut]).expect("finite");
+    let before = id.clone();
+    assert!(id.push(f64::NAN, 1.0).is_err());
+    assert!(id.push(1.0, f64::INFINITY).is_err());
+    let mut bad = x[cut..cut + 100].to_vec();
+    bad[57] = f64::NAN;
+    assert!(id.push_many(&u[cut..cut + 100], &bad, &mut vec![0.0; 100]).is_err());
+    assert!(id == before, "{what}: a rejected sample changed the state");
+    // A snapshot taken mid-run continues bit for bit.
+    // (the restored state may be laid out differently, e.g. a ring buffer's start, so
+    // what is compared is what it does).
+    let mut restored = I::from_bytes(&id.to_bytes()).expect("valid snapshot");
+    assert_eq!(restored.params(), id.params(), "{what}: snapshot round trip");
+    for k in cut..cut + 5000 {
+        assert_eq!(
+            restored.push(u[k], x[k]).unwrap().to_bits(),
+            id.push(u[k], x[k]).unwrap().to_bits(),
+            "{what}: sample {k}"
+        );
+    }
+    assert!(I::from_bytes(&id.to_bytes()[..20]).is_err());
+    // reset == fresh.
+    id.reset();
+    let mut fresh = make();
+    for k in 0..3000 {
+        assert_eq!(
+            id.push(u[k], x[k]).unwrap().to_bits(),
+            fresh.push(u[k], x[k]).unwrap().to_bits(),
+            "{what}: reset, sample {k}"
+        );
+    }
+    // push allocates nothing, after a warm-up, on the error path too.
+    let mut id = make();
+    id.push_many(&u[..cut], &x[..cut], &mut vec![0.0; cut]).expect("finite");
+    let (count, sum) = allocations_during(|| {
+        let mut sum = 0.0;
+        for k in cut..u.len() {
+            sum += id.push(u[k], x[k]).expect("finite");
+        }
+        assert!(id.push(f64::NAN, 0.0).is_err());
+        sum
+    });
+    assert!(sum.is_finite());
+    assert_eq!(count, 0, "{what}: push allocated {count} times");
+}
+
+#[test]
+fn every_online_method_conforms() {
+    let p = Params::paper_1hz();
+    for (n, d) in [(100, Decomposition::Model), (10_000, Decomposition::Line)] {
+        let cfg = PaperConfig { decomposition: d, ..PaperConfig::with_window(n) };
+        conformance(|| PaperIdentifier::new(DT, p, 0.0, cfg).expect("valid"), "paper");
+    }
+    conformance(|| RpemIdentifier::new(DT, p, 0.0, RpemConfig::default()).expect("valid"), "rpem");
+    let effects = EffectSet {
+        input_lag: Some(InputLag { fc_hz: 800.0 }),
+        creep: Some(Creep { tau_s: vec![0.01, 1.0], gain_um_per_v: vec![0.001; 2] }),
+        ..EffectSet::none()
+    };
+    let cfg = RpemConfig::for_effects(&effects);
+    conformance(|| RpemIdentifier::with_effects(DT, p, &effects, 0.0, cfg).expect("valid"), "rpem with effects");
+}
+
 /// Counts how often each sub-fit ran, to show that the measured pushes exercised them.
 #[derive(Default)]
 struct Coverage {
@@ -84,7 +166,7 @@ struct Coverage {
     refreshed: u32,
 }
 
-fn push_all(id: &mut impl OnlineIdentifier, u: &[f64], x: &[f64], cov: &mut Coverage) -> f64 {
+fn push_all(id: &mut PaperIdentifier, u: &[f64], x: &[f64], cov: &mut Coverage) -> f64 {
     let mut checksum = 0.0;
     for (&a, &b) in u.iter().zip(x) {
         checksum += id.push(a, b).expect("finite sample");
@@ -156,7 +238,7 @@ fn paper_identifier_push_does_not_allocate_window_10_000() {
 
 /// The output-error identifier ("rpem") over the whole paper input, after a warm-up:
 /// directly and through `AnyIdentifier::push_many`.
-fn check_output_error(make: impl Fn() -> OutputErrorIdentifier, what: &str) {
+fn check_output_error(make: impl Fn() -> RpemIdentifier, what: &str) {
     let (u, x) = record();
     let warm = 1000;
     let mut id = make();
@@ -167,7 +249,7 @@ fn check_output_error(make: impl Fn() -> OutputErrorIdentifier, what: &str) {
         let (mut sum, mut updated, mut limited) = (0.0, 0u32, 0u32);
         for (&a, &b) in u[warm..].iter().zip(&x[warm..]) {
             sum += id.push(a, b).expect("finite sample");
-            let d = id.detail();
+            let d = id.status();
             updated += d.updated as u32;
             limited += d.step_limited as u32;
         }
@@ -176,16 +258,11 @@ fn check_output_error(make: impl Fn() -> OutputErrorIdentifier, what: &str) {
         (sum, updated, limited)
     });
     assert!(checksum.is_finite());
-    assert_eq!(
-        count,
-        0,
-        "OutputErrorIdentifier::push allocated {count} times over {} samples ({what})",
-        u.len() - warm
-    );
+    assert_eq!(count, 0, "RpemIdentifier::push allocated {count} times over {} samples ({what})", u.len() - warm);
     // The measured pushes updated the estimates (the Gauss–Newton step ran).
     assert!(updated > 0, "no update while counting ({what}); step limited {limited} times");
 
-    let mut any = AnyIdentifier::OutputError(make());
+    let mut any = AnyIdentifier::Rpem(make());
     for (&a, &b) in u[..warm].iter().zip(&x[..warm]) {
         any.push(a, b).expect("finite sample");
     }
@@ -198,18 +275,18 @@ fn check_output_error(make: impl Fn() -> OutputErrorIdentifier, what: &str) {
 
 #[test]
 fn output_error_identifier_push_does_not_allocate() {
-    let cfg = OutputErrorConfig::default();
-    check_output_error(|| OutputErrorIdentifier::new(DT, Params::paper_1hz(), 0.0, cfg).expect("valid"), "base model");
+    let cfg = RpemConfig::default();
+    check_output_error(|| RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, cfg).expect("valid"), "base model");
     // Starting far off and stiff: the trust region and the projection at work.
     let stiff = Params { beta: 5.0, gamma: 4.0, n: 1.0, ..Params::paper_1hz() };
-    check_output_error(|| OutputErrorIdentifier::new(DT, stiff, 0.0, cfg).expect("valid"), "stiff start");
+    check_output_error(|| RpemIdentifier::new(DT, stiff, 0.0, cfg).expect("valid"), "stiff start");
     let effects = EffectSet {
         input_lag: Some(InputLag { fc_hz: 800.0 }),
         creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0, 10.0], gain_um_per_v: vec![0.001; 4] }),
         ..EffectSet::none()
     };
     check_output_error(
-        || OutputErrorIdentifier::with_effects(DT, Params::paper_1hz(), &effects, 0.0, cfg).expect("valid"),
+        || RpemIdentifier::with_effects(DT, Params::paper_1hz(), &effects, 0.0, cfg).expect("valid"),
         "input lag and four creep elements",
     );
 }

@@ -1,0 +1,110 @@
+"""Configuration of the online identifiers: frozen dataclasses that mirror the Rust
+structs ``RpemConfig`` and ``PaperConfig`` field by field.
+
+The defaults come from the Rust core (one place for each value); a config is
+validated when it is built (``ValueError`` naming the offending option)::
+
+    cfg = boucwen.RpemConfig(memory_travel_v=600.0)
+    ident = boucwen.Identifier.rpem(dt, init, config=cfg)
+    ident = boucwen.Identifier.paper(dt, 1000, init, config=boucwen.PaperConfig(decomposition="line"))
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from . import _core
+
+_RPEM: dict[str, Any] = _core._config_defaults("rpem")
+_PAPER: dict[str, Any] = _core._config_defaults("paper")
+
+
+@dataclass(frozen=True)
+class RpemConfig:
+    """Tuning of the output-error method (``Identifier.rpem``); see the Rust docs of
+    ``RpemConfig`` for each option's role. Units in the names: V, µm, Hz."""
+
+    forgetting: float = _RPEM["forgetting"]
+    """Forgetting factor per sample λ ∈ (0, 1] (1: none; see memory_travel_v)."""
+    memory_travel_v: float = _RPEM["memory_travel_v"]
+    """Memory measured in input travel [V]: weight falls by exp(−|Δu|/memory) per interval."""
+    p0: float = _RPEM["p0"]
+    """Initial covariance of the scaled parameters θᵢ/scaleᵢ."""
+    offset_walk_um: float = _RPEM["offset_walk_um"]
+    """Random walk of the offset x0 [µm per sample, standard deviation]."""
+    p0_effects: float = _RPEM["p0_effects"]
+    """Initial covariance of the effects' coordinates (ln fc, creep gains' logits)."""
+    noise_um2: float = _RPEM["noise_um2"]
+    """R: expected variance of the prediction error [µm²]."""
+    max_trace: float = _RPEM["max_trace"]
+    """Bound on tr P (scaled units)."""
+    max_step: float = _RPEM["max_step"]
+    """Largest change of any parameter in one sample, as a fraction of its scale."""
+    max_offset_step_um: float = _RPEM["max_offset_step_um"]
+    """Largest change of the offset x0 in one sample [µm]."""
+    n_bounds: tuple[float, float] = _RPEM["n_bounds"]
+    """n is held within these bounds [-]."""
+    margin: float = _RPEM["margin"]
+    """β + γ and β − γ are held at or above this [µm^(1−n)/V]."""
+    scales: tuple[float, ...] = tuple(_RPEM["scales"])
+    """Scale of kv, x0, A, β, γ, n, δ in their units (the update works on θᵢ/scaleᵢ)."""
+    creep_gain_scale_um_per_v: float = _RPEM["creep_gain_scale_um_per_v"]
+    """Scale of the creep gains [µm/V]."""
+    creep_gain_max_um_per_v: float = _RPEM["creep_gain_max_um_per_v"]
+    """Each creep gain is held within [0, this] [µm/V]."""
+    fc_bounds_hz: tuple[float, float] = _RPEM["fc_bounds_hz"]
+    """The input lag's corner frequency is held within these bounds [Hz]."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "n_bounds", tuple(self.n_bounds))
+        object.__setattr__(self, "scales", tuple(self.scales))
+        object.__setattr__(self, "fc_bounds_hz", tuple(self.fc_bounds_hz))
+        _core._validate_config("rpem", self)
+
+    def replace(self, **changes: Any) -> RpemConfig:
+        """A copy with some options changed (validated)."""
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class PaperConfig:
+    """Tuning of the paper's method (``Identifier.paper``): every tolerance the paper
+    leaves open; see the Rust docs of ``PaperConfig``. The window N is an argument of
+    ``Identifier.paper`` itself."""
+
+    decomposition: Literal["model", "line"] = _PAPER["decomposition"]
+    """How kv·u + x0 is separated from h in step 1: "model" (x − h_model) or "line" (the paper's)."""
+    h_zero_frac: float = _PAPER["h_zero_frac"]
+    """|h| below this fraction of the window's std(x) counts as h ≈ 0."""
+    rate_frac: float = _PAPER["rate_frac"]
+    """Points with |u̇| below this fraction of the window's rms(u̇) are left out of steps 2–4."""
+    min_points: int = _PAPER["min_points"]
+    """Fewest points for a sub-fit."""
+    rank_tol: float = _PAPER["rank_tol"]
+    """Step 2 fits δ only when 1 − corr²(u̇, u) exceeds this."""
+    min_log_spread: float = _PAPER["min_log_spread"]
+    """Step 3 fits n only when std(ln h) exceeds this."""
+    min_arg_frac: float = _PAPER["min_arg_frac"]
+    """Steps 3–4 use a point only when |A − r| ≥ this fraction of |A|."""
+    noise_gate: float = _PAPER["noise_gate"]
+    """Steps 3–4 use a point only when |A − r| ≥ this many standard deviations of r's noise."""
+    min_delta_t: float = _PAPER["min_delta_t"]
+    """Step 2 updates δ only when |δ| ≥ this many standard errors."""
+    min_r2: float = _PAPER["min_r2"]
+    """Step 3 fits n only when the log–log points have r² ≥ this."""
+    min_line_t: float = _PAPER["min_line_t"]
+    """Step 1 updates kv, x0 only when |kv| ≥ this many standard errors."""
+    min_u_std_v: float = _PAPER["min_u_std_v"]
+    """Step 1 runs only while std(u) over the window exceeds this [V]."""
+    n_bounds: tuple[float, float] = _PAPER["n_bounds"]
+    """A fitted n outside these bounds is taken as a failed fit [-]."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "n_bounds", tuple(self.n_bounds))
+        _core._validate_config("paper", self)
+
+    def replace(self, **changes: Any) -> PaperConfig:
+        """A copy with some options changed (validated)."""
+        return dataclasses.replace(self, **changes)
