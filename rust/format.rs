@@ -34,6 +34,8 @@ pub(crate) const KIND_MODEL: u8 = 1;
 pub(crate) const KIND_PAPER: u8 = 2;
 /// Kind byte of a [`crate::identify::RpemIdentifier`] ("rpem") snapshot.
 pub(crate) const KIND_RPEM: u8 = 3;
+/// Kind byte of a [`crate::identify::HorizonIdentifier`] snapshot.
+pub(crate) const KIND_HORIZON: u8 = 4;
 
 /// Objects that can be saved to bytes and restored bit for bit.
 pub trait Snapshot: Sized {

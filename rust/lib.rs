@@ -21,6 +21,8 @@
 //! The Python bindings live in `python/` behind the `python` feature; this crate's
 //! numerics never depend on them.
 
+extern crate alloc;
+
 pub mod effects;
 pub mod error;
 pub mod format;

@@ -105,7 +105,7 @@ def test_no_nan_and_admissible_parameters_under_wild_input():
     assert np.all(np.isfinite(pred))
     p = ident.params
     assert np.all(np.isfinite(p.to_array()))
-    assert 1.0 <= p.n <= 4.0 and p.beta + p.gamma >= 0 and p.beta - p.gamma >= 0
+    assert 0.25 <= p.n <= 4.0 and p.beta + p.gamma >= 0 and p.beta - p.gamma >= 0
 
 
 def test_method_name_options_and_bad_options():
@@ -133,7 +133,7 @@ def test_method_name_options_and_bad_options():
         dict(forgetting=1.5),
         dict(p0=-1.0),
         dict(noise_um2=math.nan),
-        dict(n_bounds=(0.5, 3.0)),
+        dict(n_bounds=(0.0, 3.0)),
         dict(memory_travel_v=0.0),
         dict(max_step=0.0),
         dict(offset_walk_um=-1.0),
@@ -151,10 +151,10 @@ def test_method_name_options_and_bad_options():
     with pytest.raises(TypeError, match="RpemConfig"):
         boucwen.Identifier.rpem(DT, TRUTH, config=boucwen.PaperConfig())
     with pytest.raises(TypeError):
-        boucwen.Identifier(DT, 16, TRUTH)  # type: ignore[arg-type]  # no window for rpem
+        boucwen.Identifier.rpem(DT, 16, TRUTH)  # type: ignore[arg-type]  # no window for rpem
     with pytest.raises(TypeError):
         boucwen.Identifier(1e-3, "banana", TRUTH)  # type: ignore[arg-type]
-    assert boucwen.Identifier(DT, TRUTH).method == "rpem"  # the recommended default
+    assert boucwen.Identifier(DT, TRUTH).method == "horizon"  # the recommended default
 
 
 def test_reset_returns_to_construction_state():

@@ -15,12 +15,13 @@ Precision Engineering 38 (2014) 921–927).
 
 from ._core import Identifier, Model, Params, __version__, paper_input, simulate
 from ._core import EffectSet, simulate_extended
-from .config import PaperConfig, RpemConfig
+from .config import HorizonConfig, PaperConfig, RpemConfig
 from .diagnose import Diagnosis, diagnose
 from .fit import FitResult, fit
 
 __all__ = [
     "Identifier",
+    "HorizonConfig",
     "PaperConfig",
     "RpemConfig",
     "Model",

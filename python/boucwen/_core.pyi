@@ -18,12 +18,12 @@ part is one new section (and one line in ``__all__``):
 - parameters: ``Params``
 - simulation: ``simulate``, ``paper_input``, ``Model``
 - online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
-  ``_RpemStatus`` (type-only names, absent at run time), ``Identifier``
+  ``_RpemStatus``, ``_HorizonStatus`` (type-only names, absent at run time), ``Identifier``
 """
 
 from typing import Any, ClassVar, Dict, List, Literal, Optional, Tuple, TypedDict, Union, final
 
-from .config import PaperConfig, RpemConfig
+from .config import HorizonConfig, PaperConfig, RpemConfig
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -160,8 +160,8 @@ class Model:
 
 # ---------------------------------------------------------------- online identification
 
-_IdentifierMethod = Literal["paper", "rpem"]
-"""The online methods: ``Identifier.rpem`` (the default) and ``Identifier.paper``."""
+_IdentifierMethod = Literal["horizon", "rpem", "paper"]
+"""The online methods: ``Identifier.horizon`` (the default), ``Identifier.rpem`` and ``Identifier.paper``."""
 
 _SubFitOutcome = Literal["ran", "reduced", "held"]
 """What a sub-fit did in the last push: ran in full, ran on fewer unknowns
@@ -205,6 +205,28 @@ class _RpemStatus(TypedDict):
     trace: float
     """tr P after the push (scaled units)."""
 
+class _HorizonStatus(TypedDict):
+    """``Identifier.status`` of the moving-horizon method: what the last push did."""
+
+    samples: int
+    """Samples pushed since construction or reset."""
+    updated: bool
+    """A pass over the window ended in this push and the estimates were updated."""
+    updates: int
+    """Updates since construction or reset."""
+    window_samples: int
+    """Samples in the window."""
+    window_travel_v: float
+    """Input travel over the window [V]."""
+    rms_um: float
+    """RMS output error of the last pass [µm]."""
+    damping: float
+    """Levenberg–Marquardt damping after the last update."""
+    step_limited: bool
+    """The trust region scaled the last update down."""
+    projected: bool
+    """The projection moved n, β or γ in the last update."""
+
 def _config_defaults(method: _IdentifierMethod) -> Dict[str, Any]:
     """Default options of a method's config (``boucwen.config`` takes them from here)."""
 
@@ -223,7 +245,11 @@ class Identifier:
 
     One constructor per method, each with its own frozen config class:
 
-    - ``Identifier(dt, init)``: the recommended method, rpem (as ``Identifier.rpem``);
+    - ``Identifier(dt, init)``: the recommended method, horizon (as ``Identifier.horizon``);
+    - ``Identifier.horizon(dt, init, h0=0.0, *, config=None)``: moving-horizon output-error
+      least squares over a window measured in input travel, one Levenberg–Marquardt step
+      per pass, the work spread evenly over the samples; ``config`` a
+      :class:`boucwen.HorizonConfig`;
     - ``Identifier.rpem(dt, init, h0=0.0, *, config=None, effects=None)``: recursive
       prediction-error method on the model's output error, sensitivities ∂h/∂θ
       propagated through the integrator; ``config`` a :class:`boucwen.RpemConfig`;
@@ -245,9 +271,17 @@ class Identifier:
         init: Params,
         h0: float = 0.0,
         *,
-        config: Optional[RpemConfig] = None,
-        effects: Optional[EffectSet] = None,
+        config: Optional[HorizonConfig] = None,
     ) -> "Identifier": ...
+    @staticmethod
+    def horizon(
+        dt: float,
+        init: Params,
+        h0: float = 0.0,
+        *,
+        config: Optional[HorizonConfig] = None,
+    ) -> "Identifier":
+        """The moving-horizon output-error method ("horizon")."""
     @staticmethod
     def rpem(
         dt: float,
@@ -288,13 +322,13 @@ class Identifier:
     def method(self) -> _IdentifierMethod:
         """The online method in use."""
     @property
-    def config(self) -> Union[RpemConfig, PaperConfig]:
+    def config(self) -> Union[HorizonConfig, RpemConfig, PaperConfig]:
         """The configuration in use."""
     @property
     def window(self) -> Optional[int]:
-        """The paper method's window N [samples]; None for rpem."""
+        """The paper method's window N [samples]; None for the other methods."""
     @property
-    def status(self) -> Union[_PaperStatus, _RpemStatus]:
+    def status(self) -> Union[_PaperStatus, _RpemStatus, _HorizonStatus]:
         """What the last push did, the method's own report (a new dict at each read)."""
     def __copy__(self) -> "Identifier":
         """An independent copy that continues exactly like this one."""

@@ -19,6 +19,43 @@ from . import _core
 
 _RPEM: dict[str, Any] = _core._config_defaults("rpem")
 _PAPER: dict[str, Any] = _core._config_defaults("paper")
+_HORIZON: dict[str, Any] = _core._config_defaults("horizon")
+
+
+@dataclass(frozen=True)
+class HorizonConfig:
+    """Tuning of the moving-horizon method (``Identifier.horizon``); see the Rust docs
+    of ``HorizonConfig``. Units in the names: V."""
+
+    memory_travel_v: float = _HORIZON["memory_travel_v"]
+    """Length of the window in input travel [V] (400 V: two periods of a 0–100 V sine)."""
+    max_window: int = _HORIZON["max_window"]
+    """Most samples the window holds (allocated at construction)."""
+    samples_per_push: int = _HORIZON["samples_per_push"]
+    """Samples of the window's simulation run per push."""
+    min_pass_fraction: float = _HORIZON["min_pass_fraction"]
+    """A pass leads to an update only when it spans this fraction of the memory."""
+    ridge: float = _HORIZON["ridge"]
+    """Relative Tikhonov weight on the normal equations."""
+    damping: float = _HORIZON["damping"]
+    """Initial Levenberg–Marquardt damping (relative)."""
+    max_step: float = _HORIZON["max_step"]
+    """Largest change of a parameter in one update, as a fraction of its scale."""
+    n_bounds: tuple[float, float] = _HORIZON["n_bounds"]
+    """n is held within these bounds [-]."""
+    margin: float = _HORIZON["margin"]
+    """β + γ and β − γ are held at or above this [µm^(1−n)/V]."""
+    scales: tuple[float, ...] = tuple(_HORIZON["scales"])
+    """Scale of kv, x0, A, β, γ, n, δ and of the window's initial h [µm]."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "n_bounds", tuple(self.n_bounds))
+        object.__setattr__(self, "scales", tuple(self.scales))
+        _core._validate_config("horizon", self)
+
+    def replace(self, **changes: Any) -> HorizonConfig:
+        """A copy with some options changed (validated)."""
+        return dataclasses.replace(self, **changes)
 
 
 @dataclass(frozen=True)

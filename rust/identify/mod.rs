@@ -12,7 +12,10 @@
 //!   (section 3 of the paper), [`PaperIdentifier`];
 //! - [`rpem`]: recursive prediction-error method on the model's output (simulation)
 //!   error, sensitivities of h propagated through the integrator, bounded covariance
-//!   and projected steps, [`RpemIdentifier`].
+//!   and projected steps, [`RpemIdentifier`];
+//! - [`horizon`]: moving-horizon output-error least squares over a window measured in
+//!   input travel, one Levenberg–Marquardt step per pass, the work spread over the
+//!   samples, [`HorizonIdentifier`].
 //!
 //! [`AnyIdentifier`] holds either, for callers that choose the method at run time.
 //!
@@ -21,13 +24,15 @@
 //! [`AnyStatus`]; the Python constructor in `python/identifier.rs`; the method in the
 //! generic conformance suite (`rust/tests/conformance.rs`).
 
+pub mod horizon;
 pub mod paper;
 pub mod rpem;
 
 use crate::error::{finite_sample, Error, Result};
-use crate::format::{corrupt, Snapshot, KIND_PAPER, KIND_RPEM};
+use crate::format::{corrupt, Snapshot, KIND_HORIZON, KIND_PAPER, KIND_RPEM};
 use crate::params::Params;
 
+pub use horizon::{HorizonConfig, HorizonIdentifier, HorizonStatus};
 pub use paper::{Decomposition, PaperConfig, PaperIdentifier, PaperStatus, SubFit};
 pub use rpem::{RpemConfig, RpemIdentifier, RpemStatus};
 
@@ -81,6 +86,8 @@ pub enum AnyIdentifier {
     Paper(PaperIdentifier),
     /// The output-error recursive prediction-error method ("rpem").
     Rpem(RpemIdentifier),
+    /// The moving-horizon output-error method ("horizon").
+    Horizon(HorizonIdentifier),
 }
 
 /// The status of an [`AnyIdentifier`]: that of its method.
@@ -90,6 +97,8 @@ pub enum AnyStatus {
     Paper(PaperStatus),
     /// Status of the rpem method.
     Rpem(RpemStatus),
+    /// Status of the moving-horizon method.
+    Horizon(HorizonStatus),
 }
 
 impl AnyIdentifier {
@@ -98,6 +107,7 @@ impl AnyIdentifier {
         match self {
             AnyIdentifier::Paper(_) => "paper",
             AnyIdentifier::Rpem(_) => "rpem",
+            AnyIdentifier::Horizon(_) => "horizon",
         }
     }
 
@@ -106,6 +116,7 @@ impl AnyIdentifier {
         match self {
             AnyIdentifier::Paper(id) => id.to_bytes(),
             AnyIdentifier::Rpem(id) => id.to_bytes(),
+            AnyIdentifier::Horizon(id) => id.to_bytes(),
         }
     }
 
@@ -115,6 +126,7 @@ impl AnyIdentifier {
         match bytes.get(5) {
             Some(&KIND_PAPER) => Ok(AnyIdentifier::Paper(PaperIdentifier::from_bytes(bytes)?)),
             Some(&KIND_RPEM) => Ok(AnyIdentifier::Rpem(RpemIdentifier::from_bytes(bytes)?)),
+            Some(&KIND_HORIZON) => Ok(AnyIdentifier::Horizon(HorizonIdentifier::from_bytes(bytes)?)),
             _ => Err(corrupt(5, "not a snapshot of an online identifier")),
         }
     }
@@ -128,30 +140,35 @@ impl OnlineIdentifier for AnyIdentifier {
         match self {
             AnyIdentifier::Paper(id) => id.push(u, x),
             AnyIdentifier::Rpem(id) => id.push(u, x),
+            AnyIdentifier::Horizon(id) => id.push(u, x),
         }
     }
     fn params(&self) -> Params {
         match self {
             AnyIdentifier::Paper(id) => id.params(),
             AnyIdentifier::Rpem(id) => id.params(),
+            AnyIdentifier::Horizon(id) => id.params(),
         }
     }
     fn h(&self) -> f64 {
         match self {
             AnyIdentifier::Paper(id) => id.h(),
             AnyIdentifier::Rpem(id) => id.h(),
+            AnyIdentifier::Horizon(id) => id.h(),
         }
     }
     fn status(&self) -> AnyStatus {
         match self {
             AnyIdentifier::Paper(id) => AnyStatus::Paper(id.status()),
             AnyIdentifier::Rpem(id) => AnyStatus::Rpem(id.status()),
+            AnyIdentifier::Horizon(id) => AnyStatus::Horizon(id.status()),
         }
     }
     fn reset(&mut self) {
         match self {
             AnyIdentifier::Paper(id) => id.reset(),
             AnyIdentifier::Rpem(id) => id.reset(),
+            AnyIdentifier::Horizon(id) => id.reset(),
         }
     }
 }

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::value_error;
-use crate::identify::{Decomposition, PaperConfig, RpemConfig};
+use crate::identify::{Decomposition, HorizonConfig, PaperConfig, RpemConfig};
 
 /// One option of a configuration, borrowed from the struct.
 pub(crate) enum Slot<'a> {
@@ -18,6 +18,7 @@ pub(crate) enum Slot<'a> {
     Pair(&'a mut (f64, f64)),
     Count(&'a mut usize),
     Scales(&'a mut [f64; 7]),
+    Scales8(&'a mut [f64; 8]),
     Decomposition(&'a mut Decomposition),
 }
 
@@ -39,6 +40,22 @@ pub(crate) fn rpem_slots(c: &mut RpemConfig) -> Vec<(&'static str, Slot<'_>)> {
         ("creep_gain_scale_um_per_v", Slot::Float(&mut c.creep_gain_scale_um_per_v)),
         ("creep_gain_max_um_per_v", Slot::Float(&mut c.creep_gain_max_um_per_v)),
         ("fc_bounds_hz", Slot::Pair(&mut c.fc_bounds_hz)),
+    ]
+}
+
+/// The options of [`HorizonConfig`], by their Python names.
+pub(crate) fn horizon_slots(c: &mut HorizonConfig) -> Vec<(&'static str, Slot<'_>)> {
+    vec![
+        ("memory_travel_v", Slot::Float(&mut c.memory_travel_v)),
+        ("max_window", Slot::Count(&mut c.max_window)),
+        ("samples_per_push", Slot::Count(&mut c.samples_per_push)),
+        ("min_pass_fraction", Slot::Float(&mut c.min_pass_fraction)),
+        ("ridge", Slot::Float(&mut c.ridge)),
+        ("damping", Slot::Float(&mut c.damping)),
+        ("max_step", Slot::Float(&mut c.max_step)),
+        ("n_bounds", Slot::Pair(&mut c.n_bounds)),
+        ("margin", Slot::Float(&mut c.margin)),
+        ("scales", Slot::Scales8(&mut c.scales)),
     ]
 }
 
@@ -81,6 +98,10 @@ pub(crate) fn read_slots(obj: &Bound<'_, PyAny>, slots: Vec<(&'static str, Slot<
                 let vs: Vec<f64> = v.extract().map_err(|_| type_error(name, "a sequence of 7 numbers"))?;
                 *s = vs.try_into().map_err(|_| type_error(name, "a sequence of 7 numbers"))?;
             }
+            Slot::Scales8(s) => {
+                let vs: Vec<f64> = v.extract().map_err(|_| type_error(name, "a sequence of 8 numbers"))?;
+                *s = vs.try_into().map_err(|_| type_error(name, "a sequence of 8 numbers"))?;
+            }
             Slot::Decomposition(d) => {
                 let text: String = v.extract().map_err(|_| type_error(name, "\"model\" or \"line\""))?;
                 *d = match text.as_str() {
@@ -107,6 +128,7 @@ pub(crate) fn slots_dict<'py>(py: Python<'py>, slots: Vec<(&'static str, Slot<'_
             Slot::Pair(p) => d.set_item(name, *p)?,
             Slot::Count(n) => d.set_item(name, *n)?,
             Slot::Scales(s) => d.set_item(name, s.to_vec())?,
+            Slot::Scales8(s) => d.set_item(name, s.to_vec())?,
             Slot::Decomposition(x) => d.set_item(
                 name,
                 match x {
@@ -129,6 +151,16 @@ pub(crate) fn rpem_config(obj: Option<&Bound<'_, PyAny>>, default: RpemConfig) -
     Ok(cfg)
 }
 
+/// The horizon configuration held by a Python config object (`None`: the defaults).
+pub(crate) fn horizon_config(obj: Option<&Bound<'_, PyAny>>) -> PyResult<HorizonConfig> {
+    let mut cfg = HorizonConfig::default();
+    if let Some(obj) = obj {
+        read_slots(obj, horizon_slots(&mut cfg))?;
+    }
+    cfg.validate().map_err(value_error)?;
+    Ok(cfg)
+}
+
 /// The paper configuration held by a Python config object, with window `window`.
 pub(crate) fn paper_config(obj: Option<&Bound<'_, PyAny>>, window: usize) -> PyResult<PaperConfig> {
     let mut cfg = PaperConfig::with_window(window);
@@ -139,14 +171,17 @@ pub(crate) fn paper_config(obj: Option<&Bound<'_, PyAny>>, window: usize) -> PyR
     Ok(cfg)
 }
 
-/// Default options of a method ("rpem" or "paper") as a dict (the Python config
+/// Default options of a method ("horizon", "rpem" or "paper") as a dict (the Python config
 /// dataclasses take their defaults from here).
 #[pyfunction]
 pub(crate) fn _config_defaults<'py>(py: Python<'py>, method: &str) -> PyResult<Bound<'py, PyDict>> {
     match method {
         "rpem" => slots_dict(py, rpem_slots(&mut RpemConfig::default())),
+        "horizon" => slots_dict(py, horizon_slots(&mut HorizonConfig::default())),
         "paper" => slots_dict(py, paper_slots(&mut PaperConfig::with_window(PaperConfig::MIN_WINDOW))),
-        other => Err(PyValueError::new_err(format!("invalid method = {other:?}: expected \"paper\" or \"rpem\""))),
+        other => Err(PyValueError::new_err(format!(
+            "invalid method = {other:?}: expected \"horizon\", \"rpem\" or \"paper\""
+        ))),
     }
 }
 
@@ -155,8 +190,11 @@ pub(crate) fn _config_defaults<'py>(py: Python<'py>, method: &str) -> PyResult<B
 pub(crate) fn _validate_config(method: &str, config: &Bound<'_, PyAny>) -> PyResult<()> {
     match method {
         "rpem" => rpem_config(Some(config), RpemConfig::default()).map(|_| ()),
+        "horizon" => horizon_config(Some(config)).map(|_| ()),
         // min_points is checked against the window when the identifier is built.
         "paper" => paper_config(Some(config), PaperConfig::MAX_WINDOW).map(|_| ()),
-        other => Err(PyValueError::new_err(format!("invalid method = {other:?}: expected \"paper\" or \"rpem\""))),
+        other => Err(PyValueError::new_err(format!(
+            "invalid method = {other:?}: expected \"horizon\", \"rpem\" or \"paper\""
+        ))),
     }
 }

@@ -5,12 +5,13 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyType};
 
-use super::config::{paper_config, paper_slots, rpem_config, rpem_slots, slots_dict};
+use super::config::{horizon_config, horizon_slots, paper_config, paper_slots, rpem_config, rpem_slots, slots_dict};
 use super::effects::PyEffectSet;
 use super::params::PyParams;
 use super::{samples, value_error};
 use crate::identify::{
-    AnyIdentifier, AnyStatus, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier,
+    AnyIdentifier, AnyStatus, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig,
+    RpemIdentifier,
 };
 
 /// Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
@@ -23,8 +24,11 @@ use crate::identify::{
 ///
 /// Constructors, one per method:
 ///
-/// - `Identifier(dt, init, h0=0.0, *, config=None, effects=None)`: the recommended
-///   method, "rpem" (same as `Identifier.rpem`).
+/// - `Identifier(dt, init, h0=0.0, *, config=None)`: the recommended method,
+///   "horizon" (same as `Identifier.horizon`).
+/// - `Identifier.horizon(dt, init, h0=0.0, *, config=None)`: moving-horizon output-error
+///   least squares over a window measured in input travel, one Levenberg–Marquardt
+///   step per pass, the work spread evenly over the samples; `config` a `HorizonConfig`.
 /// - `Identifier.rpem(dt, init, h0=0.0, *, config=None, effects=None)`: recursive
 ///   prediction-error method on the model's output (simulation) error, sensitivities
 ///   ∂h/∂θ propagated through the integrator. `config` an `RpemConfig`; `effects` an
@@ -60,8 +64,8 @@ fn count_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
 fn check_config_class(config: Option<&Bound<'_, PyAny>>, expected: &str) -> PyResult<()> {
     if let Some(c) = config {
         let name = c.get_type().name()?.to_string();
-        let other = if expected == "RpemConfig" { "PaperConfig" } else { "RpemConfig" };
-        if name == other {
+        let known = ["RpemConfig", "PaperConfig", "HorizonConfig"];
+        if name != expected && known.contains(&name.as_str()) {
             return Err(PyTypeError::new_err(format!("config must be a {expected}, got a {name}")));
         }
     }
@@ -87,15 +91,9 @@ impl PyIdentifier {
 #[pymethods]
 impl PyIdentifier {
     #[new]
-    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None, effects = None))]
-    fn new(
-        dt: f64,
-        init: &PyParams,
-        h0: f64,
-        config: Option<&Bound<'_, PyAny>>,
-        effects: Option<PyRef<'_, PyEffectSet>>,
-    ) -> PyResult<Self> {
-        Self::build_rpem(dt, init, h0, config, effects)
+    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None))]
+    fn new(dt: f64, init: &PyParams, h0: f64, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        Self::horizon(dt, init, h0, config)
     }
 
     /// The output-error method ("rpem"); see the class docs.
@@ -109,6 +107,16 @@ impl PyIdentifier {
         effects: Option<PyRef<'_, PyEffectSet>>,
     ) -> PyResult<Self> {
         Self::build_rpem(dt, init, h0, config, effects)
+    }
+
+    /// The moving-horizon output-error method ("horizon"); see the class docs.
+    #[staticmethod]
+    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None))]
+    fn horizon(dt: f64, init: &PyParams, h0: f64, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        check_config_class(config, "HorizonConfig")?;
+        let cfg = horizon_config(config)?;
+        let id = HorizonIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
+        Ok(PyIdentifier { inner: AnyIdentifier::Horizon(id) })
     }
 
     /// The paper's method over a window of `window` samples; see the class docs.
@@ -181,18 +189,18 @@ impl PyIdentifier {
     fn effects(&self) -> Option<PyEffectSet> {
         match &self.inner {
             AnyIdentifier::Rpem(id) => Some(PyEffectSet { inner: id.effects() }),
-            AnyIdentifier::Paper(_) => None,
+            AnyIdentifier::Paper(_) | AnyIdentifier::Horizon(_) => None,
         }
     }
 
-    /// The online method in use: "rpem" or "paper".
+    /// The online method in use: "horizon", "rpem" or "paper".
     #[getter]
     fn method(&self) -> &'static str {
         self.inner.method()
     }
 
-    /// The configuration in use: an `RpemConfig` or a `PaperConfig` (the paper's
-    /// window is `window`).
+    /// The configuration in use: a `HorizonConfig`, `RpemConfig` or `PaperConfig`
+    /// (the paper's window is `window`).
     #[getter]
     fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let module = py.import("boucwen.config")?;
@@ -205,6 +213,10 @@ impl PyIdentifier {
                 let kwargs = slots_dict(py, paper_slots(&mut id.config().clone()))?;
                 module.getattr("PaperConfig")?.call((), Some(&kwargs))
             }
+            AnyIdentifier::Horizon(id) => {
+                let kwargs = slots_dict(py, horizon_slots(&mut id.config().clone()))?;
+                module.getattr("HorizonConfig")?.call((), Some(&kwargs))
+            }
         }
     }
 
@@ -213,7 +225,7 @@ impl PyIdentifier {
     fn window(&self) -> Option<usize> {
         match &self.inner {
             AnyIdentifier::Paper(id) => Some(id.config().window_len),
-            AnyIdentifier::Rpem(_) => None,
+            AnyIdentifier::Rpem(_) | AnyIdentifier::Horizon(_) => None,
         }
     }
 
@@ -245,6 +257,17 @@ impl PyIdentifier {
                 d.set_item("restarted", s.restarted)?;
                 d.set_item("innovation_um", s.innovation_um)?;
                 d.set_item("trace", s.trace)?;
+            }
+            AnyStatus::Horizon(s) => {
+                d.set_item("samples", s.samples)?;
+                d.set_item("updated", s.updated)?;
+                d.set_item("updates", s.updates)?;
+                d.set_item("window_samples", s.window_samples)?;
+                d.set_item("window_travel_v", s.window_travel_v)?;
+                d.set_item("rms_um", s.rms_um)?;
+                d.set_item("damping", s.damping)?;
+                d.set_item("step_limited", s.step_limited)?;
+                d.set_item("projected", s.projected)?;
             }
         }
         Ok(d)
@@ -281,6 +304,7 @@ impl PyIdentifier {
         let samples = match self.inner.status() {
             AnyStatus::Paper(s) => s.samples,
             AnyStatus::Rpem(s) => s.samples,
+            AnyStatus::Horizon(s) => s.samples,
         };
         format!("Identifier(method={:?}, samples={samples})", self.inner.method())
     }

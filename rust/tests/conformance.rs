@@ -14,7 +14,8 @@ use std::cell::Cell;
 
 use boucwen::effects::{Creep, InputLag};
 use boucwen::identify::{
-    AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier, SubFit,
+    AnyIdentifier, Decomposition, HorizonConfig, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier,
+    RpemConfig, RpemIdentifier, SubFit,
 };
 use boucwen::model::paper_input;
 use boucwen::EffectSet;
@@ -148,6 +149,8 @@ fn every_online_method_conforms() {
         conformance(|| PaperIdentifier::new(DT, p, 0.0, cfg).expect("valid"), "paper");
     }
     conformance(|| RpemIdentifier::new(DT, p, 0.0, RpemConfig::default()).expect("valid"), "rpem");
+    let small = HorizonConfig { max_window: 4000, ..HorizonConfig::default() };
+    conformance(|| HorizonIdentifier::new(DT, p, 0.0, small).expect("valid"), "horizon");
     let effects = EffectSet {
         input_lag: Some(InputLag { fc_hz: 800.0 }),
         creep: Some(Creep { tau_s: vec![0.01, 1.0], gain_um_per_v: vec![0.001; 2] }),

@@ -75,7 +75,7 @@ impl Default for RpemConfig {
             max_trace: 1.0,
             max_step: 0.01,
             max_offset_step_um: 0.5,
-            n_bounds: (1.0, 4.0),
+            n_bounds: (0.25, 4.0),
             margin: 1e-6,
             scales: [0.2, 0.1, 0.07, 0.02, 0.02, 1.5, 0.007],
             creep_gain_scale_um_per_v: 0.002,
@@ -122,8 +122,8 @@ impl RpemConfig {
             return bad("p0", self.p0, "the initial covariance trace (7·p0) must not exceed max_trace");
         }
         let (lo, hi) = self.n_bounds;
-        if !(lo.is_finite() && hi.is_finite() && lo >= 1.0 && lo <= hi) {
-            return bad("n_bounds", lo, "need 1 <= n_min <= n_max, both finite (∂ḣ/∂h is singular at h = 0 for n < 1)");
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
+            return bad("n_bounds", lo, "need 0 < n_min <= n_max, both finite");
         }
         if !(self.offset_walk_um.is_finite() && self.offset_walk_um >= 0.0) {
             return bad("offset_walk_um", self.offset_walk_um, "must be finite and >= 0 µm");

@@ -1,0 +1,123 @@
+//! Tuning of the moving-horizon identifier and its status.
+
+use crate::error::{Error, Result};
+
+/// Tuning of [`super::HorizonIdentifier`], with documented defaults ([`Default`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HorizonConfig {
+    /// Length of the horizon measured in input travel [V]: the window holds the newest
+    /// samples over which u has moved by this much in all. One period of a 0–100 V
+    /// sine is 200 V of travel at any frequency, so the default 300 V is the newest
+    /// one and a half periods at 1 Hz and at 200 Hz alike (longer windows follow a
+    /// change of frequency more slowly; on the simulated bench 250–300 V scored best
+    /// period-ahead); while u holds the window keeps its samples (nothing is
+    /// forgotten, no wind-up).
+    pub memory_travel_v: f64,
+    /// Most samples the window holds (the buffer is allocated once, at construction,
+    /// 80 bytes a sample). Default 40 000 (two periods of 1 Hz at 20 kHz).
+    pub max_window: usize,
+    /// Samples of the window's simulation run per push: a pass over a window of W
+    /// samples ends after about W / (this − 1) pushes. Default 16: about 15 updates
+    /// per window, enough to follow the paper's switches within a period or two.
+    pub samples_per_push: usize,
+    /// A pass leads to an update only when it spans at least this fraction of
+    /// `memory_travel_v` (or half of `max_window` samples). Default 0.5.
+    pub min_pass_fraction: f64,
+    /// Relative Tikhonov weight that keeps the normal equations well posed when the
+    /// window does not excite every parameter: ρ·mean(diag JᵀJ) is added to the
+    /// diagonal. Default 1e-6.
+    pub ridge: f64,
+    /// Initial Levenberg–Marquardt damping μ (relative to diag JᵀJ). Default 1e-3.
+    pub damping: f64,
+    /// Largest change of any parameter in one update, as a fraction of its scale
+    /// (trust region). Default 0.5.
+    pub max_step: f64,
+    /// n is held within these bounds. Default (0.25, 4.0).
+    pub n_bounds: (f64, f64),
+    /// β + γ and β − γ are held at or above this [µm^(1−n)/V]. Default 1e-6.
+    pub margin: f64,
+    /// Scale of each parameter (kv, x0, A, β, γ, n, δ) and of the window's initial h
+    /// [µm]: the update works on θᵢ/scaleᵢ. Default (0.2, 0.1, 0.07, 0.02, 0.02, 1.5,
+    /// 0.007, 0.1).
+    pub scales: [f64; 8],
+}
+
+impl Default for HorizonConfig {
+    fn default() -> Self {
+        HorizonConfig {
+            memory_travel_v: 300.0,
+            max_window: 40_000,
+            samples_per_push: 16,
+            min_pass_fraction: 0.5,
+            ridge: 1e-6,
+            damping: 1e-3,
+            max_step: 0.5,
+            n_bounds: (0.25, 4.0),
+            margin: 1e-6,
+            scales: [0.2, 0.1, 0.07, 0.02, 0.02, 1.5, 0.007, 0.1],
+        }
+    }
+}
+
+impl HorizonConfig {
+    /// Largest accepted `max_window` [samples].
+    pub const MAX_WINDOW: usize = 10_000_000;
+
+    /// Checks every value; the error names the offending option.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name, value: f64, reason| Err(Error::InvalidConfig { name, value, reason });
+        if !(self.memory_travel_v.is_finite() && self.memory_travel_v > 0.0) {
+            return bad("memory_travel_v", self.memory_travel_v, "must be finite and > 0 V");
+        }
+        if !(16..=Self::MAX_WINDOW).contains(&self.max_window) {
+            return bad("max_window", self.max_window as f64, "must be between 16 and 10 000 000 samples");
+        }
+        if !(2..=64).contains(&self.samples_per_push) {
+            return bad("samples_per_push", self.samples_per_push as f64, "must be between 2 and 64");
+        }
+        if !(self.min_pass_fraction.is_finite() && self.min_pass_fraction > 0.0 && self.min_pass_fraction <= 1.0) {
+            return bad("min_pass_fraction", self.min_pass_fraction, "must be in (0, 1]");
+        }
+        for (name, v) in [("ridge", self.ridge), ("damping", self.damping), ("max_step", self.max_step)] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, v, "must be finite and > 0");
+            }
+        }
+        let (lo, hi) = self.n_bounds;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
+            return bad("n_bounds", lo, "need 0 < n_min <= n_max, both finite");
+        }
+        if !(self.margin.is_finite() && self.margin >= 0.0) {
+            return bad("margin", self.margin, "must be finite and >= 0");
+        }
+        for v in self.scales {
+            if !(v.is_finite() && v > 0.0) {
+                return bad("scales", v, "every parameter scale must be finite and > 0");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What the last push of a [`super::HorizonIdentifier`] did. `Copy`, no allocation.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HorizonStatus {
+    /// Samples pushed since construction or reset.
+    pub samples: u64,
+    /// A pass over the window ended in this push and the estimates were updated.
+    pub updated: bool,
+    /// Updates since construction or reset.
+    pub updates: u64,
+    /// Samples in the window.
+    pub window_samples: u64,
+    /// Input travel over the window [V].
+    pub window_travel_v: f64,
+    /// RMS output error over the window's last pass, with the estimates it ran [µm].
+    pub rms_um: f64,
+    /// Levenberg–Marquardt damping μ after the last update.
+    pub damping: f64,
+    /// The trust region scaled the last update down.
+    pub step_limited: bool,
+    /// The projection onto the well-posed region moved n, β or γ in the last update.
+    pub projected: bool,
+}

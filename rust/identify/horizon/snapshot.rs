@@ -1,0 +1,182 @@
+//! Save and restore of the moving-horizon identifier (format: `crate::format`): every
+//! field it carries between samples, the stored window included. The struct patterns
+//! are exhaustive on purpose: a field added stops the build here until it is saved.
+
+use super::*;
+use crate::error::Error;
+use crate::format::{corrupt, Reader, Snapshot, Writer, KIND_HORIZON};
+
+fn write_params(w: &mut Writer, p: &Params) {
+    w.params(p);
+}
+
+impl Snapshot for HorizonIdentifier {
+    fn to_bytes(&self) -> Vec<u8> {
+        let HorizonIdentifier {
+            config,
+            dt,
+            init,
+            h0,
+            params,
+            h,
+            u_prev,
+            buffer,
+            next,
+            start,
+            pass,
+            last_mse,
+            damping,
+            status,
+        } = self;
+        let HorizonConfig {
+            memory_travel_v,
+            max_window,
+            samples_per_push,
+            min_pass_fraction,
+            ridge,
+            damping: damping0,
+            max_step,
+            n_bounds,
+            margin,
+            scales,
+        } = config;
+        let mut w = Writer::new(KIND_HORIZON);
+        w.f64s(&[*memory_travel_v, *min_pass_fraction, *ridge, *damping0, *max_step, n_bounds.0, n_bounds.1, *margin]);
+        w.f64s(scales);
+        w.u64(*max_window as u64);
+        w.u64(*samples_per_push as u64);
+        w.f64(*dt);
+        write_params(&mut w, init);
+        w.f64(*h0);
+        write_params(&mut w, params);
+        w.f64(*h);
+        w.opt_f64(*u_prev);
+        w.u64(*next);
+        w.u64(*start);
+        let first = next.saturating_sub(buffer.len() as u64);
+        for k in first..*next {
+            let Entry { u, x, travel, h, dh } = &buffer[(k % buffer.len() as u64) as usize];
+            w.f64s(&[*u, *x, *travel, *h]);
+            w.f64s(dh);
+        }
+        let Pass { start: p_start, cursor, params: p_params, h_start, h: p_h, jtj, jtr, sse, count } = pass;
+        w.u64(*p_start);
+        w.u64(*cursor);
+        write_params(&mut w, p_params);
+        w.f64(*h_start);
+        w.f64(p_h.re);
+        w.f64s(p_h.du.as_slice());
+        w.f64s(jtj.as_slice());
+        w.f64s(jtr.as_slice());
+        w.f64(*sse);
+        w.u64(*count);
+        w.f64(*last_mse);
+        w.f64(*damping);
+        let HorizonStatus {
+            samples,
+            updated,
+            updates,
+            window_samples,
+            window_travel_v,
+            rms_um,
+            damping: s_damping,
+            step_limited,
+            projected,
+        } = status;
+        w.u64(*samples);
+        w.u8(*updated as u8);
+        w.u64(*updates);
+        w.u64(*window_samples);
+        w.f64s(&[*window_travel_v, *rms_um, *s_damping]);
+        w.u8(*step_limited as u8);
+        w.u8(*projected as u8);
+        w.finish()
+    }
+
+    fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        let mut r = Reader::new(bytes, KIND_HORIZON)?;
+        let at = r.offset();
+        let [memory_travel_v, min_pass_fraction, ridge, damping0, max_step, n_lo, n_hi, margin] = r.f64s::<8>()?;
+        let scales = r.f64s::<8>()?;
+        let max_window = r.u64()?;
+        let samples_per_push = r.u64()?;
+        if max_window > HorizonConfig::MAX_WINDOW as u64 || samples_per_push > 64 {
+            return Err(corrupt(at, "snapshot holds an invalid horizon configuration"));
+        }
+        let config = HorizonConfig {
+            memory_travel_v,
+            max_window: max_window as usize,
+            samples_per_push: samples_per_push as usize,
+            min_pass_fraction,
+            ridge,
+            damping: damping0,
+            max_step,
+            n_bounds: (n_lo, n_hi),
+            margin,
+            scales,
+        };
+        let dt = r.f64()?;
+        let init = r.params()?;
+        let h0 = r.finite()?;
+        let mut id = HorizonIdentifier::new(dt, init, h0, config).map_err(|e| match e {
+            Error::CorruptSnapshot { .. } => e,
+            _ => corrupt(at, "snapshot holds an invalid horizon configuration"),
+        })?;
+        id.params = r.params()?;
+        id.h = r.finite()?;
+        id.u_prev = r.opt_f64()?;
+        let at = r.offset();
+        id.next = r.u64()?;
+        id.start = r.u64()?;
+        let cap = id.buffer.len() as u64;
+        if id.start > id.next || id.next - id.start > cap {
+            return Err(corrupt(at, "snapshot holds an invalid window"));
+        }
+        let first = id.next.saturating_sub(cap);
+        for k in first..id.next {
+            let [u, x, travel, h] = r.f64s::<4>()?;
+            let dh = r.f64s::<ND>()?;
+            let slot = (k % cap) as usize;
+            id.buffer[slot] = Entry { u, x, travel, h, dh };
+        }
+        let at = r.offset();
+        let p_start = r.u64()?;
+        let cursor = r.u64()?;
+        if p_start > cursor || cursor > id.next || p_start < first && cursor < id.next {
+            return Err(corrupt(at, "snapshot holds an invalid pass"));
+        }
+        let p_params = r.params()?;
+        let h_start = r.f64()?;
+        let re = r.f64()?;
+        let du = r.f64s::<ND>()?;
+        let jtj = r.f64s::<64>()?;
+        let jtr = r.f64s::<8>()?;
+        let sse = r.f64()?;
+        let count = r.u64()?;
+        id.pass = Pass {
+            start: p_start,
+            cursor,
+            params: p_params,
+            h_start,
+            h: Dual::new(re, SVector::from(du)),
+            jtj: Normal::from_column_slice(&jtj),
+            jtr: Vector::from(jtr),
+            sse,
+            count,
+        };
+        id.last_mse = r.f64()?;
+        id.damping = r.f64()?;
+        id.status.samples = r.u64()?;
+        id.status.updated = r.bool()?;
+        id.status.updates = r.u64()?;
+        id.status.window_samples = r.u64()?;
+        let [travel, rms, damping] = r.f64s::<3>()?;
+        id.status.window_travel_v = travel;
+        id.status.rms_um = rms;
+        id.status.damping = damping;
+        id.status.step_limited = r.bool()?;
+        id.status.projected = r.bool()?;
+        r.end()?;
+        Ok(id)
+    }
+}
