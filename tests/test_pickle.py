@@ -61,7 +61,8 @@ def _rpem(with_effects: bool) -> Identifier:
         extra["effects"] = boucwen.EffectSet(
             input_lag={"fc_hz": 800.0}, creep={"tau_s": [0.01, 0.3], "gain_um_per_v": [0.001, 0.0005]}
         )
-    return make_identifier("rpem", 
+    return make_identifier(
+        "rpem",
         DT,
         16,
         Params.paper_1hz().replace(n=1.7),

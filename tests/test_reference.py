@@ -12,8 +12,6 @@ from boucwen import Params, reference
 from conftest import make_identifier
 
 
-
-
 PAPER = Params.paper_1hz()
 
 

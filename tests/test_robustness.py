@@ -30,8 +30,6 @@ from boucwen import Model, Params, simulate
 from conftest import make_identifier
 
 
-
-
 DT = 1e-4
 P = Params.paper_1hz()
 NAN, INF = float("nan"), float("inf")

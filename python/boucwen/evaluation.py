@@ -57,6 +57,7 @@ def period_ahead(
     dt: float,
     segments: Segments,
     on_period: Callable[[float, int, Params, float], None] | None = None,
+    trace: FloatArray | None = None,
 ) -> tuple[dict[str, float], dict[str, list[float]], FloatArray]:
     """Runs `ident` over the record and scores its model period-ahead.
 
@@ -70,6 +71,8 @@ def period_ahead(
         dt: sampling interval [s].
         segments: the record's constant-frequency parts.
         on_period: called as ``on_period(f_hz, k0, params, h)`` at every freeze.
+        trace: if given (same length as x), filled with the period-ahead predictions:
+            on every period, the frozen model's open-loop simulation [µm].
 
     Returns:
         ``(score, per_period, one_step)``: the max error [µm] of each frequency's
@@ -94,6 +97,8 @@ def period_ahead(
                 on_period(f, k0, params, h)
             u_prev = float(u[k0 - 1]) if k0 > 0 else None
             x_sim, _ = simulate(params, u[k0:k1], dt, h, u_prev)
+            if trace is not None:
+                trace[k0:k1] = x_sim
             errors.append(float(np.max(np.abs(x[k0:k1] - x_sim))))
         one_step[done:hi] = ident.push_many(u[done:hi], x[done:hi])
         done = hi
@@ -103,7 +108,9 @@ def period_ahead(
     return score, per_period, one_step
 
 
-def fixed_model(params: Params, h0: float, u: FloatArray, x: FloatArray, dt: float, segments: Segments) -> dict[str, float]:
+def fixed_model(
+    params: Params, h0: float, u: FloatArray, x: FloatArray, dt: float, segments: Segments
+) -> dict[str, float]:
     """Period-ahead score of a model with fixed parameters: its open-loop simulation
     over the whole record (its h at a period start is its own simulated h) [µm]."""
     x_sim, _ = simulate(params, u, dt, h0)
@@ -136,7 +143,8 @@ def refit_oracle(
     For each frequency, :func:`boucwen.fit` on the two periods just before the last
     full period (starting from `init` when given), then the fitted model simulated
     from its fitted h0 over those two periods and on over the scored one; the score is
-    the max error over the scored period.
+    the max error over the scored period (NaN where the record holds less than one
+    period before it).
     """
     out: dict[str, float] = {}
     for f, lo, hi in segments:
@@ -144,6 +152,9 @@ def refit_oracle(
         scored = scored_period(f, lo, hi, dt)
         start = max(0, scored.start - 2 * p)
         past = slice(start, scored.start)
+        if scored.start - start < p:
+            out[key(f)] = float("nan")  # not a period of past data in the record
+            continue
         result = fit(u[past], x[past], dt, init=init, seed=seed)
         x_sim, _ = simulate(result.params, u[start : scored.stop], dt, result.h0)
         out[key(f)] = float(np.max(np.abs(x[scored] - np.asarray(x_sim)[scored.start - start :])))

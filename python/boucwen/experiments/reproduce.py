@@ -12,11 +12,16 @@ Steps of :func:`run`:
 3. **Traditional method.** :func:`boucwen.fit` on the 1 Hz part; its parameters
    and h0 are then held fixed and simulated over the whole record.
 4. **Online methods** (:data:`ONLINE_METHODS`), each started from the traditional
-   values and pushed the whole record sample by sample; the prediction of each
-   sample uses the estimates from before it.
-5. **Table 1**: maximum absolute error in steady state per frequency; **Table 2**:
-   the online estimates at the end of each frequency; both beside the paper's.
-   Adaptation times after each switch (:func:`adaptation_times`).
+   values and pushed the whole record sample by sample.
+5. **Table 1** — the headline — scores every method as a *model*, period-ahead
+   (:mod:`boucwen.evaluation`): at the start of each period the estimates and the
+   model's h are frozen and the model runs open loop over the period; beside it the
+   **refit oracle** (an offline fit on the two periods before the scored one) and the
+   best fixed parameters per frequency. **Table 1b** is the one-step-ahead error,
+   printed beside two predictors with no model (persistence and the two-tap
+   extrapolator), which a one-step figure must beat to mean anything.
+   **Table 2**: the online estimates at the end of each frequency, beside the paper's.
+   Adaptation times after each switch, from the period-ahead errors.
 6. ``DIR/results.json``, ``DIR/predictions.npz`` (every signal the tables and
    figures are computed from) and the figures ``DIR/fig6_1_to_10hz.png``,
    ``fig7_10_to_100hz.png``, ``fig8_100_to_200hz.png``, ``fig9_loops.png``.
@@ -24,7 +29,8 @@ Steps of :func:`run`:
 Definitions:
 
 * **Steady state** of a frequency: its last full period (for 200 Hz the last
-  period of the record). Table 1 is the maximum of |x − x̂| there.
+  period of the record). Table 1 is the maximum of |x − x̂| there, x̂ the frozen
+  model's open-loop prediction of that period.
 * **Adaptation time** after a switch (or after the start, for 1 Hz): split the
   segment into whole periods; it is the time from the switch to the start of the
   first period from which on *every* period's maximum |x − x̂| stays within
@@ -57,7 +63,8 @@ import numpy as np
 
 from .. import plant
 from .._core import Identifier, Params, simulate
-from ..config import PaperConfig, RpemConfig
+from .. import evaluation
+from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 
 __all__ = [
@@ -104,6 +111,12 @@ PAPER_TABLE2: dict[str, dict[str, float]] = {
 
 #: Band of the adaptation rule: per-period maximum error within this × steady state.
 ADAPTATION_FACTOR = 1.5
+METRIC = (
+    "period-ahead: at the start of every period the online estimates and the model's h are "
+    "frozen and the model is simulated open loop over the period; the score of a frequency is "
+    "max |x - x_hat| over its last full period. One-step-ahead errors (each sample predicted "
+    "from all samples before it) are a second table, beside two predictors with no model"
+)
 STEADY_STATE = (
     "the last full period of each frequency (for the last frequency, the last "
     "period of the record); Table 1 is max |x - x_hat| over it"
@@ -141,18 +154,21 @@ class OnlineMethod:
 #: Every online method the experiment compares, in print order. Methods the
 #: installed library does not offer (Identifier raises ValueError) are skipped.
 ONLINE_METHODS: tuple[OnlineMethod, ...] = (
-    OnlineMethod("paper", "paper", {}, "paper's method, kv/x0 from x - h_model (library default)"),
+    OnlineMethod("horizon", "horizon", {}, "moving-horizon output-error least squares (library default)"),
+    OnlineMethod("rpem", "rpem", {}, "recursive prediction-error (output-error) method"),
+    OnlineMethod("paper", "paper", {}, "paper's method, kv/x0 from x - h_model"),
     OnlineMethod(
         "paper_literal", "paper", {"decomposition": "line"}, "paper's method, kv/x0 = line through the loop (literal)"
     ),
-    OnlineMethod("rpem", "rpem", {}, "recursive prediction-error (output-error) method"),
 )
 
 
 def _make_identifier(m: OnlineMethod, dt: float, window: int, init: Params, h0: float) -> Identifier:
     if m.method == "paper":
         return Identifier.paper(dt, window, init, h0, config=PaperConfig(**dict(m.options)))
-    return Identifier.rpem(dt, init, h0, config=RpemConfig(**dict(m.options)))
+    if m.method == "rpem":
+        return Identifier.rpem(dt, init, h0, config=RpemConfig(**dict(m.options)))
+    return Identifier.horizon(dt, init, h0, config=HorizonConfig(**dict(m.options)))
 
 
 def available_online_methods(
@@ -171,9 +187,9 @@ def available_online_methods(
 
 
 def default_online_method(labels: Sequence[str]) -> str:
-    """The library's default online method, reported as ``online``: "rpem" if
-    available, else "paper"."""
-    return "rpem" if "rpem" in labels else "paper"
+    """The library's default online method, reported as ``online``: the first of
+    "horizon", "rpem", "paper" that is available."""
+    return next((m for m in ("horizon", "rpem", "paper") if m in labels), labels[0])
 
 
 def default_window(segments: Sequence[tuple[float, int, int]], dt: float) -> int:
@@ -252,14 +268,46 @@ def _params_dict(p: Params) -> dict[str, float]:
 
 def _run_online(
     m: OnlineMethod, u: np.ndarray, x: np.ndarray, dt: float, window: int, init: Params, h0: float, segments
-) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
+) -> dict[str, Any]:
+    """Runs one online method over the record and scores it (see :mod:`boucwen.evaluation`).
+
+    Returns a dict with ``period_ahead`` (score per frequency [µm]), ``per_period``
+    (every period's max error), ``one_step`` and ``trace`` (the one-step and the
+    period-ahead predictions [µm]) and ``estimates`` (the parameters at the end of each
+    frequency, Table 2)."""
     ident = _make_identifier(m, dt, window, init, h0)
-    pred = np.empty_like(x)
+    freezes: list[tuple[int, Params]] = []
+    trace = np.empty_like(x)
+    score, per_period, one_step = evaluation.period_ahead(
+        ident, u, x, dt, segments, on_period=lambda _f, k0, p, _h: freezes.append((k0, p)), trace=trace
+    )
     estimates = {}
+    for i, (f, _, hi) in enumerate(segments):
+        after = next((p for k0, p in freezes if k0 == hi), None) if i + 1 < len(segments) else ident.params
+        estimates[_key(f)] = _params_dict(after if after is not None else ident.params)
+    return {
+        "period_ahead": score,
+        "per_period": per_period,
+        "one_step": one_step,
+        "trace": trace,
+        "estimates": estimates,
+    }
+
+
+def adaptation_from_periods(
+    per_period: Mapping[str, Sequence[float]], segments: Sequence[tuple[float, int, int]], dt: float
+) -> dict[str, dict[str, float]]:
+    """Adaptation time per frequency from the period-ahead errors of its periods (see the module docs)."""
+    out: dict[str, dict[str, float]] = {}
     for f, lo, hi in segments:
-        pred[lo:hi] = ident.push_many(u[lo:hi], x[lo:hi])
-        estimates[_key(f)] = _params_dict(ident.params)
-    return pred, estimates
+        p = _period(f, dt)
+        errs = list(per_period[_key(f)])
+        full = errs[: max(1, (hi - lo) // p)]
+        steady = full[-1]
+        bad = [i for i, e in enumerate(full) if e > ADAPTATION_FACTOR * steady]
+        first_good = bad[-1] + 1 if bad else 0
+        out[_key(f)] = {"s": first_good * p * dt, "periods": first_good}
+    return out
 
 
 def fixed_parameter_prediction(
@@ -287,29 +335,42 @@ def fixed_parameter_prediction(
     return out
 
 
-def _fmt_row(name: str, values: Sequence[float], width: int = 9, fmt: str = "{:.3f}") -> str:
-    return f"{name:<34}" + "".join(f"{fmt.format(v):>{width}}" for v in values)
+def _fmt_row(name: str, values: Sequence[float | None], width: int = 9, fmt: str = "{:.3f}") -> str:
+    """One table row; a missing value (None or NaN) prints as a dash."""
+    cells = ("-" if v is None or not np.isfinite(v) else fmt.format(v) for v in values)
+    return f"{name:<34}" + "".join(f"{c:>{width}}" for c in cells)
 
 
-def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions, adapt, sweep, best_fixed):
+def _print_tables(log, freqs, results, labels, descriptions, adapt):
     heads = [f"{f} Hz" for f in freqs]
+    t1, t1s, base = results["table1"], results["table1_one_step"], results["baselines"]
     log("")
-    log("Table 1  maximum absolute error in steady state [µm]")
+    log("Table 1  period-ahead error: max |x - x_hat| [µm] over the last full period, model open loop")
     log(f"{'method':<34}" + "".join(f"{h:>9}" for h in heads))
-    log(_fmt_row("traditional (this bench)", [table1["traditional"][f] for f in freqs]))
+    log(_fmt_row("traditional (this bench)", [t1["traditional"][f] for f in freqs]))
     log(_fmt_row("traditional (paper)", [PAPER_TABLE1["traditional"][f] for f in freqs]))
     for label in labels:
-        log(_fmt_row(f"online_{label} (this bench)", [table1[f"online_{label}"][f] for f in freqs]))
+        log(_fmt_row(f"online_{label}", [t1[f"online_{label}"][f] for f in freqs]))
     log(_fmt_row("online (paper)", [PAPER_TABLE1["online"][f] for f in freqs]))
-    if best_fixed:
-        log(_fmt_row("best fixed params per frequency", [best_fixed[f] for f in freqs]))
-    log("Same, model run with the Table 2 estimates held fixed per frequency (Fig. 9):")
+    log(_fmt_row("refit oracle (2 past periods)", [results["refit_oracle"][f] for f in freqs]))
+    best = results.get("best_fixed_per_frequency") or {}
+    if best:
+        log(_fmt_row("best fixed params (in-sample)", [best[f] for f in freqs]))
+    log("")
+    log("Table 1b one-step-ahead error [µm], same periods, beside predictors with no model")
+    log(f"{'method':<34}" + "".join(f"{h:>9}" for h in heads))
     for label in labels:
-        log(_fmt_row(f"online_{label}, fixed", [table1_fixed[f"online_{label}"][f] for f in freqs]))
+        log(_fmt_row(f"online_{label}, one step", [t1s[f"online_{label}"][f] for f in freqs]))
+    log(_fmt_row("persistence x[k-1]", [base["persistence"][f] for f in freqs]))
+    log(_fmt_row("two-tap 2x[k-1] - x[k-2]", [base["two_tap"][f] for f in freqs]))
+    log("")
+    log("Same, model run with the Table 2 estimates held fixed per frequency from t = 0 (Fig. 9):")
+    for label in labels:
+        log(_fmt_row(f"online_{label}, fixed", [results["table1_fixed"][f"online_{label}"][f] for f in freqs]))
     for label in labels:
         log(f"  online_{label}: {descriptions[label]}")
     log("")
-    log("Adaptation time after each switch [s] (periods of the new frequency)")
+    log("Adaptation time after each switch [s] (periods of the new frequency), period-ahead errors")
     for label in labels:
         a = adapt[f"online_{label}"]
         log(
@@ -325,20 +386,20 @@ def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions
         log(f"online_{label}:")
         log(f"{'f':>6}" + "".join(f"{n:>20}" for n in _PARAM_NAMES))
         for f in freqs:
-            est = table2[f"online_{label}"][f]
+            est = results["table2"][f"online_{label}"][f]
             log(
                 f"{f + ' Hz':>6}"
                 + "".join(f"{est[n]:>11.4g} ({PAPER_TABLE2[f][n]:.3g})".rjust(20) for n in _PARAM_NAMES)
             )
+    sweep = results.get("window_sweep") or {}
     if sweep:
         log("")
-        log("Window sweep, online_paper (the windowed method): max steady-state error [µm] per frequency")
-        log("(streaming prediction | model with that run's Table 2 values held fixed)")
+        log("Window sweep, online_paper: error [µm] per frequency (period-ahead | one step)")
         for w, rows in sweep.items():
             log(
-                _fmt_row(f"N = {w}", [rows["streaming"][f] for f in freqs])
+                _fmt_row(f"N = {w}", [rows["period_ahead"][f] for f in freqs])
                 + "  |"
-                + "".join(f"{rows['fixed'][f]:>9.3f}" for f in freqs)
+                + "".join(f"{rows['one_step'][f]:>9.3f}" for f in freqs)
             )
     log("")
 
@@ -412,31 +473,41 @@ def run(
     methods = available_online_methods(dt, window, trad.params)
     labels = [m.label for m in methods]
     default = default_online_method(labels)
-    predictions: dict[str, np.ndarray] = {"traditional": x_trad}
+    one_step: dict[str, np.ndarray] = {}
+    traces: dict[str, np.ndarray] = {"traditional": x_trad}
+    table1: dict[str, dict[str, float]] = {
+        "traditional": evaluation.fixed_model(trad.params, trad.h0, u, x, dt, segments)
+    }
     table2: dict[str, dict[str, dict[str, float]]] = {}
+    per_period: dict[str, dict[str, list[float]]] = {}
     for m in methods:
-        step(f"online method {m.label!r} (window {window} samples = {window * dt * 1e3:g} ms)")
-        pred, est = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments)
-        predictions[f"online_{m.label}"] = pred
-        table2[f"online_{m.label}"] = est
+        step(f"online method {m.label!r}" + (f" (window {window} samples)" if m.method == "paper" else ""))
+        r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments)
+        key = f"online_{m.label}"
+        one_step[key], traces[key] = r["one_step"], r["trace"]
+        table1[key], table2[key], per_period[key] = r["period_ahead"], r["estimates"], r["per_period"]
     skipped = [m.label for m in ONLINE_METHODS if m.label not in labels]
     if skipped:
         step(f"online methods not available in this build: {', '.join(skipped)}")
+    table1["online"] = table1[f"online_{default}"]
     table2["online"] = table2[f"online_{default}"]
     table2["traditional"] = {f: _params_dict(trad.params) for f in freqs}
+    table1_one_step = table1_from_predictions(x, one_step, segments, dt)
+    table1_one_step["online"] = table1_one_step[f"online_{default}"]
+    baselines = evaluation.one_step_baselines(x, segments, dt)
 
-    table1 = table1_from_predictions(x, predictions, segments, dt)
-    table1["online"] = table1[f"online_{default}"]
     step("fixed-parameter check: the model with each frequency's Table 2 estimates")
     fixed = {
         f"online_{lab}": fixed_parameter_prediction(u, dt, table2[f"online_{lab}"], segments, trad.h0) for lab in labels
     }
     table1_fixed = table1_from_predictions(x, fixed, segments, dt)
     table1_fixed["online"] = table1_fixed[f"online_{default}"]
-    adapt = {f"online_{lab}": adaptation_times(x, predictions[f"online_{lab}"], segments, dt) for lab in labels}
+    adapt = {f"online_{lab}": adaptation_from_periods(per_period[f"online_{lab}"], segments, dt) for lab in labels}
     adapt["online"] = adapt[f"online_{default}"]
 
-    sweep: dict[str, dict[str, float]] = {}
+    step("refit oracle: an offline fit on the two periods before each scored period")
+    oracle = evaluation.refit_oracle(u, x, dt, segments, init=trad.params, seed=seed)
+    sweep: dict[str, dict[str, dict[str, float]]] = {}
     best_fixed: dict[str, float] = {}
     if not quick:
         # The sweep is over the limited memory N, so it runs the windowed method.
@@ -444,20 +515,26 @@ def run(
         windows = [w for w in (25, 50, 100, 200, 500, 1000, 2000, 5000, 10000) if w >= 16]
         step(f"window sweep of online_{dm.label}: N = {', '.join(map(str, windows))} samples")
         for w in windows:
-            pred, est = _run_online(dm, u, x, dt, w, trad.params, trad.h0, segments)
-            xf = fixed_parameter_prediction(u, dt, est, segments, trad.h0)
-            rows = table1_from_predictions(x, {"streaming": pred, "fixed": xf}, segments, dt)
-            sweep[str(w)] = rows
+            r = _run_online(dm, u, x, dt, w, trad.params, trad.h0, segments)
+            sweep[str(w)] = {
+                "period_ahead": r["period_ahead"],
+                "one_step": table1_from_predictions(x, {"p": r["one_step"]}, segments, dt)["p"],
+            }
         step("best fixed parameters per frequency: the traditional fit on each frequency's data")
         for f, lo, hi in segments:
-            r = fit(u[lo:hi], x[lo:hi], dt, init=trad.params, seed=seed)
+            fr = fit(u[lo:hi], x[lo:hi], dt, init=trad.params, seed=seed)
             ss = steady_state_slice(f, lo, hi, dt)
-            best_fixed[_key(f)] = float(np.max(np.abs(x[ss] - r.x_fit[ss.start - lo : ss.stop - lo])))
+            best_fixed[_key(f)] = float(np.max(np.abs(x[ss] - fr.x_fit[ss.start - lo : ss.stop - lo])))
 
     results: dict[str, Any] = {
         "table1": table1,
+        "table1_one_step": table1_one_step,
+        "baselines": baselines,
+        "refit_oracle": oracle,
         "table2": table2,
         "table1_fixed": table1_fixed,
+        "per_period": per_period,
+        "metric": METRIC,
         "paper": {"table1": PAPER_TABLE1, "table2": PAPER_TABLE2},
         "plant": settings.to_dict(),
         "steady_state": STEADY_STATE,
@@ -496,24 +573,21 @@ def run(
         x=x,
         dt=np.float64(dt),
         segments=np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
-        **{f"x_{k}": v for k, v in predictions.items()},
+        **{f"x_{k}": v for k, v in one_step.items()},
+        **{f"x_period_ahead_{k}": v for k, v in traces.items()},
         **{f"x_fixed_{k}": v for k, v in fixed.items()},
     )
 
     if figures:
         step("figures")
-        _figures(out, t, u, x, predictions, fixed, segments, dt)
+        _figures(out, t, u, x, traces, fixed, segments, dt)
     _print_tables(
         say,
         freqs,
-        table1,
-        table1_fixed,
-        table2,
+        results,
         labels,
         {m.label: m.description for m in methods},
         adapt,
-        sweep,
-        best_fixed,
     )
     say(f"online = online_{default}; steady state = {STEADY_STATE}")
     step(f"wrote {out / 'results.json'}, {out / 'predictions.npz'} and the figures")
