@@ -9,6 +9,7 @@ import pytest
 import boucwen
 from boucwen import EffectSet, Params, simulate, simulate_extended
 from boucwen.effects import Layout, best_delay, creep_time_constants, fit_extended
+from boucwen.record import validate_record
 
 P = Params.paper_1hz()
 DT = 1e-3
@@ -160,5 +161,5 @@ def test_fit_extended_recovers_known_effects():
 def test_best_delay_finds_the_shift():
     u = _u(2000)
     x = simulate_extended(P, EffectSet(delay={"samples": 3}), u, DT)
-    d, rms = best_delay(u, x, DT, P, EffectSet(), 0.0, 6)
+    d, rms = best_delay(validate_record(u, x, DT), P, EffectSet(), 0.0, 6)
     assert d == 3 and rms[3] < 1e-9 < rms[2]

@@ -37,11 +37,6 @@ def test_params_from_any_form_and_validation():
         reference.RefParams.from_any([1.0, 2.0])
 
 
-def test_paper_input_is_the_same_in_both():
-    for dt, tail in [(1e-4, 0.05), (1e-3, 0.0), (3.7e-4, 0.013)]:
-        np.testing.assert_array_equal(boucwen.paper_input(dt, tail), reference.paper_input(dt, tail))
-
-
 def test_fine_solution_by_parareal_equals_the_step_by_step_one():
     u = boucwen.paper_input(1e-4, 0.01)[32_900:33_500]  # 100 and 200 Hz: h crosses zero often
     seq, h_seq = reference.simulate_fine(PAPER, u, 1e-4, h0=0.4, u_prev=0.0, substeps=100, sequential=True)

@@ -9,25 +9,25 @@ Precision Engineering 38 (2014) 921–927).
 - :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
 - :class:`Identifier` identifies them online, one sample at a time;
 - :func:`fit` identifies them offline from a record (output-error least squares);
+- :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
-from ._core import Identifier, Model, Params, __version__, paper_input, simulate
-from ._core import EffectSet, simulate_extended
-from .diagnose import Diagnosis, diagnose
+from ._core import EffectSet, Identifier, Model, Params, __version__, paper_input, simulate, simulate_extended
+from .diagnosis import Diagnosis, diagnose
 from .fit import FitResult, fit
 
 __all__ = [
+    "Diagnosis",
+    "EffectSet",
+    "FitResult",
     "Identifier",
     "Model",
     "Params",
     "__version__",
+    "diagnose",
+    "fit",
     "paper_input",
     "simulate",
-    "fit",
-    "FitResult",
-    "EffectSet",
     "simulate_extended",
-    "diagnose",
-    "Diagnosis",
 ]

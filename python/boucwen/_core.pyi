@@ -19,6 +19,8 @@ part is one new section (and one line in ``__all__``):
 - simulation: ``simulate``, ``paper_input``, ``Model``
 - online identification: ``_IdentifierMethod``, ``_SubFitOutcome`` and
   ``_IdentifierStatus`` (type-only names, absent at run time), ``Identifier``
+- effects: ``_CreepParams`` … ``_EffectParams`` (type-only: the dicts ``EffectSet``
+  takes and gives), ``EffectSet``, ``simulate_extended``
 """
 
 from typing import ClassVar, Dict, List, Literal, Optional, Tuple, TypedDict, final
@@ -295,6 +297,42 @@ class Identifier:
     def reset(self) -> None:
         """Back to the state right after construction."""
 
+class _CreepParams(TypedDict):
+    """``creep``: first-order elements, time constants [s] and static gains [µm/V]."""
+
+    tau_s: List[float]
+    gain_um_per_v: List[float]
+
+class _InputLagParams(TypedDict):
+    """``input_lag``: first-order lag of the voltage, corner frequency [Hz]."""
+
+    fc_hz: float
+
+class _ResonanceParams(TypedDict):
+    """``resonance``: second-order element, natural frequency [Hz] and damping ratio [-]."""
+
+    fn_hz: float
+    zeta: float
+
+class _DriftParams(TypedDict):
+    """``drift``: a trend of the output [µm/s]."""
+
+    rate_um_per_s: float
+
+class _DelayParams(TypedDict):
+    """``delay``: a whole number of samples [-]."""
+
+    samples: int
+
+class _EffectParams(TypedDict, total=False):
+    """``EffectSet.to_dict()``: the effects present, each with its parameters."""
+
+    creep: _CreepParams
+    input_lag: _InputLagParams
+    resonance: _ResonanceParams
+    drift: _DriftParams
+    delay: _DelayParams
+
 @final
 class EffectSet:
     """Which effects surround the base model, with their parameters (see boucwen.effects).
@@ -307,18 +345,18 @@ class EffectSet:
     def __new__(
         cls,
         *,
-        creep: Optional[Dict[str, object]] = None,
-        input_lag: Optional[Dict[str, float]] = None,
-        resonance: Optional[Dict[str, float]] = None,
-        drift: Optional[Dict[str, float]] = None,
-        delay: Optional[Dict[str, int]] = None,
+        creep: Optional[_CreepParams] = None,
+        input_lag: Optional[_InputLagParams] = None,
+        resonance: Optional[_ResonanceParams] = None,
+        drift: Optional[_DriftParams] = None,
+        delay: Optional[_DelayParams] = None,
     ) -> "EffectSet": ...
     @property
     def names(self) -> List[str]:
         """Names of the effects present, in vocabulary order."""
-    def to_dict(self) -> Dict[str, Dict[str, object]]: ...
+    def to_dict(self) -> _EffectParams: ...
     @staticmethod
-    def from_dict(d: Dict[str, Dict[str, object]]) -> EffectSet: ...
+    def from_dict(d: _EffectParams) -> EffectSet: ...
     def __len__(self) -> int: ...
     def __contains__(self, key: object, /) -> bool: ...
 

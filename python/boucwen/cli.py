@@ -8,7 +8,7 @@ Subcommands:
 * ``boucwen reproduce [--out DIR] [--quick]``: the paper's experiment on the
   simulated bench (:mod:`boucwen.experiments.reproduce`).
 * ``boucwen diagnose (DATA.csv | --dataset NAME) --json REPORT.json --predictions PRED.csv
-  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnose`).
+  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnosis`).
 
 Exit codes: 0 success; 1 ``fit`` finished without converging (the result is still
 printed and written); 2 error. Every error (bad file, bad data, unwritable output)
@@ -138,7 +138,8 @@ def _prepare_output(path: str | None) -> None:
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from .diagnose import diagnose, plot_diagnosis, write_predictions, write_report
+    from .diagnosis import diagnose, write_predictions, write_report
+    from .plots import plot_diagnosis
 
     for path in (args.json, args.predictions, args.plot):
         _prepare_output(path)

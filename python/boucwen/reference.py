@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Deque, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
+from typing import Any, Callable, Deque, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -47,7 +47,6 @@ __all__ = [
     "RefParams",
     "advance_h",
     "hysteresis_rate",
-    "paper_input",
     "simulate",
     "simulate_fine",
 ]
@@ -362,6 +361,22 @@ def simulate_fine(
     return p.kv * u_arr + p.x0 + h_at, float(h_at[-1])
 
 
+def _interval_rate(lin: float, w_pos: float, w_neg: float, drift: float, n: float) -> Callable[[float, float], float]:
+    """dh/dt (h, u) of eq. (5) within one interval, where u̇ is constant:
+    A·u̇ − (β·|u̇|·sgn(h) + γ·u̇)·|h|^n + δ·sgn(u̇)·u, with ``lin`` = A·u̇, ``w_pos`` =
+    β·|u̇| + γ·u̇ (weight of |h|^n for h > 0), ``w_neg`` = −β·|u̇| + γ·u̇ (h < 0),
+    ``drift`` = δ·sgn(u̇)."""
+
+    def rate(hh: float, uu: float) -> float:
+        if hh > 0.0:
+            return lin - w_pos * _pow(hh, n) + drift * uu
+        if hh < 0.0:
+            return lin - w_neg * _pow(-hh, n) + drift * uu
+        return lin + drift * uu
+
+    return rate
+
+
 def _fine_sequential(p: RefParams, points: NDArray[np.float64], dt: float, h: float, m: int) -> NDArray[np.float64]:
     """h at every sample point, RK4 with m fixed steps per interval, one step after the other."""
     out = np.empty_like(points)
@@ -377,18 +392,13 @@ def _fine_sequential(p: RefParams, points: NDArray[np.float64], dt: float, h: fl
             udot = (u1 - u0) / dt
             # Within the interval u̇ is constant, so eq. (5) reads
             # dh/dt = A·u̇ − (β·|u̇|·sgn(h) + γ·u̇)·|h|^n + δ·sgn(u̇)·u(t).
-            lin = big_a * udot
-            drift = delta * _sgn(udot)
-            w_pos = beta * abs(udot) + gamma * udot  # weight of |h|^n for h > 0
-            w_neg = -beta * abs(udot) + gamma * udot  # for h < 0
-
-            def rate(hh: float, uu: float) -> float:
-                if hh > 0.0:
-                    return lin - w_pos * _pow(hh, n) + drift * uu
-                if hh < 0.0:
-                    return lin - w_neg * _pow(-hh, n) + drift * uu
-                return lin + drift * uu
-
+            rate = _interval_rate(
+                lin=big_a * udot,
+                w_pos=beta * abs(udot) + gamma * udot,
+                w_neg=-beta * abs(udot) + gamma * udot,
+                drift=delta * _sgn(udot),
+                n=n,
+            )
             for i in range(m):
                 ua = u0 + udot * (step * i)
                 k1 = rate(h, ua)
@@ -459,23 +469,6 @@ def _fine_parareal(
             h_at[j + 1] = g_new + fine[j] - coarse_old[j]
             coarse_old[j] = g_new
     return None
-
-
-def paper_input(dt: float, tail_s: float = 0.05) -> NDArray[np.float64]:
-    """The paper's input u = 50 + 50·sin(2πft − π/2) [V] sampled every dt [s].
-
-    f = 1 Hz for t < 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for
-    ``tail_s`` seconds; the phase restarts at each switch (a minimum, u = 0).
-    """
-    dt = _positive_dt(dt)
-    segments = [(1.0, 0.0), (10.0, 3.0), (100.0, 3.3), (200.0, 3.33)]
-    total = round((3.33 + tail_s) / dt)
-    u = np.empty(total)
-    for k in range(total):
-        t = k * dt
-        f, start = next((f, s) for f, s in reversed(segments) if t >= s - 1e-12)
-        u[k] = 50.0 + 50.0 * math.sin(2.0 * math.pi * f * (t - start) - math.pi / 2)
-    return u
 
 
 # ---------------------------------------------------------------------------
