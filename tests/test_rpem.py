@@ -19,7 +19,7 @@ def rich_input(seconds: float, dt: float = DT) -> np.ndarray:
     while sum(p.size for p in parts) < total:
         f, amp = plan[i % len(plan)]
         periods = max(1.0, math.ceil(f * 0.5))
-        t = np.arange(int(round(periods / f / dt))) * dt
+        t = np.arange(round(periods / f / dt)) * dt
         parts.append(50.0 - amp * np.cos(2 * math.pi * f * t))
         i += 1
     return np.concatenate(parts)[:total]
@@ -158,8 +158,8 @@ def test_reset_returns_to_construction_state():
 
 def _steady_max(x, pred, segments):
     out = {}
-    for f, lo, hi in segments:
-        period = int(round(1 / (f * DT)))
+    for f, _, hi in segments:
+        period = round(1 / (f * DT))
         out[f] = float(np.max(np.abs(x - pred)[hi - period : hi]))
     return out
 
@@ -191,8 +191,8 @@ def creep_input(seconds: float, dt: float = DT) -> np.ndarray:
         f, amp, mean = plan[i % len(plan)]
         parts.append(np.linspace(u_last, mean - amp, int(0.02 / dt)))
         parts.append(np.full(int(0.3 / dt), mean - amp))
-        periods = max(2, int(round(f * 0.4)))
-        t = np.arange(int(round(periods / f / dt))) * dt
+        periods = max(2, round(f * 0.4))
+        t = np.arange(round(periods / f / dt)) * dt
         parts.append(mean - amp * np.cos(2 * math.pi * f * t))
         u_last = parts[-1][-1]
         i += 1

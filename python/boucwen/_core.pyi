@@ -23,19 +23,19 @@ part is one new section (and one line in ``__all__``):
   takes and gives), ``EffectSet``, ``simulate_extended``
 """
 
-from typing import ClassVar, Dict, List, Literal, Optional, Tuple, TypedDict, final
+from typing import ClassVar, Literal, TypedDict, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "__version__",
-    "Params",
-    "simulate",
-    "paper_input",
-    "Model",
-    "Identifier",
     "EffectSet",
+    "Identifier",
+    "Model",
+    "Params",
+    "__version__",
+    "paper_input",
+    "simulate",
     "simulate_extended",
 ]
 
@@ -56,12 +56,12 @@ class Params:
     naming the parameter.
     """
 
-    names: ClassVar[List[str]]
+    names: ClassVar[list[str]]
     """Parameter names in array order: ``["kv", "x0", "A", "beta", "gamma", "n", "delta"]``."""
 
-    def __new__(cls, kv: float, x0: float, A: float, beta: float, gamma: float, n: float, delta: float) -> "Params": ...
+    def __new__(cls, kv: float, x0: float, A: float, beta: float, gamma: float, n: float, delta: float) -> Params: ...
     @staticmethod
-    def paper_1hz() -> "Params":
+    def paper_1hz() -> Params:
         """The paper's Table 2 values identified at 1 Hz on a P-885.51 stack."""
     @property
     def kv(self) -> float:
@@ -87,19 +87,19 @@ class Params:
     def to_array(self) -> NDArray[np.float64]:
         """``[kv, x0, A, beta, gamma, n, delta]`` as a new float64 array."""
     @staticmethod
-    def from_array(values: ArrayLike) -> "Params":
+    def from_array(values: ArrayLike) -> Params:
         """Inverse of :meth:`to_array` (7 values); ``ValueError`` naming an invalid parameter."""
-    def to_dict(self) -> Dict[str, float]:
+    def to_dict(self) -> dict[str, float]:
         """``{"kv": …, "x0": …, "A": …, "beta": …, "gamma": …, "n": …, "delta": …}``."""
     @staticmethod
-    def from_dict(d: Dict[str, float]) -> "Params":
+    def from_dict(d: dict[str, float]) -> Params:
         """Inverse of :meth:`to_dict`: every key required (``KeyError``), no other key allowed (``ValueError``)."""
-    def replace(self, **changes: float) -> "Params":
+    def replace(self, **changes: float) -> Params:
         """A copy with some values replaced, e.g. ``p.replace(n=1.6)``; validated."""
     def __eq__(self, value: object, /) -> bool: ...
     def __ne__(self, value: object, /) -> bool: ...
     def __hash__(self) -> int: ...
-    def __reduce__(self) -> Tuple[type, Tuple[float, float, float, float, float, float, float]]: ...
+    def __reduce__(self) -> tuple[type, tuple[float, float, float, float, float, float, float]]: ...
 
 # ---------------------------------------------------------------- simulation
 
@@ -108,8 +108,8 @@ def simulate(
     u: ArrayLike,
     dt: float,
     h0: float = 0.0,
-    u_prev: Optional[float] = None,
-) -> Tuple[NDArray[np.float64], float]:
+    u_prev: float | None = None,
+) -> tuple[NDArray[np.float64], float]:
     """Simulates the model over a record; returns ``(x, h_final)``.
 
     ``u`` [V] is piecewise linear between samples ``dt`` [s] apart. ``x[k] =
@@ -138,7 +138,7 @@ class Model:
     nothing. Pickles with its state.
     """
 
-    def __new__(cls, params: Params, dt: float, h0: float = 0.0) -> "Model": ...
+    def __new__(cls, params: Params, dt: float, h0: float = 0.0) -> Model: ...
     def step(self, u: float) -> float:
         """Takes the next voltage u [V]; returns the displacement x [µm]."""
     @property
@@ -152,9 +152,9 @@ class Model:
         """Sampling interval [s]."""
     def reset(self, h0: float = 0.0) -> None:
         """Forgets the past: h = ``h0`` [µm], no previous sample."""
-    def __getstate__(self) -> Tuple[Params, float, float, Optional[float]]: ...
-    def __setstate__(self, state: Tuple[Params, float, float, Optional[float]]) -> None: ...
-    def __getnewargs__(self) -> Tuple[Params, float]: ...
+    def __getstate__(self) -> tuple[Params, float, float, float | None]: ...
+    def __setstate__(self, state: tuple[Params, float, float, float | None]) -> None: ...
+    def __getnewargs__(self) -> tuple[Params, float]: ...
 
 # ---------------------------------------------------------------- online identification
 
@@ -244,32 +244,32 @@ class Identifier:
         method: _IdentifierMethod = "rpem",
         *,
         decomposition: Literal["model", "line"] = "model",
-        h_zero_frac: Optional[float] = None,
-        rate_frac: Optional[float] = None,
-        min_points: Optional[int] = None,
-        rank_tol: Optional[float] = None,
-        min_log_spread: Optional[float] = None,
-        min_r2: Optional[float] = None,
-        min_arg_frac: Optional[float] = None,
-        min_line_t: Optional[float] = None,
-        noise_gate: Optional[float] = None,
-        min_delta_t: Optional[float] = None,
-        min_u_std_v: Optional[float] = None,
-        n_bounds: Optional[Tuple[float, float]] = None,
-        forgetting: Optional[float] = None,
-        memory_travel_v: Optional[float] = None,
-        p0: Optional[float] = None,
-        noise_um2: Optional[float] = None,
-        max_trace: Optional[float] = None,
-        max_step: Optional[float] = None,
-        margin: Optional[float] = None,
-        offset_walk_um: Optional[float] = None,
-        max_offset_step_um: Optional[float] = None,
-        effects: Optional[EffectSet] = None,
-        p0_effects: Optional[float] = None,
-    ) -> "Identifier": ...
+        h_zero_frac: float | None = None,
+        rate_frac: float | None = None,
+        min_points: int | None = None,
+        rank_tol: float | None = None,
+        min_log_spread: float | None = None,
+        min_r2: float | None = None,
+        min_arg_frac: float | None = None,
+        min_line_t: float | None = None,
+        noise_gate: float | None = None,
+        min_delta_t: float | None = None,
+        min_u_std_v: float | None = None,
+        n_bounds: tuple[float, float] | None = None,
+        forgetting: float | None = None,
+        memory_travel_v: float | None = None,
+        p0: float | None = None,
+        noise_um2: float | None = None,
+        max_trace: float | None = None,
+        max_step: float | None = None,
+        margin: float | None = None,
+        offset_walk_um: float | None = None,
+        max_offset_step_um: float | None = None,
+        effects: EffectSet | None = None,
+        p0_effects: float | None = None,
+    ) -> Identifier: ...
     @property
-    def effects(self) -> Optional[EffectSet]:
+    def effects(self) -> EffectSet | None:
         """Current effect estimates (fc [Hz], creep gains [µm/V]) of ``method="rpem"``
         (an empty EffectSet without effects); None for ``method="paper"``."""
     def push(self, u: float, x: float) -> float:
@@ -290,9 +290,9 @@ class Identifier:
     @property
     def status(self) -> _IdentifierStatus:
         """What the last push did (a new dict at each read)."""
-    def __copy__(self) -> "Identifier":
+    def __copy__(self) -> Identifier:
         """An independent copy that continues exactly like this one."""
-    def __deepcopy__(self, _memo: Dict[int, object], /) -> "Identifier":
+    def __deepcopy__(self, _memo: dict[int, object], /) -> Identifier:
         """As ``__copy__``."""
     def reset(self) -> None:
         """Back to the state right after construction."""
@@ -300,8 +300,8 @@ class Identifier:
 class _CreepParams(TypedDict):
     """``creep``: first-order elements, time constants [s] and static gains [µm/V]."""
 
-    tau_s: List[float]
-    gain_um_per_v: List[float]
+    tau_s: list[float]
+    gain_um_per_v: list[float]
 
 class _InputLagParams(TypedDict):
     """``input_lag``: first-order lag of the voltage, corner frequency [Hz]."""
@@ -341,18 +341,18 @@ class EffectSet:
     resonance={"fn_hz": Hz, "zeta": -}, drift={"rate_um_per_s": µm/s},
     delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError."""
 
-    vocabulary: ClassVar[List[str]]
+    vocabulary: ClassVar[list[str]]
     def __new__(
         cls,
         *,
-        creep: Optional[_CreepParams] = None,
-        input_lag: Optional[_InputLagParams] = None,
-        resonance: Optional[_ResonanceParams] = None,
-        drift: Optional[_DriftParams] = None,
-        delay: Optional[_DelayParams] = None,
-    ) -> "EffectSet": ...
+        creep: _CreepParams | None = None,
+        input_lag: _InputLagParams | None = None,
+        resonance: _ResonanceParams | None = None,
+        drift: _DriftParams | None = None,
+        delay: _DelayParams | None = None,
+    ) -> EffectSet: ...
     @property
-    def names(self) -> List[str]:
+    def names(self) -> list[str]:
         """Names of the effects present, in vocabulary order."""
     def to_dict(self) -> _EffectParams: ...
     @staticmethod
@@ -361,7 +361,7 @@ class EffectSet:
     def __contains__(self, key: object, /) -> bool: ...
 
 def simulate_extended(
-    params: Params, effects: Optional[EffectSet], u: ArrayLike, dt: float, h0: float = 0.0
+    params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float = 0.0
 ) -> NDArray[np.float64]:
     """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen + creep) →
     resonance → + drift → delay. GIL released."""

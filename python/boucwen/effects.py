@@ -30,8 +30,9 @@ those of :mod:`boucwen.lsq`, shared with :func:`boucwen.fit`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -99,7 +100,7 @@ class Layout:
     duration_s: float
 
     @classmethod
-    def of(cls, effects: EffectSet, dt: float, duration_s: float) -> "Layout":
+    def of(cls, effects: EffectSet, dt: float, duration_s: float) -> Layout:
         d = effects.to_dict()
         return cls(
             names=tuple(effects.names),
@@ -111,7 +112,7 @@ class Layout:
 
     def labels(self) -> list[str]:
         """Name of every unknown, in vector order."""
-        out = list(Params.names) + ["h0"]
+        out = [*list(Params.names), "h0"]
         if "creep" in self.names:
             out += [f"creep.gain[{i}]" for i in range(len(self.creep_tau_s))]
         if "input_lag" in self.names:
@@ -125,7 +126,7 @@ class Layout:
     def pack(self, params: Params, effects: EffectSet, h0: float) -> FloatArray:
         """(params, effects, h0) → vector of unknowns."""
         d = effects.to_dict()
-        v = list(params.to_array()) + [float(h0)]
+        v = [*list(params.to_array()), float(h0)]
         if "creep" in self.names:
             v += list(d["creep"]["gain_um_per_v"])
         if "input_lag" in self.names:
@@ -206,9 +207,7 @@ class ExtendedFit:
         return out
 
 
-def simulate_chain(
-    params: Params, effects: EffectSet, u: FloatArray, dt: float, h0: float
-) -> FloatArray | None:
+def simulate_chain(params: Params, effects: EffectSet, u: FloatArray, dt: float, h0: float) -> FloatArray | None:
     """:func:`boucwen.simulate_extended` [µm], or None if the values cannot be simulated."""
     return finite_or_none(lambda: simulate_extended(params, effects, u, dt, h0))
 
@@ -232,7 +231,7 @@ def _typical(layout: Layout, v0: FloatArray, u: FloatArray, x: FloatArray, dt: f
     span_u = max(float(np.ptp(u)), 1e-12)
     span_x = max(float(np.ptp(x)), 1e-12)
     labels = layout.labels()
-    typ = np.abs(v0).copy()
+    typ: FloatArray = np.abs(v0).copy()
     floors = {
         "kv": span_x / span_u,
         "x0": span_x,

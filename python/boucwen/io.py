@@ -26,8 +26,9 @@ from __future__ import annotations
 import csv
 import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -60,7 +61,7 @@ def _parse_number(text: str) -> float:
     return float(text)
 
 
-def read_csv(path: str | os.PathLike) -> Record:
+def read_csv(path: str | os.PathLike[str]) -> Record:
     """Reads a measured record from a CSV file (format in the module docs).
 
     Args:
@@ -174,7 +175,7 @@ def read_csv(path: str | os.PathLike) -> Record:
     return Record(t=t, u=u, x=x, dt=dt, name=path.stem, meta={"path": str(path), "columns": header})
 
 
-def write_csv(path: str | os.PathLike, columns: Mapping[str, Any]) -> None:
+def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
     """Writes equal-length 1-D columns as CSV: a header line, then rows formatted ``%.9g``.
 
     Args:

@@ -75,8 +75,9 @@ but the measured record.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -85,13 +86,13 @@ from .checks import FloatArray, as_float_vector, check_dt
 from .record import Record
 
 __all__ = [
-    "BenchSettings",
-    "paper_input",
-    "measure",
-    "true_displacement",
-    "floor_vibration",
     "DEFAULT_DT",
     "PAPER_SEGMENTS",
+    "BenchSettings",
+    "floor_vibration",
+    "measure",
+    "paper_input",
+    "true_displacement",
 ]
 
 #: Default sampling interval [s] (10 kHz).
@@ -245,7 +246,7 @@ class BenchSettings:
         """Voltage step of one A/D code [V] (0 if the A/D does not quantise)."""
         if not self.adc_bits:
             return 0.0
-        return (self.adc_max_v - self.adc_min_v) / (2**self.adc_bits - 1)
+        return (self.adc_max_v - self.adc_min_v) / float(2**self.adc_bits - 1)
 
 
 # --------------------------------------------------------------------------- input
@@ -361,11 +362,11 @@ def _respond(u: FloatArray, dt: float, s: BenchSettings) -> dict[str, FloatArray
 
 def floor_vibration(t: Any, settings: BenchSettings = BenchSettings()) -> FloatArray:
     """Relative motion of vibrometer head and stack, Σ a_k·sin(2π·f_k·t + φ_k) [µm], at times t [s]."""
-    t = np.asarray(t, dtype=np.float64)
-    out = np.zeros_like(t)
+    times = np.asarray(t, dtype=np.float64)
+    out = np.zeros_like(times)
     for f, a, phase in zip(settings.vibration_hz, settings.vibration_um, settings.vibration_phase_rad):
         if a != 0.0:
-            out += a * np.sin(2.0 * math.pi * f * t + phase)
+            out += a * np.sin(2.0 * math.pi * f * times + phase)
     return out
 
 

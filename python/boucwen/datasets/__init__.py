@@ -28,7 +28,7 @@ import numpy as np
 
 from ..record import Record
 
-__all__ = ["load", "names", "DATA_DIR"]
+__all__ = ["DATA_DIR", "load", "names"]
 
 #: Folder (inside this package) that holds the micromanipulator files.
 DATA_DIR = "yan9a_micromanipulator"

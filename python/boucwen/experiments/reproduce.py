@@ -49,9 +49,10 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -59,25 +60,28 @@ from .. import plant
 from .._core import Identifier, Params, simulate
 from ..fit import FitResult, fit
 
+if TYPE_CHECKING:
+    from .._core import _IdentifierMethod
+
 __all__ = [
-    "run",
-    "OnlineMethod",
+    "ADAPTATION_FACTOR",
+    "ADAPTATION_RULE",
+    "DEFAULT_OUT",
     "ONLINE_METHODS",
-    "available_online_methods",
-    "default_online_method",
-    "fixed_parameter_prediction",
-    "table1_from_predictions",
-    "adaptation_times",
-    "steady_state_slice",
-    "default_window",
-    "SEGMENTS",
-    "QUICK_SEGMENTS",
     "PAPER_TABLE1",
     "PAPER_TABLE2",
+    "QUICK_SEGMENTS",
+    "SEGMENTS",
     "STEADY_STATE",
-    "ADAPTATION_RULE",
-    "ADAPTATION_FACTOR",
-    "DEFAULT_OUT",
+    "OnlineMethod",
+    "adaptation_times",
+    "available_online_methods",
+    "default_online_method",
+    "default_window",
+    "fixed_parameter_prediction",
+    "run",
+    "steady_state_slice",
+    "table1_from_predictions",
 ]
 
 #: Default output directory of ``boucwen reproduce``.
@@ -132,7 +136,7 @@ class OnlineMethod:
     """
 
     label: str
-    method: str
+    method: _IdentifierMethod
     options: Mapping[str, Any] = field(default_factory=dict)
     description: str = ""
 
@@ -176,14 +180,14 @@ def default_online_method(labels: Sequence[str]) -> str:
 def default_window(segments: Sequence[tuple[float, int, int]], dt: float) -> int:
     """One period of the highest frequency [samples], at least 16 (see the module docs)."""
     fmax = max(f for f, _, _ in segments)
-    return max(16, int(round(1.0 / (fmax * dt))))
+    return max(16, round(1.0 / (fmax * dt)))
 
 
 # --------------------------------------------------------------------------- metrics
 
 
 def _period(f: float, dt: float) -> int:
-    return max(1, int(round(1.0 / (f * dt))))
+    return max(1, round(1.0 / (f * dt)))
 
 
 def steady_state_slice(f: float, lo: int, hi: int, dt: float) -> slice:
@@ -248,11 +252,18 @@ def _params_dict(p: Params) -> dict[str, float]:
 
 
 def _run_online(
-    m: OnlineMethod, u: np.ndarray, x: np.ndarray, dt: float, window: int, init: Params, h0: float, segments
+    m: OnlineMethod,
+    u: np.ndarray,
+    x: np.ndarray,
+    dt: float,
+    window: int,
+    init: Params,
+    h0: float,
+    segments: Sequence[tuple[float, int, int]],
 ) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
     ident = _make_identifier(m, dt, window, init, h0)
     pred = np.empty_like(x)
-    estimates = {}
+    estimates: dict[str, dict[str, float]] = {}
     for f, lo, hi in segments:
         pred[lo:hi] = ident.push_many(u[lo:hi], x[lo:hi])
         estimates[_key(f)] = _params_dict(ident.params)
@@ -288,7 +299,18 @@ def _fmt_row(name: str, values: Sequence[float], width: int = 9, fmt: str = "{:.
     return f"{name:<34}" + "".join(f"{fmt.format(v):>{width}}" for v in values)
 
 
-def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions, adapt, sweep, best_fixed):
+def _print_tables(
+    log: Callable[[str], None],
+    freqs: Sequence[str],
+    table1: Mapping[str, Mapping[str, float]],
+    table1_fixed: Mapping[str, Mapping[str, float]],
+    table2: Mapping[str, Mapping[str, Mapping[str, float]]],
+    labels: Sequence[str],
+    descriptions: Mapping[str, str],
+    adapt: Mapping[str, Mapping[str, Mapping[str, float]]],
+    sweep: Mapping[str, Mapping[str, Mapping[str, float]]],
+    best_fixed: Mapping[str, float],
+) -> None:
     heads = [f"{f} Hz" for f in freqs]
     log("")
     log("Table 1  maximum absolute error in steady state [µm]")
@@ -341,7 +363,7 @@ def _print_tables(log, freqs, table1, table1_fixed, table2, labels, descriptions
 
 
 def run(
-    out_dir: str | os.PathLike = DEFAULT_OUT,
+    out_dir: str | os.PathLike[str] = DEFAULT_OUT,
     *,
     quick: bool = False,
     window: int | None = None,
@@ -397,7 +419,7 @@ def run(
 
     _, lo1, hi1 = segments[0]
     step(f"traditional method: output-error fit on the {freqs[0]} Hz part ({hi1 - lo1} samples)")
-    fit_opts = {"n_candidates": 16, "n_starts": 2} if quick else {}
+    fit_opts: dict[str, Any] = {"n_candidates": 16, "n_starts": 2} if quick else {}
     trad: FitResult = fit(u[lo1:hi1], x[lo1:hi1], dt, seed=seed, **fit_opts)
     step(
         f"  {trad.params!r}, h0 = {trad.h0:.4g} µm; rms {trad.rms_um:.4g} µm, max "
@@ -433,7 +455,7 @@ def run(
     adapt = {f"online_{lab}": adaptation_times(x, predictions[f"online_{lab}"], segments, dt) for lab in labels}
     adapt["online"] = adapt[f"online_{default}"]
 
-    sweep: dict[str, dict[str, float]] = {}
+    sweep: dict[str, dict[str, dict[str, float]]] = {}
     best_fixed: dict[str, float] = {}
     if not quick:
         # The sweep is over the limited memory N, so it runs the windowed method.
@@ -486,16 +508,16 @@ def run(
     results = _json_safe(results)
     with open(out / "results.json", "w", encoding="utf-8") as fh:
         json.dump(results, fh, indent=2, allow_nan=False)
-    np.savez_compressed(
-        out / "predictions.npz",
-        t=t,
-        u=u,
-        x=x,
-        dt=np.float64(dt),
-        segments=np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
+    arrays: dict[str, Any] = {
+        "t": t,
+        "u": u,
+        "x": x,
+        "dt": np.float64(dt),
+        "segments": np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
         **{f"x_{k}": v for k, v in predictions.items()},
         **{f"x_fixed_{k}": v for k, v in fixed.items()},
-    )
+    }
+    np.savez_compressed(out / "predictions.npz", **arrays)
 
     if figures:
         step("figures")
@@ -517,7 +539,16 @@ def run(
     return results
 
 
-def _figures(out: Path, t, u, x, predictions, fixed, segments, dt) -> None:
+def _figures(
+    out: Path,
+    t: np.ndarray,
+    u: np.ndarray,
+    x: np.ndarray,
+    predictions: Mapping[str, np.ndarray],
+    fixed: Mapping[str, np.ndarray],
+    segments: Sequence[tuple[float, int, int]],
+    dt: float,
+) -> None:
     from ..plots import plot_loops, plot_switch
 
     names = ["fig6_1_to_10hz.png", "fig7_10_to_100hz.png", "fig8_100_to_200hz.png"]

@@ -32,7 +32,7 @@ from ..fit import fit
 from ..metrics import rms
 from .undeclared_records import cases, make_record
 
-__all__ = ["START_UP_S", "HELD_OUT_FRACTION", "online_rows", "run_online_table"]
+__all__ = ["HELD_OUT_FRACTION", "START_UP_S", "online_rows", "run_online_table"]
 
 #: Samples of the first START_UP_S [s] are left out of every RMS (the online
 #: identifier's h and covariance settle; the same span for all three models).

@@ -194,5 +194,3 @@ def cases(seeds: int = 3) -> list[tuple[str, int, str, float]]:
         for s in range(seeds):
             out.append((effect, s, sets[s % len(sets)], NOISE_LEVELS_UM[s % len(NOISE_LEVELS_UM)]))
     return out
-
-
