@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["FloatArray", "as_float_vector", "check_dt", "check_int", "check_number"]
+__all__ = ["FloatArray", "as_float_vector", "check_dt", "check_finite", "check_int", "check_number"]
 
 #: A float64 NumPy array (the working type of every signal).
 FloatArray = NDArray[np.float64]
@@ -52,6 +52,16 @@ def check_dt(dt: Any) -> float:
     if not math.isfinite(value) or value <= 0.0:
         raise ValueError(f"dt must be finite and > 0 s, got {value}")
     return value
+
+
+def check_finite(name: str, value: Any) -> float:
+    """A real value (``bool`` is not one) that is finite, as a float."""
+    if not _is_real(value):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    out = float(value)
+    if not math.isfinite(out):
+        raise ValueError(f"{name} must be finite, got {out}")
+    return out
 
 
 def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:

@@ -50,7 +50,7 @@ import numpy as np
 from scipy.optimize import OptimizeResult
 
 from ._core import Params, simulate
-from .checks import FloatArray, check_int
+from .checks import FloatArray, check_finite, check_int
 from .lsq import OutputErrorProblem, Ridge, finite_or_none, jacobian_threads
 from .metrics import max_abs, rms
 from .progress import Progress, reporter
@@ -172,7 +172,7 @@ def _linear_part(record: Record, h: FloatArray) -> tuple[float, float]:
 # --------------------------------------------------------------------------- guesses
 
 
-def _scales(u: np.ndarray, x: np.ndarray, dt: float) -> np.ndarray:
+def _scales(u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
     """Scale of (A, β, γ, n, δ, h0) derived from the record."""
     basis = np.column_stack([u, np.ones_like(u)])
     coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
@@ -194,7 +194,7 @@ def _scales(u: np.ndarray, x: np.ndarray, dt: float) -> np.ndarray:
     return np.array([s_a, s_bg, s_bg, 1.0, s_delta, half_width])
 
 
-def _candidates(rng: np.random.Generator, count: int, half_width: float) -> np.ndarray:
+def _candidates(rng: np.random.Generator, count: int, half_width: float) -> FloatArray:
     """Random starting points in scaled units (A, β, γ, n, δ, h0)."""
     z = np.zeros((count, 6))
     mag = np.exp(rng.uniform(math.log(0.05), math.log(2.0), count))
@@ -212,7 +212,7 @@ def _candidates(rng: np.random.Generator, count: int, half_width: float) -> np.n
     return z
 
 
-def _decimation(u: np.ndarray) -> int:
+def _decimation(u: FloatArray) -> int:
     q = max(1, u.size // _COARSE_LEN)
     span = float(np.ptp(u))
     while q > 1:
@@ -312,11 +312,7 @@ def fit_record(
     if init is not None and not isinstance(init, Params):
         raise TypeError(f"init must be a boucwen.Params, got {type(init).__name__}")
     if h0 is not None:
-        if isinstance(h0, bool) or not isinstance(h0, (int, float, np.integer, np.floating)):
-            raise TypeError(f"h0 must be a real number or None, got {type(h0).__name__}")
-        if not math.isfinite(h0):
-            raise ValueError(f"h0 must be finite, got {h0}")
-        h0 = float(h0)
+        h0 = check_finite("h0", h0)
     check_int("n_starts", n_starts, 1)
     check_int("n_candidates", n_candidates, 0)
     check_int("max_nfev", max_nfev, 1)
