@@ -32,6 +32,7 @@ message.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import platform
 import statistics
@@ -82,13 +83,15 @@ def optional(name: str) -> Any:
 
 
 def _make(method: str, params: Params) -> Identifier:
-    """An identifier of `method`: the paper's with N = WINDOW, or rpem."""
-    return Identifier.paper(DT, WINDOW, params) if method == "paper" else Identifier.rpem(DT, params)
+    """An identifier of `method` with its defaults (the paper's with N = WINDOW)."""
+    if method == "paper":
+        return Identifier.paper(DT, WINDOW, params)
+    return Identifier.rpem(DT, params) if method == "rpem" else Identifier.horizon(DT, params)
 
 
 def methods() -> list[str]:
     found = []
-    for method in ("paper", "rpem"):
+    for method in ("horizon", "rpem", "paper"):
         try:
             _make(method, Params.paper_1hz())
         except ValueError:
@@ -118,6 +121,19 @@ def rate(seconds: float, samples: int) -> str:
     return f"{samples / seconds / 1e6:.1f} M samples/s"
 
 
+def push_loop(method: str, params: Params, u: np.ndarray, x: np.ndarray) -> None:
+    """A fresh identifier fed one ``push`` at a time from a Python loop."""
+    ident = _make(method, params)
+    push = ident.push
+    for uk, xk in zip(u.tolist(), x.tolist()):
+        push(uk, xk)
+
+
+def push_many(method: str, params: Params, u: np.ndarray, x: np.ndarray) -> None:
+    """A fresh identifier fed the whole record by one ``push_many``."""
+    _make(method, params).push_many(u, x)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--full", action="store_true", help="run the reference-driven fit instead of estimating it")
@@ -137,18 +153,8 @@ def main(argv: list[str] | None = None) -> int:
     # ---------------------------------------------------------------- online identification
     ref_samples = 3_000
     for method in methods():
-
-        def push_loop() -> None:
-            ident = _make(method, params)
-            push = ident.push
-            for uk, xk in zip(u.tolist(), x.tolist()):
-                push(uk, xk)
-
-        def push_many() -> None:
-            _make(method, params).push_many(u, x)
-
-        t_loop = median_time(push_loop, reps)
-        t_many = median_time(push_many, reps)
+        t_loop = median_time(functools.partial(push_loop, method, params, u, x), reps)
+        t_many = median_time(functools.partial(push_many, method, params, u, x), reps)
         table.add(
             f"`Identifier.push` from Python ({method}, N = {WINDOW})",
             ns(t_loop, n),

@@ -1,9 +1,22 @@
 #!/usr/bin/env bash
-# Every test: the Rust unit and integration tests (release), then pytest against the
+# Every check and every test: formatting, lints, type checks and docs (Rust, then
+# Python), then the Rust unit and integration tests (release), then pytest against the
 # installed extension (which includes the stub check with mypy.stubtest).
 set -euo pipefail
 export BOUCWEN_TEST=1
 . "$(dirname "$0")/setup_env.sh"
+echo "== cargo fmt --check"
+cargo fmt --check
+echo "== cargo clippy --all-targets --all-features -- -D warnings"
+cargo clippy --all-targets --all-features -- -D warnings
+echo "== cargo doc --no-deps (warnings are errors)"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
+echo "== ruff check python tests benches"
+ruff check python tests benches
+echo "== ruff format --check python tests benches"
+ruff format --check python tests benches
+echo "== mypy (strict, python/boucwen)"
+mypy
 echo "== cargo test --release"
 cargo test --release
 echo "== pytest"

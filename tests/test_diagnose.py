@@ -15,9 +15,9 @@ import pytest
 
 from boucwen import diagnose
 from boucwen.cli import main
-from boucwen.diagnose import residual_evidence
-from boucwen.experiments.undeclared import make_record
-from boucwen.experiments.undeclared import test_input as make_input  # not a test
+from boucwen.diagnosis import residual_evidence
+from boucwen.experiments.undeclared_records import make_record
+from boucwen.experiments.undeclared_records import test_input as make_input  # not a test
 from boucwen.io import read_csv, write_csv
 
 # (effect, seed, base parameter set, noise [µm]): one record per effect, two clean ones.

@@ -6,9 +6,9 @@ import pickle
 import numpy as np
 import pytest
 
-import boucwen
 from boucwen import EffectSet, Params, simulate, simulate_extended
 from boucwen.effects import Layout, best_delay, creep_time_constants, fit_extended
+from boucwen.record import validate_record
 
 P = Params.paper_1hz()
 DT = 1e-3
@@ -91,9 +91,12 @@ def test_creep_step_response_matches_the_closed_form():
     x = simulate_extended(p, e, u, DT)
     # The step takes one interval (a ramp); afterwards each element relaxes as exp(−t/τ).
     t = np.arange(1, u.size) * DT - DT
+
     # After the ramp an element is short of its final value g·10 by the share
     # τ/dt·(1 − exp(−dt/τ)) (exact solution of τ·ċ = g·u − c for a ramp of u).
-    short = lambda tau: tau / DT * (1 - math.exp(-DT / tau))
+    def short(tau):
+        return tau / DT * (1 - math.exp(-DT / tau))
+
     want = 2.0 + sum(10 * g * (1 - short(tau) * np.exp(-t / tau)) for tau, g in ((0.05, 0.01), (0.5, 0.02)))
     np.testing.assert_allclose(x[1:], want, atol=1e-9)
 
@@ -160,5 +163,5 @@ def test_fit_extended_recovers_known_effects():
 def test_best_delay_finds_the_shift():
     u = _u(2000)
     x = simulate_extended(P, EffectSet(delay={"samples": 3}), u, DT)
-    d, rms = best_delay(u, x, DT, P, EffectSet(), 0.0, 6)
+    d, rms = best_delay(validate_record(u, x, DT), P, EffectSet(), 0.0, 6)
     assert d == 3 and rms[3] < 1e-9 < rms[2]

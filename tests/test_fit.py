@@ -14,7 +14,7 @@ DT = 5e-4  # 2 kHz keeps the tests fast; the fit does not depend on the rate
 
 def paper_record(periods=3, h0=0.0, params=TRUE, dt=DT):
     """u = 50 − 50·cos(2πt) [V] at 1 Hz and the model's noise-free x [µm]."""
-    t = np.arange(int(round(periods / dt))) * dt
+    t = np.arange(round(periods / dt)) * dt
     u = 50.0 - 50.0 * np.cos(2.0 * np.pi * t)
     x, _ = simulate(params, u, dt, h0)
     return u, np.asarray(x)
@@ -111,7 +111,7 @@ def test_bench_record_fits_to_its_noise():
     # residual stays near the measurement noise (0.1 µm bound).
     from boucwen import plant
 
-    t, u, _ = plant.paper_input(1e-4, [(1.0, 1.0)])
+    _, u, _ = plant.paper_input(1e-4, [(1.0, 1.0)])
     settings = plant.BenchSettings(vibration_um=(0.0, 0.0), stroke_quadratic_per_um=0.0)
     rec = plant.measure(u, settings=settings)
     r = fit(rec.u, rec.x, rec.dt)

@@ -10,7 +10,6 @@ import boucwen
 from boucwen import Params
 from conftest import make_identifier
 
-
 DT = 1e-4  # 10 kHz
 PAPER = Params.paper_1hz()
 STATUS_KEYS = {"samples", "window_full", "refreshed", "line_fit", "rate_fit", "shape_fit", "return_fit"}

@@ -55,7 +55,8 @@ def test_repr_round_trips(p):
 @given(params_st)
 def test_equal_values_are_equal_and_hash_alike(p):
     q = Params.from_array(p.to_array())
-    assert q == p and not (q != p)
+    assert q == p
+    assert (q != p) is False  # __ne__ agrees with __eq__
     assert hash(q) == hash(p)
     assert len({p, q}) == 1
 

@@ -26,7 +26,7 @@ def test_paper_input_segments_and_continuity():
     assert u.max() == pytest.approx(100.0, abs=1e-9)
     # every switch is on a minimum and u has no jump there
     steepest = 50 * 2 * math.pi * 200 * DT  # largest step within the 200 Hz part [V]
-    for (f_prev, _, _), (_, lo, _) in zip([(None, 0, 0)] + segments[:-1], segments):
+    for (f_prev, _, _), (_, lo, _) in zip([(None, 0, 0), *segments[:-1]], segments):
         assert u[lo] == pytest.approx(0.0, abs=1e-9)
         if lo:  # one sample before the switch the previous sine is just short of its minimum
             assert u[lo - 1] == pytest.approx(50 * (1 - math.cos(2 * math.pi * f_prev * DT)), rel=1e-6)
@@ -43,7 +43,7 @@ def test_paper_input_formula():
 
 
 def test_paper_input_custom_and_invalid():
-    t, u, seg = paper_input(1e-3, [(1.0, 2.0), (200.0, 0.02)])
+    _, _, seg = paper_input(1e-3, [(1.0, 2.0), (200.0, 0.02)])
     assert seg == [(1.0, 0, 2000), (200.0, 2000, 2021)]
     _, _, seg2 = paper_input(1e-3, {1.0: 2.0, 200.0: 0.02})
     assert seg2 == seg
@@ -112,16 +112,16 @@ def test_lowpass_is_exact_for_a_ramp_and_has_first_order_gain():
 @pytest.fixture(scope="module")
 def bench():
     pytest.importorskip("boucwen._core")
-    t, u, segments = paper_input(DT)
+    _, u, segments = paper_input(DT)
     rec = plant.measure(u, DT, seed=0)
     return u, segments, rec
 
 
 def _last_period(segments, f_wanted, size):
-    for f, lo, hi in segments:
+    for f, _, hi in segments:
         if f == f_wanted:
             end = hi if hi < size else hi - 1
-            return slice(end - int(round(1 / f / DT)), end + 1)
+            return slice(end - round(1 / f / DT), end + 1)
     raise KeyError(f_wanted)
 
 
@@ -263,7 +263,7 @@ def test_electrostriction_is_quadratic_in_the_bouc_wen_displacement(bench):
 
 
 def test_floor_vibration_is_the_documented_tones(bench):
-    u, _, rec = bench
+    _, _, rec = bench
     s = BenchSettings()
     t = rec.t
     want = sum(
@@ -302,8 +302,8 @@ def traditional():
         xh, _ = core.simulate(r.params, rec.u, DT, r.h0)
         err = np.abs(rec.x - np.asarray(xh))
         out = {}
-        for f, lo, hi in segments:
-            n = int(round(1 / f / DT))
+        for f, _, hi in segments:
+            n = round(1 / f / DT)
             out[f] = float(err[hi - n : hi].max())  # last full period
         return out
 

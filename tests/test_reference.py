@@ -11,7 +11,6 @@ import boucwen
 from boucwen import Params, reference
 from conftest import make_identifier
 
-
 PAPER = Params.paper_1hz()
 
 
@@ -29,11 +28,6 @@ def test_params_from_any_form_and_validation():
         reference.RefParams.from_any({**PAPER.to_dict(), "n": 0.0})
     with pytest.raises(ValueError, match="7"):
         reference.RefParams.from_any([1.0, 2.0])
-
-
-def test_paper_input_is_the_same_in_both():
-    for dt, tail in [(1e-4, 0.05), (1e-3, 0.0), (3.7e-4, 0.013)]:
-        np.testing.assert_array_equal(boucwen.paper_input(dt, tail), reference.paper_input(dt, tail))
 
 
 def test_fine_solution_by_parareal_equals_the_step_by_step_one():

@@ -49,8 +49,8 @@ def test_tables_agree_with_saved_predictions(quick_run):
     data = np.load(out / "predictions.npz")
     x, dt = data["x"], float(data["dt"])
     assert x.size == data["u"].size == data["t"].size
-    for f, lo, hi in data["segments"]:
-        period = int(round(1.0 / (f * dt)))
+    for f, _, hi in data["segments"]:
+        period = round(1.0 / (f * dt))
         ss = slice(int(hi) - period, int(hi))
         key = f"{f:g}"
         for label, row in results["table1"].items():

@@ -29,7 +29,6 @@ import boucwen
 from boucwen import Model, Params, simulate
 from conftest import make_identifier
 
-
 DT = 1e-4
 P = Params.paper_1hz()
 NAN, INF = float("nan"), float("inf")
@@ -55,7 +54,7 @@ def _record(n: int = 6000) -> tuple[np.ndarray, np.ndarray]:
     return u, x
 
 
-def _same_state(a: Identifier, b: Identifier) -> bool:
+def _same_state(a: boucwen.Identifier, b: boucwen.Identifier) -> bool:
     """Same estimates, h, status, and the same predictions for the next samples."""
     if a.params != b.params or a.h != b.h or a.status != b.status:
         return False
@@ -347,6 +346,7 @@ def test_simulate_agrees_with_the_numpy_reference(p: Params, u: list) -> None:
     x, h = simulate(p, u, 1e-3)
     xr, hr = reference.simulate(p, u, 1e-3)
     np.testing.assert_allclose(x, xr, rtol=0, atol=1e-9 * (1 + np.max(np.abs(xr))))
+    assert h == pytest.approx(hr, rel=0, abs=1e-9 * (1 + np.max(np.abs(xr))))
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -445,16 +445,21 @@ def _weird_arrays(rng: np.random.Generator) -> list[Any]:
     ]
 
 
-def _expect_clean(call: Callable[[], Any]) -> None:
-    """Either succeeds or raises ValueError/TypeError (anything else fails the test)."""
+def _expect_clean(call: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+    """``call(*args, **kwargs)`` either succeeds or raises ValueError/TypeError (anything
+    else fails the test)."""
     try:
-        out = call()
+        out = call(*args, **kwargs)
     except (ValueError, TypeError):
         return
     except BaseException as exc:  # PanicException derives from BaseException
         raise AssertionError(f"{type(exc).__module__}.{type(exc).__name__}: {exc}") from exc
     if isinstance(out, tuple) and out and isinstance(out[0], np.ndarray):
         assert out[0].dtype == np.float64
+
+
+def _push_many_fresh(p: Params, u: Any, x: Any) -> Any:
+    return make_identifier("paper", DT, 16, p).push_many(u, x)
 
 
 def test_fuzz_the_python_api() -> None:
@@ -464,43 +469,43 @@ def test_fuzz_the_python_api() -> None:
     good_id = make_identifier("paper", DT, 32, P)
     good_model = Model(P, DT)
     for s in scalars:
-        _expect_clean(lambda: Params(s, 0, 0, 0, 0, 1, 0))
-        _expect_clean(lambda: Params(0, 0, 0, 0, 0, s, 0))
-        _expect_clean(lambda: Params.from_array([s] * 7))
-        _expect_clean(lambda: Model(P, s))
-        _expect_clean(lambda: Model(P, DT, h0=s))
-        _expect_clean(lambda: good_model.step(s))
-        _expect_clean(lambda: make_identifier("paper", s, 32, P))
-        _expect_clean(lambda: make_identifier("paper", DT, s, P))
-        _expect_clean(lambda: make_identifier("paper", DT, 32, P, h0=s))
-        _expect_clean(lambda: make_identifier("paper", DT, 32, P, min_points=s))
-        _expect_clean(lambda: make_identifier("paper", DT, 32, P, rank_tol=s))
-        _expect_clean(lambda: make_identifier("paper", DT, 32, P, n_bounds=(s, s)))
-        _expect_clean(lambda: good_id.push(s, 1.0))
-        _expect_clean(lambda: good_id.push(1.0, s))
-        _expect_clean(lambda: simulate(P, [0.0, 1.0], s))
-        _expect_clean(lambda: simulate(P, [0.0, 1.0], DT, h0=s))
-        _expect_clean(lambda: simulate(P, [0.0, 1.0], DT, u_prev=s))
-        _expect_clean(lambda: boucwen.paper_input(s))
-        _expect_clean(lambda: boucwen.Identifier._from_snapshot(s))
+        _expect_clean(Params, s, 0, 0, 0, 0, 1, 0)
+        _expect_clean(Params, 0, 0, 0, 0, 0, s, 0)
+        _expect_clean(Params.from_array, [s] * 7)
+        _expect_clean(Model, P, s)
+        _expect_clean(Model, P, DT, h0=s)
+        _expect_clean(good_model.step, s)
+        _expect_clean(make_identifier, "paper", s, 32, P)
+        _expect_clean(make_identifier, "paper", DT, s, P)
+        _expect_clean(make_identifier, "paper", DT, 32, P, h0=s)
+        _expect_clean(make_identifier, "paper", DT, 32, P, min_points=s)
+        _expect_clean(make_identifier, "paper", DT, 32, P, rank_tol=s)
+        _expect_clean(make_identifier, "paper", DT, 32, P, n_bounds=(s, s))
+        _expect_clean(good_id.push, s, 1.0)
+        _expect_clean(good_id.push, 1.0, s)
+        _expect_clean(simulate, P, [0.0, 1.0], s)
+        _expect_clean(simulate, P, [0.0, 1.0], DT, h0=s)
+        _expect_clean(simulate, P, [0.0, 1.0], DT, u_prev=s)
+        _expect_clean(boucwen.paper_input, s)
+        _expect_clean(boucwen.Identifier._from_snapshot, s)
     for a in arrays:
-        _expect_clean(lambda: simulate(P, a, DT))
-        _expect_clean(lambda: Params.from_array(a))
+        _expect_clean(simulate, P, a, DT)
+        _expect_clean(Params.from_array, a)
         for b in (a, np.zeros(3), [1.0, 2.0]):
-            _expect_clean(lambda: good_id.push_many(a, b))
-            _expect_clean(lambda: good_id.push_many(b, a))
+            _expect_clean(good_id.push_many, a, b)
+            _expect_clean(good_id.push_many, b, a)
     # Random finite extremes through every path.
     for _ in range(300):
         v = rng.choice([1e300, -1e300, 1e-300, 0.0, 1e6, -1e6, 1.0]) * rng.standard_normal(7)
-        _expect_clean(lambda: Params.from_array(v))
+        _expect_clean(Params.from_array, v)
         try:
             p = Params.from_array(v)
         except ValueError:
             continue
         u = rng.choice([1e300, 1e-300, 1e3, 1.0]) * rng.standard_normal(int(rng.integers(0, 20)))
-        _expect_clean(lambda: simulate(p, u, float(rng.choice([1e-300, 1e-4, 1e300]))))
-        _expect_clean(lambda: make_identifier("paper", DT, 16, p).push_many(u, u[::-1]))
+        _expect_clean(simulate, p, u, float(rng.choice([1e-300, 1e-4, 1e300])))
+        _expect_clean(_push_many_fresh, p, u, u[::-1])
         m = Model(p, DT)
         for uk in u:
-            _expect_clean(lambda: m.step(float(uk)))
+            _expect_clean(m.step, float(uk))
     assert all(math.isfinite(v) for v in good_id.params.to_array())

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import boucwen
-from boucwen import Identifier, Params, plant, simulate
+from boucwen import Params, plant, simulate
 from conftest import make_identifier
 
 DT = 1e-4
@@ -21,7 +21,7 @@ def rich_input(seconds: float, dt: float = DT) -> np.ndarray:
     while sum(p.size for p in parts) < total:
         f, amp = plan[i % len(plan)]
         periods = max(1.0, math.ceil(f * 0.5))
-        t = np.arange(int(round(periods / f / dt))) * dt
+        t = np.arange(round(periods / f / dt)) * dt
         parts.append(50.0 - amp * np.cos(2 * math.pi * f * t))
         i += 1
     return np.concatenate(parts)[:total]
@@ -168,8 +168,8 @@ def test_reset_returns_to_construction_state():
 
 def _steady_max(x, pred, segments):
     out = {}
-    for f, lo, hi in segments:
-        period = int(round(1 / (f * DT)))
+    for f, _, hi in segments:
+        period = round(1 / (f * DT))
         out[f] = float(np.max(np.abs(x - pred)[hi - period : hi]))
     return out
 
@@ -201,8 +201,8 @@ def creep_input(seconds: float, dt: float = DT) -> np.ndarray:
         f, amp, mean = plan[i % len(plan)]
         parts.append(np.linspace(u_last, mean - amp, int(0.02 / dt)))
         parts.append(np.full(int(0.3 / dt), mean - amp))
-        periods = max(2, int(round(f * 0.4)))
-        t = np.arange(int(round(periods / f / dt))) * dt
+        periods = max(2, round(f * 0.4))
+        t = np.arange(round(periods / f / dt)) * dt
         parts.append(mean - amp * np.cos(2 * math.pi * f * t))
         u_last = parts[-1][-1]
         i += 1

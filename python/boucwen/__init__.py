@@ -8,31 +8,31 @@ Precision Engineering 38 (2014) 921–927).
 
 - :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
 - :class:`Identifier` identifies them online, one sample at a time (configured by
-  :class:`RpemConfig` or :class:`PaperConfig`);
+  :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`);
 - :func:`fit` identifies them offline from a record (output-error least squares);
+- :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
-from ._core import Identifier, Model, Params, __version__, paper_input, simulate
-from ._core import EffectSet, simulate_extended
+from ._core import EffectSet, Identifier, Model, Params, __version__, paper_input, simulate, simulate_extended
 from .config import HorizonConfig, PaperConfig, RpemConfig
-from .diagnose import Diagnosis, diagnose
+from .diagnosis import Diagnosis, diagnose
 from .fit import FitResult, fit
 
 __all__ = [
-    "Identifier",
+    "Diagnosis",
+    "EffectSet",
+    "FitResult",
     "HorizonConfig",
-    "PaperConfig",
-    "RpemConfig",
+    "Identifier",
     "Model",
+    "PaperConfig",
     "Params",
+    "RpemConfig",
     "__version__",
+    "diagnose",
+    "fit",
     "paper_input",
     "simulate",
-    "fit",
-    "FitResult",
-    "EffectSet",
     "simulate_extended",
-    "diagnose",
-    "Diagnosis",
 ]

@@ -19,25 +19,27 @@ part is one new section (and one line in ``__all__``):
 - simulation: ``simulate``, ``paper_input``, ``Model``
 - online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
   ``_RpemStatus``, ``_HorizonStatus`` (type-only names, absent at run time), ``Identifier``
+- effects: ``_CreepParams`` … ``_EffectParams`` (type-only: the dicts ``EffectSet``
+  takes and gives), ``EffectSet``, ``simulate_extended``
 """
 
-from typing import Any, ClassVar, Dict, List, Literal, Optional, Tuple, TypedDict, Union, final
-
-from .config import HorizonConfig, PaperConfig, RpemConfig
+from typing import Any, ClassVar, Literal, TypedDict, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .config import HorizonConfig, PaperConfig, RpemConfig
+
 __all__ = [
-    "__version__",
-    "Params",
-    "simulate",
-    "paper_input",
-    "Model",
+    "EffectSet",
     "Identifier",
+    "Model",
+    "Params",
+    "__version__",
     "_config_defaults",
     "_validate_config",
-    "EffectSet",
+    "paper_input",
+    "simulate",
     "simulate_extended",
 ]
 
@@ -58,12 +60,12 @@ class Params:
     naming the parameter.
     """
 
-    names: ClassVar[List[str]]
+    names: ClassVar[list[str]]
     """Parameter names in array order: ``["kv", "x0", "A", "beta", "gamma", "n", "delta"]``."""
 
-    def __new__(cls, kv: float, x0: float, A: float, beta: float, gamma: float, n: float, delta: float) -> "Params": ...
+    def __new__(cls, kv: float, x0: float, A: float, beta: float, gamma: float, n: float, delta: float) -> Params: ...
     @staticmethod
-    def paper_1hz() -> "Params":
+    def paper_1hz() -> Params:
         """The paper's Table 2 values identified at 1 Hz on a P-885.51 stack."""
     @property
     def kv(self) -> float:
@@ -89,19 +91,19 @@ class Params:
     def to_array(self) -> NDArray[np.float64]:
         """``[kv, x0, A, beta, gamma, n, delta]`` as a new float64 array."""
     @staticmethod
-    def from_array(values: ArrayLike) -> "Params":
+    def from_array(values: ArrayLike) -> Params:
         """Inverse of :meth:`to_array` (7 values); ``ValueError`` naming an invalid parameter."""
-    def to_dict(self) -> Dict[str, float]:
+    def to_dict(self) -> dict[str, float]:
         """``{"kv": …, "x0": …, "A": …, "beta": …, "gamma": …, "n": …, "delta": …}``."""
     @staticmethod
-    def from_dict(d: Dict[str, float]) -> "Params":
+    def from_dict(d: dict[str, float]) -> Params:
         """Inverse of :meth:`to_dict`: every key required (``KeyError``), no other key allowed (``ValueError``)."""
-    def replace(self, **changes: float) -> "Params":
+    def replace(self, **changes: float) -> Params:
         """A copy with some values replaced, e.g. ``p.replace(n=1.6)``; validated."""
     def __eq__(self, value: object, /) -> bool: ...
     def __ne__(self, value: object, /) -> bool: ...
     def __hash__(self) -> int: ...
-    def __reduce__(self) -> Tuple[type, Tuple[float, float, float, float, float, float, float]]: ...
+    def __reduce__(self) -> tuple[type, tuple[float, float, float, float, float, float, float]]: ...
 
 # ---------------------------------------------------------------- simulation
 
@@ -110,8 +112,8 @@ def simulate(
     u: ArrayLike,
     dt: float,
     h0: float = 0.0,
-    u_prev: Optional[float] = None,
-) -> Tuple[NDArray[np.float64], float]:
+    u_prev: float | None = None,
+) -> tuple[NDArray[np.float64], float]:
     """Simulates the model over a record; returns ``(x, h_final)``.
 
     ``u`` [V] is piecewise linear between samples ``dt`` [s] apart. ``x[k] =
@@ -140,7 +142,7 @@ class Model:
     nothing. Pickles with its state.
     """
 
-    def __new__(cls, params: Params, dt: float, h0: float = 0.0) -> "Model": ...
+    def __new__(cls, params: Params, dt: float, h0: float = 0.0) -> Model: ...
     def step(self, u: float) -> float:
         """Takes the next voltage u [V]; returns the displacement x [µm]."""
     @property
@@ -154,9 +156,9 @@ class Model:
         """Sampling interval [s]."""
     def reset(self, h0: float = 0.0) -> None:
         """Forgets the past: h = ``h0`` [µm], no previous sample."""
-    def __getstate__(self) -> Tuple[Params, float, float, Optional[float]]: ...
-    def __setstate__(self, state: Tuple[Params, float, float, Optional[float]]) -> None: ...
-    def __getnewargs__(self) -> Tuple[Params, float]: ...
+    def __getstate__(self) -> tuple[Params, float, float, float | None]: ...
+    def __setstate__(self, state: tuple[Params, float, float, float | None]) -> None: ...
+    def __getnewargs__(self) -> tuple[Params, float]: ...
 
 # ---------------------------------------------------------------- online identification
 
@@ -227,7 +229,7 @@ class _HorizonStatus(TypedDict):
     projected: bool
     """The projection moved n, β or γ in the last update."""
 
-def _config_defaults(method: _IdentifierMethod) -> Dict[str, Any]:
+def _config_defaults(method: _IdentifierMethod) -> dict[str, Any]:
     """Default options of a method's config (``boucwen.config`` takes them from here)."""
 
 def _validate_config(method: _IdentifierMethod, config: object) -> None:
@@ -271,16 +273,16 @@ class Identifier:
         init: Params,
         h0: float = 0.0,
         *,
-        config: Optional[HorizonConfig] = None,
-    ) -> "Identifier": ...
+        config: HorizonConfig | None = None,
+    ) -> Identifier: ...
     @staticmethod
     def horizon(
         dt: float,
         init: Params,
         h0: float = 0.0,
         *,
-        config: Optional[HorizonConfig] = None,
-    ) -> "Identifier":
+        config: HorizonConfig | None = None,
+    ) -> Identifier:
         """The moving-horizon output-error method ("horizon")."""
     @staticmethod
     def rpem(
@@ -288,9 +290,9 @@ class Identifier:
         init: Params,
         h0: float = 0.0,
         *,
-        config: Optional[RpemConfig] = None,
-        effects: Optional[EffectSet] = None,
-    ) -> "Identifier":
+        config: RpemConfig | None = None,
+        effects: EffectSet | None = None,
+    ) -> Identifier:
         """The output-error method ("rpem")."""
     @staticmethod
     def paper(
@@ -299,11 +301,11 @@ class Identifier:
         init: Params,
         h0: float = 0.0,
         *,
-        config: Optional[PaperConfig] = None,
-    ) -> "Identifier":
+        config: PaperConfig | None = None,
+    ) -> Identifier:
         """The paper's method over a window of ``window`` samples."""
     @property
-    def effects(self) -> Optional[EffectSet]:
+    def effects(self) -> EffectSet | None:
         """Current effect estimates (fc [Hz], creep gains [µm/V]) of rpem (an empty
         EffectSet without effects); None for the paper's method."""
     def push(self, u: float, x: float) -> float:
@@ -322,20 +324,56 @@ class Identifier:
     def method(self) -> _IdentifierMethod:
         """The online method in use."""
     @property
-    def config(self) -> Union[HorizonConfig, RpemConfig, PaperConfig]:
+    def config(self) -> HorizonConfig | RpemConfig | PaperConfig:
         """The configuration in use."""
     @property
-    def window(self) -> Optional[int]:
+    def window(self) -> int | None:
         """The paper method's window N [samples]; None for the other methods."""
     @property
-    def status(self) -> Union[_PaperStatus, _RpemStatus, _HorizonStatus]:
+    def status(self) -> _PaperStatus | _RpemStatus | _HorizonStatus:
         """What the last push did, the method's own report (a new dict at each read)."""
-    def __copy__(self) -> "Identifier":
+    def __copy__(self) -> Identifier:
         """An independent copy that continues exactly like this one."""
-    def __deepcopy__(self, _memo: Dict[int, object], /) -> "Identifier":
+    def __deepcopy__(self, _memo: dict[int, object], /) -> Identifier:
         """As ``__copy__``."""
     def reset(self) -> None:
         """Back to the state right after construction."""
+
+class _CreepParams(TypedDict):
+    """``creep``: first-order elements, time constants [s] and static gains [µm/V]."""
+
+    tau_s: list[float]
+    gain_um_per_v: list[float]
+
+class _InputLagParams(TypedDict):
+    """``input_lag``: first-order lag of the voltage, corner frequency [Hz]."""
+
+    fc_hz: float
+
+class _ResonanceParams(TypedDict):
+    """``resonance``: second-order element, natural frequency [Hz] and damping ratio [-]."""
+
+    fn_hz: float
+    zeta: float
+
+class _DriftParams(TypedDict):
+    """``drift``: a trend of the output [µm/s]."""
+
+    rate_um_per_s: float
+
+class _DelayParams(TypedDict):
+    """``delay``: a whole number of samples [-]."""
+
+    samples: int
+
+class _EffectParams(TypedDict, total=False):
+    """``EffectSet.to_dict()``: the effects present, each with its parameters."""
+
+    creep: _CreepParams
+    input_lag: _InputLagParams
+    resonance: _ResonanceParams
+    drift: _DriftParams
+    delay: _DelayParams
 
 @final
 class EffectSet:
@@ -345,27 +383,27 @@ class EffectSet:
     resonance={"fn_hz": Hz, "zeta": -}, drift={"rate_um_per_s": µm/s},
     delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError."""
 
-    vocabulary: ClassVar[List[str]]
+    vocabulary: ClassVar[list[str]]
     def __new__(
         cls,
         *,
-        creep: Optional[Dict[str, object]] = None,
-        input_lag: Optional[Dict[str, float]] = None,
-        resonance: Optional[Dict[str, float]] = None,
-        drift: Optional[Dict[str, float]] = None,
-        delay: Optional[Dict[str, int]] = None,
-    ) -> "EffectSet": ...
+        creep: _CreepParams | None = None,
+        input_lag: _InputLagParams | None = None,
+        resonance: _ResonanceParams | None = None,
+        drift: _DriftParams | None = None,
+        delay: _DelayParams | None = None,
+    ) -> EffectSet: ...
     @property
-    def names(self) -> List[str]:
+    def names(self) -> list[str]:
         """Names of the effects present, in vocabulary order."""
-    def to_dict(self) -> Dict[str, Dict[str, object]]: ...
+    def to_dict(self) -> _EffectParams: ...
     @staticmethod
-    def from_dict(d: Dict[str, Dict[str, object]]) -> EffectSet: ...
+    def from_dict(d: _EffectParams) -> EffectSet: ...
     def __len__(self) -> int: ...
     def __contains__(self, key: object, /) -> bool: ...
 
 def simulate_extended(
-    params: Params, effects: Optional[EffectSet], u: ArrayLike, dt: float, h0: float = 0.0
+    params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float = 0.0
 ) -> NDArray[np.float64]:
     """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen + creep) →
     resonance → + drift → delay. GIL released."""

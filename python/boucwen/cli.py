@@ -8,7 +8,7 @@ Subcommands:
 * ``boucwen reproduce [--out DIR] [--quick]``: the paper's experiment on the
   simulated bench (:mod:`boucwen.experiments.reproduce`).
 * ``boucwen diagnose (DATA.csv | --dataset NAME) --json REPORT.json --predictions PRED.csv
-  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnose`).
+  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnosis`).
 
 Exit codes: 0 success; 1 ``fit`` finished without converging (the result is still
 printed and written); 2 error. Every error (bad file, bad data, unwritable output)
@@ -24,9 +24,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Callable, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Callable, NoReturn
 
-__all__ = ["main", "build_parser", "SUBCOMMANDS"]
+__all__ = ["SUBCOMMANDS", "build_parser", "main"]
 
 EXIT_OK = 0
 EXIT_ERROR = 2
@@ -39,8 +40,13 @@ class _UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         raise _UsageError(f"{self.prog}: error: {message}")
+
+
+if TYPE_CHECKING:
+    # What ``add_subparsers`` returns; each subcommand adds its parser to it.
+    _Subparsers = argparse._SubParsersAction[_Parser]
 
 
 # --------------------------------------------------------------------------- fit
@@ -77,7 +83,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     return EXIT_OK if result.success else EXIT_NOT_CONVERGED
 
 
-def _add_fit(sub) -> None:
+def _add_fit(sub: _Subparsers) -> None:
     p = sub.add_parser(
         "fit",
         help="offline output-error fit of a CSV record (t, u, x)",
@@ -103,7 +109,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _add_reproduce(sub) -> None:
+def _add_reproduce(sub: _Subparsers) -> None:
     from .experiments.reproduce import DEFAULT_OUT
 
     p = sub.add_parser(
@@ -138,7 +144,8 @@ def _prepare_output(path: str | None) -> None:
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from .diagnose import diagnose, plot_diagnosis, write_predictions, write_report
+    from .diagnosis import diagnose, write_predictions, write_report
+    from .plots import plot_diagnosis
 
     for path in (args.json, args.predictions, args.plot):
         _prepare_output(path)
@@ -170,7 +177,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _add_diagnose(sub) -> None:
+def _add_diagnose(sub: _Subparsers) -> None:
     p = sub.add_parser(
         "diagnose",
         help="find which effect the base model misses in a record",
@@ -199,7 +206,7 @@ def _add_diagnose(sub) -> None:
 # --------------------------------------------------------------------------- main
 
 #: One registration function per subcommand, in help order.
-SUBCOMMANDS: list[Callable] = [_add_fit, _add_reproduce, _add_diagnose]
+SUBCOMMANDS: list[Callable[[_Subparsers], None]] = [_add_fit, _add_reproduce, _add_diagnose]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -23,34 +23,39 @@ Unknowns, in this order (see :class:`Layout`):
   chosen by :func:`best_delay` and held fixed.
 
 Log coordinates keep fc, fn and ζ positive; fn stays below 0.45/dt (Nyquist is
-0.5/dt). Jacobians are forward differences, one simulation per column, run in
-threads (the simulator releases the GIL).
+0.5/dt). Residual, Jacobian (forward differences in threads) and optimiser are
+those of :mod:`boucwen.lsq`, shared with :func:`boucwen.fit`.
 """
 
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
+from numpy.typing import ArrayLike
 
 from ._core import EffectSet, Params, simulate_extended
+from .checks import FloatArray
 from .fit import N_BOUNDS
+from .lsq import OutputErrorProblem, finite_or_none, jacobian_threads
+from .metrics import max_abs, rms
+from .record import Record, validate_record
 
 __all__ = [
-    "Layout",
-    "ExtendedFit",
-    "fit_extended",
-    "simulate_chain",
-    "creep_time_constants",
-    "best_delay",
+    "FN_MAX_NYQUIST_FRACTION",
     "VOCABULARY",
     "ZETA_BOUNDS",
-    "FN_MAX_NYQUIST_FRACTION",
+    "ExtendedFit",
+    "Layout",
+    "best_delay",
+    "candidate_starts",
+    "creep_time_constants",
+    "fit_extended",
+    "fit_extended_record",
+    "simulate_chain",
 ]
 
 #: The effect names, in signal-chain order.
@@ -61,10 +66,6 @@ VOCABULARY: tuple[str, ...] = tuple(EffectSet.vocabulary)
 ZETA_BOUNDS = (1e-3, 1.0)
 #: fn is kept below this fraction of the sampling rate (Nyquist = 0.5).
 FN_MAX_NYQUIST_FRACTION = 0.45
-#: Residual value [µm] returned for a parameter set that cannot be simulated.
-_FAIL_RESIDUAL = 1e6
-#: Relative forward-difference step.
-_FD_STEP = 1e-6
 
 
 def creep_time_constants(dt: float, duration_s: float, max_count: int = 5) -> list[float]:
@@ -99,7 +100,7 @@ class Layout:
     duration_s: float
 
     @classmethod
-    def of(cls, effects: EffectSet, dt: float, duration_s: float) -> "Layout":
+    def of(cls, effects: EffectSet, dt: float, duration_s: float) -> Layout:
         d = effects.to_dict()
         return cls(
             names=tuple(effects.names),
@@ -111,7 +112,7 @@ class Layout:
 
     def labels(self) -> list[str]:
         """Name of every unknown, in vector order."""
-        out = list(Params.names) + ["h0"]
+        out = [*list(Params.names), "h0"]
         if "creep" in self.names:
             out += [f"creep.gain[{i}]" for i in range(len(self.creep_tau_s))]
         if "input_lag" in self.names:
@@ -122,10 +123,10 @@ class Layout:
             out.append("drift.rate")
         return out
 
-    def pack(self, params: Params, effects: EffectSet, h0: float) -> np.ndarray:
+    def pack(self, params: Params, effects: EffectSet, h0: float) -> FloatArray:
         """(params, effects, h0) → vector of unknowns."""
         d = effects.to_dict()
-        v = list(params.to_array()) + [float(h0)]
+        v = [*list(params.to_array()), float(h0)]
         if "creep" in self.names:
             v += list(d["creep"]["gain_um_per_v"])
         if "input_lag" in self.names:
@@ -136,7 +137,7 @@ class Layout:
             v.append(d["drift"]["rate_um_per_s"])
         return np.asarray(v, dtype=np.float64)
 
-    def unpack(self, v: np.ndarray) -> tuple[Params, EffectSet, float]:
+    def unpack(self, v: FloatArray) -> tuple[Params, EffectSet, float]:
         """Vector of unknowns → (params, effects, h0); ValueError if invalid."""
         params = Params.from_array(v[:7])
         h0 = float(v[7])
@@ -159,7 +160,7 @@ class Layout:
             kw["delay"] = {"samples": self.delay_samples}
         return params, EffectSet(**kw), h0
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+    def bounds(self) -> tuple[FloatArray, FloatArray]:
         labels = self.labels()
         lo = np.full(len(labels), -np.inf)
         hi = np.full(len(labels), np.inf)
@@ -195,7 +196,7 @@ class ExtendedFit:
     nfev: int
     success: bool
 
-    def simulate(self, u: Any, dt: float) -> np.ndarray:
+    def simulate(self, u: ArrayLike, dt: float) -> FloatArray:
         """x [µm] of the fitted model for the voltage ``u`` [V]."""
         return simulate_extended(self.params, self.effects, u, dt, self.h0)
 
@@ -206,76 +207,31 @@ class ExtendedFit:
         return out
 
 
-def simulate_chain(params: Params, effects: EffectSet, u: np.ndarray, dt: float, h0: float) -> np.ndarray | None:
-    """:func:`boucwen.simulate_extended`, or None if the values cannot be simulated."""
-    try:
-        x = simulate_extended(params, effects, u, dt, h0)
-    except (ValueError, OverflowError):
-        return None
-    return x if np.all(np.isfinite(x)) else None
+def simulate_chain(params: Params, effects: EffectSet, u: FloatArray, dt: float, h0: float) -> FloatArray | None:
+    """:func:`boucwen.simulate_extended` [µm], or None if the values cannot be simulated."""
+    return finite_or_none(lambda: simulate_extended(params, effects, u, dt, h0))
 
 
-class _Problem:
-    def __init__(
-        self,
-        layout: Layout,
-        u: np.ndarray,
-        x: np.ndarray,
-        dt: float,
-        pool: ThreadPoolExecutor | None,
-        typical: np.ndarray,
-    ):
-        self.layout, self.u, self.x, self.dt, self.pool = layout, u, x, dt, pool
-        self.typical = typical
-        self.nsim = 0
-        self._cache: tuple[bytes, np.ndarray | None] | None = None
+class _Chain:
+    """Vector of unknowns → x [µm] of the extended model over one record (or None)."""
 
-    def sim(self, v: np.ndarray) -> np.ndarray | None:
-        self.nsim += 1
+    def __init__(self, layout: Layout, u: FloatArray, dt: float):
+        self.layout, self.u, self.dt = layout, u, dt
+
+    def __call__(self, v: FloatArray) -> FloatArray | None:
         try:
             p, e, h0 = self.layout.unpack(v)
         except (ValueError, OverflowError):
             return None
         return simulate_chain(p, e, self.u, self.dt, h0)
 
-    def _cached(self, v: np.ndarray) -> np.ndarray | None:
-        key = v.tobytes()
-        if self._cache is None or self._cache[0] != key:
-            self._cache = (key, self.sim(v))
-        return self._cache[1]
 
-    def residual(self, v: np.ndarray) -> np.ndarray:
-        xs = self._cached(v)
-        return np.full(self.u.size, _FAIL_RESIDUAL) if xs is None else xs - self.x
-
-    def jacobian(self, v: np.ndarray) -> np.ndarray:
-        base = self._cached(v)
-        steps = _FD_STEP * np.maximum(np.abs(v), self.typical)
-        lo, hi = self.layout.bounds()
-
-        def column(i: int) -> tuple[np.ndarray | None, float]:
-            vi = v.copy()
-            step = steps[i] if v[i] + steps[i] <= hi[i] else -steps[i]
-            vi[i] += step
-            return self.sim(vi), step
-
-        idx = range(v.size)
-        cols = list(self.pool.map(column, idx)) if self.pool else [column(i) for i in idx]
-        jac = np.zeros((self.u.size, v.size))
-        if base is None:
-            return jac
-        for i, (xi, step) in enumerate(cols):
-            if xi is not None:
-                jac[:, i] = (xi - base) / step
-        return jac
-
-
-def _typical(layout: Layout, v0: np.ndarray, u: np.ndarray, x: np.ndarray, dt: float) -> np.ndarray:
+def _typical(layout: Layout, v0: FloatArray, u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
     """Typical size of each unknown (sets the difference steps and the scaling)."""
     span_u = max(float(np.ptp(u)), 1e-12)
     span_x = max(float(np.ptp(x)), 1e-12)
     labels = layout.labels()
-    typ = np.abs(v0).copy()
+    typ: FloatArray = np.abs(v0).copy()
     floors = {
         "kv": span_x / span_u,
         "x0": span_x,
@@ -326,13 +282,29 @@ def fit_extended(
     Raises:
         ValueError: invalid data or a starting point that cannot be simulated.
     """
-    from .io import validate_samples
+    record = validate_record(u, x, dt)
+    return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, workers=workers)
 
-    u, x = validate_samples(u, x, dt)
-    dt = float(dt)
+
+def fit_extended_record(
+    record: Record,
+    params: Params,
+    effects: EffectSet,
+    h0: float = 0.0,
+    *,
+    max_nfev: int = 40,
+    tol: float = 1e-8,
+    workers: int | None = None,
+) -> ExtendedFit:
+    """:func:`fit_extended` on a checked :class:`~boucwen.record.Record`."""
+    u, x, dt = record.u, record.x, record.dt
     layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
     v0 = layout.pack(params, effects, h0)
     lo, hi = layout.bounds()
+    # The Jacobian steps backwards only at the layout's own bounds (fc, fn below
+    # Nyquist); the sign bounds of the creep gains below need no such care, since
+    # any sign can be simulated.
+    step_upper = layout.bounds()[1]
     # Creep continues the motion a voltage step started: its gains share the sign of kv.
     for j, label in enumerate(layout.labels()):
         if label.startswith("creep.gain"):
@@ -343,29 +315,13 @@ def fit_extended(
     margin = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
     v0 = np.clip(v0, lo + margin, hi - margin)
     typ = _typical(layout, v0, u, x, dt)
-    nthreads = workers or os.cpu_count() or 1
-    pool = ThreadPoolExecutor(max_workers=nthreads) if nthreads > 1 else None
-    try:
-        prob = _Problem(layout, u, x, dt, pool, typ)
-        if prob.sim(v0) is None:
+    with jacobian_threads(workers) as pool:
+        prob = OutputErrorProblem(_Chain(layout, u, dt), x, typical=typ, upper=step_upper, pool=pool)
+        if prob.simulate(v0) is None:
             raise ValueError("the starting point of fit_extended cannot be simulated")
-        res = least_squares(
-            prob.residual,
-            v0,
-            jac=prob.jacobian,
-            bounds=(lo, hi),
-            method="trf",
-            x_scale=typ,
-            xtol=tol,
-            ftol=tol,
-            gtol=tol,
-            max_nfev=max_nfev,
-        )
+        res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev)
         p, e, h = layout.unpack(res.x)
         xs = simulate_chain(p, e, u, dt, h)
-    finally:
-        if pool is not None:
-            pool.shutdown()
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point
         raise ValueError("the fitted parameters cannot be simulated")
     err = x - xs
@@ -373,15 +329,15 @@ def fit_extended(
         params=p,
         effects=e,
         h0=h,
-        rms_um=float(np.sqrt(np.mean(err**2))),
-        max_um=float(np.max(np.abs(err))),
-        nfev=prob.nsim,
+        rms_um=rms(err),
+        max_um=max_abs(err),
+        nfev=prob.simulations,
         success=bool(res.success),
     )
 
 
 def best_delay(
-    u: np.ndarray, x: np.ndarray, dt: float, params: Params, effects: EffectSet, h0: float, max_samples: int
+    record: Record, params: Params, effects: EffectSet, h0: float, max_samples: int
 ) -> tuple[int, dict[int, float]]:
     """The whole-sample delay d (0 … ``max_samples``) that best aligns the model with x.
 
@@ -390,32 +346,34 @@ def best_delay(
     taken (so that a small gain or offset change does not mask the lag). Returns
     ``(d, {d: rms})``.
     """
-    kw = effects.to_dict()
-    kw.pop("delay", None)
-    xs = simulate_chain(params, EffectSet(**kw), u, dt, h0)
+    xs = simulate_chain(params, _with(effects, delay=None), record.u, record.dt, h0)
     if xs is None:
         return 0, {}
-    rms: dict[int, float] = {}
-    for d in range(0, max_samples + 1):
+    x = record.x
+    rms_by_shift: dict[int, float] = {}
+    for d in range(max_samples + 1):
         a = xs[: xs.size - d]
         b = x[d:]
         basis = np.column_stack([a, np.ones_like(a)])
         coef, *_ = np.linalg.lstsq(basis, b, rcond=None)
-        rms[d] = float(np.sqrt(np.mean((b - basis @ coef) ** 2)))
-    return min(rms, key=rms.__getitem__), rms
+        rms_by_shift[d] = rms(b - basis @ coef)
+    return min(rms_by_shift, key=rms_by_shift.__getitem__), rms_by_shift
 
 
-def _starts_from(effects: EffectSet, extra: dict[str, Any]) -> EffectSet:
-    kw = effects.to_dict()
-    kw.update(extra)
+def _with(effects: EffectSet, **changes: Any) -> EffectSet:
+    """``effects`` with some effects added or replaced (a dict) or removed (None)."""
+    kw: dict[str, Any] = dict(effects.to_dict())
+    for name, value in changes.items():
+        if value is None:
+            kw.pop(name, None)
+        else:
+            kw[name] = value
     return EffectSet(**kw)
 
 
 def candidate_starts(
     name: str,
-    u: np.ndarray,
-    x: np.ndarray,
-    dt: float,
+    record: Record,
     params: Params,
     effects: EffectSet,
     h0: float,
@@ -424,25 +382,27 @@ def candidate_starts(
     creep_tau_s: Sequence[float] | None = None,
 ) -> list[EffectSet]:
     """Starting effect sets that add ``name`` to ``effects`` (a few for the nonlinear ones)."""
-    duration = dt * (u.size - 1)
+    dt = record.dt
+    duration = record.duration_s
     if name == "creep":
         taus = list(creep_tau_s) if creep_tau_s is not None else creep_time_constants(dt, duration)
-        return [_starts_from(effects, {"creep": {"tau_s": taus, "gain_um_per_v": [0.0] * len(taus)}})]
+        return [_with(effects, creep={"tau_s": taus, "gain_um_per_v": [0.0] * len(taus)})]
     if name == "drift":
-        return [_starts_from(effects, {"drift": {"rate_um_per_s": 0.0}})]
+        return [_with(effects, drift={"rate_um_per_s": 0.0})]
     if name == "input_lag":
         # The last start is nearly no lag at all (fc = 5/dt).
         fcs = np.append(np.geomspace(max(2.0 / duration, 0.5), 2.0 / dt, 10), 5.0 / dt)
-        return [_starts_from(effects, {"input_lag": {"fc_hz": float(f)}}) for f in fcs]
+        return [_with(effects, input_lag={"fc_hz": float(f)}) for f in fcs]
     if name == "resonance":
         fns = np.geomspace(max(5.0 / duration, 0.02 / dt), FN_MAX_NYQUIST_FRACTION * 0.9 / dt, 8)
         pairs = [(float(f), z) for f in fns for z in (0.03, 0.15, 0.5)]
         pairs.append((FN_MAX_NYQUIST_FRACTION * 0.98 / dt, 0.7))  # the mildest resonance
-        return [_starts_from(effects, {"resonance": {"fn_hz": f, "zeta": z}}) for f, z in pairs]
+        return [_with(effects, resonance={"fn_hz": f, "zeta": z}) for f, z in pairs]
     if name == "delay":
         # Every whole-sample delay, the best-aligning shift first (the caller keeps the
         # start of least error).
-        d, _ = best_delay(u, x, dt, params, effects, h0, max_delay)
-        order = [max(d, 1)] + [k for k in range(1, max_delay + 1) if k != max(d, 1)]
-        return [_starts_from(effects, {"delay": {"samples": k}}) for k in order]
+        d, _ = best_delay(record, params, effects, h0, max_delay)
+        first = max(d, 1)
+        order = [first, *(k for k in range(1, max_delay + 1) if k != first)]
+        return [_with(effects, delay={"samples": k}) for k in order]
     raise ValueError(f"unknown effect {name!r}; expected one of {list(VOCABULARY)}")

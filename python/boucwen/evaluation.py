@@ -21,7 +21,8 @@ Units: u [V], x [µm], dt [s], frequencies [Hz]; errors [µm].
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Sequence
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray

@@ -28,8 +28,9 @@ How it works:
   simulation each on a decimated copy of the record; the best ``n_starts`` (plus
   ``init`` if given) are refined by ``scipy.optimize.least_squares`` (trust-region
   reflective, bounds keep n in ``N_BOUNDS``) on the decimated record, and the best
-  of those is refined on the full record. Jacobians are forward differences, one
-  simulation per column, run in parallel threads (the simulator releases the GIL).
+  of those is refined on the full record. Residual, Jacobian (forward differences in
+  threads) and optimiser are those of :mod:`boucwen.lsq`, shared with
+  :func:`boucwen.effects.fit_extended`.
 * **x0 and h0.** They trade off: a different h0 shifts h until the hysteresis
   forgets it (about half a cycle), which x0 partly absorbs. h0 is fitted from that
   initial transient; a weak pull of weight ``H0_RIDGE`` towards 0 keeps it defined
@@ -40,33 +41,31 @@ How it works:
 from __future__ import annotations
 
 import math
-import os
-import sys
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult
 
 from ._core import Params, simulate
+from .checks import FloatArray, check_finite, check_int
+from .lsq import OutputErrorProblem, Ridge, finite_or_none, jacobian_threads
+from .metrics import max_abs, rms
+from .progress import Progress, reporter
+from .record import Record, validate_record
 
-__all__ = ["fit", "FitResult", "N_BOUNDS", "H0_RIDGE"]
+__all__ = ["H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record"]
 
 #: Bounds on the exponent n [-] during the fit.
 N_BOUNDS = (0.2, 6.0)
 #: Weight [-] of the residual row ``H0_RIDGE · h0`` that pulls h0 towards 0 µm.
 H0_RIDGE = 1e-3
-#: Forward-difference step in scaled units (the simulator is smooth to ~1e-7 there).
-_FD_STEP = 1e-6
 #: Target length of the decimated record used by the global stage [samples].
 _COARSE_LEN = 3000
 #: Largest change of u between decimated samples, as a fraction of the span of u.
 _COARSE_DU = 0.03
-#: Residual value returned when a parameter set cannot be simulated [µm].
-_FAIL_RESIDUAL = 1e6
 
 #: Two local runs whose costs agree to this relative tolerance found the same optimum.
 _SAME_COST = 1e-4
@@ -96,7 +95,7 @@ class FitResult:
     success: bool
     message: str
     nfev: int
-    x_fit: np.ndarray
+    x_fit: FloatArray
     elapsed_s: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
@@ -119,62 +118,24 @@ class FitResult:
         )
 
 
-# --------------------------------------------------------------------------- inputs
-
-
-def _validate(u: Any, x: Any, dt: Any) -> tuple[np.ndarray, np.ndarray, float]:
-    try:
-        from .io import validate_samples
-    except ImportError:  # pragma: no cover - io is part of the package
-        validate_samples = None
-    if validate_samples is not None:
-        u, x = validate_samples(u, x, dt)
-    else:  # pragma: no cover
-        u = np.ascontiguousarray(u, dtype=np.float64)
-        x = np.ascontiguousarray(x, dtype=np.float64)
-    if isinstance(dt, (bool, np.bool_)) or not isinstance(dt, (int, float, np.integer, np.floating)):
-        raise TypeError(f"dt must be a real number, got {type(dt).__name__}")
-    dt = float(dt)
-    if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be finite and > 0 s, got {dt}")
-    if u.size < 16:
-        raise ValueError(f"fit needs at least 16 samples, got {u.size}")
-    if not np.ptp(u) > 0:
-        raise ValueError("u is constant; the fit needs a varying voltage")
-    return u, x, dt
-
-
 # --------------------------------------------------------------------------- problem
 
 
-class _Problem:
-    """The separable output-error problem on one (possibly decimated) record."""
+class _Hysteresis:
+    """The nonlinear part of the separable problem: scaled unknowns z → h [µm].
 
-    def __init__(
-        self,
-        u: np.ndarray,
-        x: np.ndarray,
-        dt: float,
-        scale: np.ndarray,
-        fixed_h0: float | None,
-        pool: ThreadPoolExecutor | None,
-    ):
-        self.u, self.x, self.dt = u, x, dt
-        self.scale = scale
-        self.fixed_h0 = fixed_h0
-        self.pool = pool
-        basis = np.column_stack([u, np.ones_like(u)])
-        self.q, _ = np.linalg.qr(basis)
-        self.basis = basis
-        self.nsim = 0
-        self._lock = threading.Lock()
-        self._cache: tuple[bytes, np.ndarray] | None = None
+    z holds (A, β, γ, n, δ, h0) divided by ``scale`` (without h0 when it is fixed).
+    """
+
+    def __init__(self, u: FloatArray, dt: float, scale: FloatArray, fixed_h0: float | None):
+        self.u, self.dt, self.scale, self.fixed_h0 = u, dt, scale, fixed_h0
 
     @property
     def nvar(self) -> int:
+        """Number of unknowns: 5 with h0 fixed, else 6."""
         return 5 if self.fixed_h0 is not None else 6
 
-    def theta(self, z: np.ndarray) -> np.ndarray:
+    def theta(self, z: FloatArray) -> FloatArray:
         """Scaled unknowns → (A, β, γ, n, δ, h0)."""
         th = np.empty(6)
         th[: self.nvar] = z[: self.nvar] * self.scale[: self.nvar]
@@ -182,77 +143,36 @@ class _Problem:
             th[5] = self.fixed_h0
         return th
 
-    def hyst(self, th: np.ndarray) -> np.ndarray | None:
-        """h [µm] simulated for (A, β, γ, n, δ, h0), or None if it cannot be simulated."""
-        with self._lock:
-            self.nsim += 1
-        try:
-            p = Params(0.0, 0.0, th[0], th[1], th[2], th[3], th[4])
-            h, _ = simulate(p, self.u, self.dt, float(th[5]))
-        except (ValueError, OverflowError):
-            return None
-        h = np.asarray(h)
-        if not np.all(np.isfinite(h)):
-            return None
-        return h
+    def __call__(self, z: FloatArray) -> FloatArray | None:
+        """h [µm] simulated for the unknowns z, or None if they cannot be simulated."""
+        th = self.theta(z)
+        return finite_or_none(
+            lambda: simulate(Params(0.0, 0.0, th[0], th[1], th[2], th[3], th[4]), self.u, self.dt, float(th[5]))[0]
+        )
 
-    def project(self, v: np.ndarray) -> np.ndarray:
-        return v - self.q @ (self.q.T @ v)
 
-    def _h_cached(self, z: np.ndarray) -> np.ndarray | None:
-        key = z.tobytes()
-        if self._cache is not None and self._cache[0] == key:
-            return self._cache[1]
-        h = self.hyst(self.theta(z))
-        self._cache = (key, h)
-        return h
+def _problem(
+    record: Record, scale: FloatArray, fixed_h0: float | None, pool: ThreadPoolExecutor | None
+) -> tuple[OutputErrorProblem, _Hysteresis]:
+    """The variable-projection problem on one (possibly decimated) record."""
+    hysteresis = _Hysteresis(record.u, record.dt, scale, fixed_h0)
+    ridge = Ridge(index=5, weight=H0_RIDGE, scale=float(scale[5])) if fixed_h0 is None else None
+    basis = np.column_stack([record.u, np.ones_like(record.u)])
+    problem = OutputErrorProblem(hysteresis, record.x, basis=basis, ridge=ridge, pool=pool)
+    return problem, hysteresis
 
-    def residual(self, z: np.ndarray) -> np.ndarray:
-        h = self._h_cached(z)
-        m = self.u.size + (1 if self.fixed_h0 is None else 0)
-        if h is None:
-            return np.full(m, _FAIL_RESIDUAL)
-        r = self.project(h - self.x)
-        if self.fixed_h0 is None:
-            r = np.append(r, H0_RIDGE * z[5] * self.scale[5])
-        return r
 
-    def jacobian(self, z: np.ndarray) -> np.ndarray:
-        h = self._h_cached(z)
-        nvar = self.nvar
-        steps = _FD_STEP * np.maximum(1.0, np.abs(z))
-
-        def column(i: int) -> np.ndarray | None:
-            zi = z.copy()
-            zi[i] += steps[i]
-            return self.hyst(self.theta(zi))
-
-        cols = list(self.pool.map(column, range(nvar))) if self.pool else [column(i) for i in range(nvar)]
-        m = self.u.size + (1 if self.fixed_h0 is None else 0)
-        jac = np.zeros((m, nvar))
-        if h is None:
-            return jac
-        for i, hi in enumerate(cols):
-            if hi is not None:
-                jac[: self.u.size, i] = self.project((hi - h) / steps[i])
-        if self.fixed_h0 is None:
-            jac[-1, 5] = H0_RIDGE * self.scale[5]
-        return jac
-
-    def cost(self, z: np.ndarray) -> float:
-        r = self.residual(z[: self.nvar])
-        return float(r @ r)
-
-    def linear_part(self, h: np.ndarray) -> tuple[float, float]:
-        """(kv, x0) of the least-squares fit of x − h on [u, 1]."""
-        coef, *_ = np.linalg.lstsq(self.basis, self.x - h, rcond=None)
-        return float(coef[0]), float(coef[1])
+def _linear_part(record: Record, h: FloatArray) -> tuple[float, float]:
+    """(kv, x0) of the least-squares fit of x − h on [u, 1]."""
+    basis = np.column_stack([record.u, np.ones_like(record.u)])
+    coef, *_ = np.linalg.lstsq(basis, record.x - h, rcond=None)
+    return float(coef[0]), float(coef[1])
 
 
 # --------------------------------------------------------------------------- guesses
 
 
-def _scales(u: np.ndarray, x: np.ndarray, dt: float) -> np.ndarray:
+def _scales(u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
     """Scale of (A, β, γ, n, δ, h0) derived from the record."""
     basis = np.column_stack([u, np.ones_like(u)])
     coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
@@ -274,7 +194,7 @@ def _scales(u: np.ndarray, x: np.ndarray, dt: float) -> np.ndarray:
     return np.array([s_a, s_bg, s_bg, 1.0, s_delta, half_width])
 
 
-def _candidates(rng: np.random.Generator, count: int, half_width: float) -> np.ndarray:
+def _candidates(rng: np.random.Generator, count: int, half_width: float) -> FloatArray:
     """Random starting points in scaled units (A, β, γ, n, δ, h0)."""
     z = np.zeros((count, 6))
     mag = np.exp(rng.uniform(math.log(0.05), math.log(2.0), count))
@@ -292,7 +212,7 @@ def _candidates(rng: np.random.Generator, count: int, half_width: float) -> np.n
     return z
 
 
-def _decimation(u: np.ndarray) -> int:
+def _decimation(u: FloatArray) -> int:
     q = max(1, u.size // _COARSE_LEN)
     span = float(np.ptp(u))
     while q > 1:
@@ -305,24 +225,13 @@ def _decimation(u: np.ndarray) -> int:
 # --------------------------------------------------------------------------- fit
 
 
-def _local(problem: _Problem, z0: np.ndarray, max_nfev: int, tol: float):
-    lb = np.full(problem.nvar, -np.inf)
-    ub = np.full(problem.nvar, np.inf)
+def _local(problem: OutputErrorProblem, nvar: int, z0: FloatArray, max_nfev: int, tol: float) -> OptimizeResult:
+    lb = np.full(nvar, -np.inf)
+    ub = np.full(nvar, np.inf)
     lb[3], ub[3] = N_BOUNDS
-    z0 = z0[: problem.nvar].copy()
+    z0 = z0[:nvar].copy()
     z0[3] = min(max(z0[3], N_BOUNDS[0] + 1e-9), N_BOUNDS[1] - 1e-9)
-    return least_squares(
-        problem.residual,
-        z0,
-        jac=problem.jacobian,
-        bounds=(lb, ub),
-        method="trf",
-        x_scale=1.0,
-        xtol=tol,
-        ftol=tol,
-        gtol=tol,
-        max_nfev=max_nfev,
-    )
+    return problem.solve(z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev)
 
 
 def fit(
@@ -338,7 +247,7 @@ def fit(
     max_nfev: int = 40,
     decimate: int | None = None,
     workers: int | None = None,
-    progress: bool | Callable[[str], None] = False,
+    progress: Progress = False,
 ) -> FitResult:
     """Identifies the seven parameters and h0 from a record by output-error least squares.
 
@@ -367,68 +276,84 @@ def fit(
         ValueError: bad shapes, lengths, non-finite values, dt not > 0, constant u,
             fewer than 16 samples, or bad option values.
     """
+    return fit_record(
+        validate_record(u, x, dt),
+        init=init,
+        h0=h0,
+        n_starts=n_starts,
+        n_candidates=n_candidates,
+        seed=seed,
+        max_nfev=max_nfev,
+        decimate=decimate,
+        workers=workers,
+        progress=progress,
+    )
+
+
+def fit_record(
+    record: Record,
+    *,
+    init: Params | None = None,
+    h0: float | None = None,
+    n_starts: int = 4,
+    n_candidates: int = 32,
+    seed: int = 0,
+    max_nfev: int = 40,
+    decimate: int | None = None,
+    workers: int | None = None,
+    progress: Progress = False,
+) -> FitResult:
+    """:func:`fit` on a checked :class:`~boucwen.record.Record` (same options, same result)."""
     started = time.perf_counter()
-    u, x, dt = _validate(u, x, dt)
+    if record.u.size < 16:
+        raise ValueError(f"fit needs at least 16 samples, got {record.u.size}")
+    if not np.ptp(record.u) > 0:
+        raise ValueError("u is constant; the fit needs a varying voltage")
     if init is not None and not isinstance(init, Params):
         raise TypeError(f"init must be a boucwen.Params, got {type(init).__name__}")
     if h0 is not None:
-        if isinstance(h0, bool) or not isinstance(h0, (int, float, np.integer, np.floating)):
-            raise TypeError(f"h0 must be a real number or None, got {type(h0).__name__}")
-        if not math.isfinite(h0):
-            raise ValueError(f"h0 must be finite, got {h0}")
-        h0 = float(h0)
-    for name, value, low in (("n_starts", n_starts, 1), ("n_candidates", n_candidates, 0), ("max_nfev", max_nfev, 1)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    if decimate is not None and (
-        isinstance(decimate, bool) or not isinstance(decimate, (int, np.integer)) or decimate < 1
-    ):
-        raise ValueError(f"decimate must be None or an integer >= 1, got {decimate!r}")
-    if workers is not None and (not isinstance(workers, (int, np.integer)) or workers < 1):
-        raise ValueError(f"workers must be None or an integer >= 1, got {workers!r}")
+        h0 = check_finite("h0", h0)
+    check_int("n_starts", n_starts, 1)
+    check_int("n_candidates", n_candidates, 0)
+    check_int("max_nfev", max_nfev, 1)
+    if decimate is not None:
+        check_int("decimate", decimate, 1)
+    say = reporter(progress, "fit", started, width=5)
 
-    if progress is True:
-
-        def say(msg: str) -> None:
-            print(f"fit: [{time.perf_counter() - started:5.2f} s] {msg}", file=sys.stderr, flush=True)
-    elif callable(progress):
-        say = progress
-    else:
-
-        def say(msg: str) -> None:
-            pass
-
+    u, x, dt = record.u, record.x, record.dt
     scale = _scales(u, x, dt)
     q = decimate if decimate is not None else _decimation(u)
-    nthreads = workers or os.cpu_count() or 1
-    pool = ThreadPoolExecutor(max_workers=nthreads) if nthreads > 1 else None
-    try:
-        full = _Problem(u, x, dt, scale, h0, pool)
-        coarse = full if q == 1 else _Problem(u[::q], x[::q], dt * q, scale, h0, pool)
+    with jacobian_threads(workers) as pool:
+        full, hysteresis = _problem(record, scale, h0, pool)
+        coarse_record = record if q == 1 else record.decimated(q)
+        coarse = full if q == 1 else _problem(coarse_record, scale, h0, pool)[0]
+        coarse_u_size = len(coarse_record)
+        nvar = hysteresis.nvar
 
         # Global stage: score random candidates with one simulation each.
         rng = np.random.default_rng(seed)
         cands = _candidates(rng, n_candidates, scale[5])
         if h0 is not None:
             cands[:, 5] = h0 / scale[5]
-        starts: list[np.ndarray] = []
+        starts: list[FloatArray] = []
         if init is not None:
             zi = np.array([init.A, init.beta, init.gamma, init.n, init.delta, h0 if h0 is not None else 0.0]) / scale
             starts.append(zi)
         if n_candidates:
-            say(f"scoring {n_candidates} candidates on {coarse.u.size} samples (every {q}th)")
-            costs = list(pool.map(coarse.cost, cands)) if pool else [coarse.cost(c) for c in cands]
+            say(f"scoring {n_candidates} candidates on {coarse_u_size} samples (every {q}th)")
+            rows = [c[:nvar] for c in cands]
+            costs = list(pool.map(coarse.cost, rows)) if pool is not None else [coarse.cost(c) for c in rows]
             order = np.argsort(costs)
             starts.extend(cands[i] for i in order[:n_starts])
 
         # Local stage on the coarse record.
         # Stops early once a second start lands on the best cost found so far.
-        best = None
+        best: OptimizeResult | None = None
         confirmed = False
         for k, z0 in enumerate(starts):
-            res = _local(coarse, z0, max_nfev, 1e-8)
-            rms = math.sqrt(2.0 * res.cost / coarse.u.size)
-            say(f"start {k + 1}/{len(starts)}: rms {rms:.4g} µm after {res.nfev} steps")
+            res = _local(coarse, nvar, z0, max_nfev, 1e-8)
+            fit_rms = math.sqrt(2.0 * res.cost / coarse_u_size)
+            say(f"start {k + 1}/{len(starts)}: rms {fit_rms:.4g} µm after {res.nfev} steps")
             if best is not None and abs(res.cost - best.cost) <= _SAME_COST * max(best.cost, 1e-300):
                 confirmed = True
             if best is None or res.cost < best.cost:
@@ -436,31 +361,29 @@ def fit(
             if confirmed and k + 1 < len(starts):
                 say("optimum reached from two starts; skipping the rest")
                 break
-        assert best is not None
+        if best is None:  # pragma: no cover - n_starts >= 1 or init gives at least one start
+            raise ValueError("no starting point for the local stage")
 
         # Refinement on the full record.
         if coarse is not full:
             say(f"refining on {u.size} samples")
-            final = _local(full, best.x, max_nfev, 1e-10)
+            final = _local(full, nvar, best.x, max_nfev, 1e-10)
             say(f"full record: {final.nfev} steps")
             stage = "full record"
         else:
             final = best
             stage = "record"
-        th = full.theta(final.x)
-        h = full.hyst(th)
+        th = hysteresis.theta(final.x)
+        h = full.simulate(final.x)
         if h is None:  # pragma: no cover - the optimiser never accepts a failing point
             raise ValueError("the fitted parameters cannot be simulated")
-        kv, x0 = full.linear_part(h)
+        kv, x0 = _linear_part(record, h)
         params = Params(kv, x0, *th[:5])
         x_fit = kv * u + x0 + h
         err = x - x_fit
-        nfev = full.nsim + (coarse.nsim if coarse is not full else 0)
-    finally:
-        if pool is not None:
-            pool.shutdown()
-    rms_um = float(np.sqrt(np.mean(err**2)))
-    max_um = float(np.max(np.abs(err)))
+        nfev = full.simulations + (coarse.simulations if coarse is not full else 0)
+    rms_um = rms(err)
+    max_um = max_abs(err)
     success = bool(final.success) and math.isfinite(rms_um)
     elapsed = time.perf_counter() - started
     say(f"done in {elapsed:.2f} s: rms {rms_um:.4g} µm, max {max_um:.4g} µm")

@@ -26,13 +26,16 @@ from __future__ import annotations
 import csv
 import math
 import os
-from dataclasses import dataclass, field
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-__all__ = ["Record", "read_csv", "write_csv", "validate_samples", "REQUIRED_COLUMNS"]
+from .record import Record, validate_samples
+
+# Record and validate_samples live in boucwen.record; they are importable from here too.
+__all__ = ["REQUIRED_COLUMNS", "Record", "read_csv", "validate_samples", "write_csv"]
 
 #: Columns :func:`read_csv` needs: time [s], voltage [V], displacement [µm].
 REQUIRED_COLUMNS = ("t", "u", "x")
@@ -41,111 +44,6 @@ REQUIRED_COLUMNS = ("t", "u", "x")
 STEP_RTOL = 1e-3
 #: Tolerance on the step relative to the largest |t| (9-digit time stamps).
 STAMP_RTOL = 1e-8
-
-
-@dataclass(frozen=True, eq=False)
-class Record:
-    """A uniformly sampled measurement.
-
-    Attributes:
-        t: sample times [s], float64, shape (N,).
-        u: actuator voltage [V], float64, shape (N,).
-        x: actuator displacement [µm], float64, shape (N,).
-        dt: sampling interval [s] (> 0).
-        name: short label of the record.
-        meta: free-form details (source, licence, units, extra signals).
-    """
-
-    t: np.ndarray
-    u: np.ndarray
-    x: np.ndarray
-    dt: float
-    name: str = ""
-    meta: dict = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        u, x = validate_samples(self.u, self.x, self.dt)
-        t = _as_float_vector(self.t, "t")
-        if t.shape != u.shape:
-            raise ValueError(f"t has {t.size} samples but u and x have {u.size}")
-        object.__setattr__(self, "t", t)
-        object.__setattr__(self, "u", u)
-        object.__setattr__(self, "x", x)
-        object.__setattr__(self, "dt", float(self.dt))
-        object.__setattr__(self, "name", str(self.name))
-        object.__setattr__(self, "meta", dict(self.meta))
-
-    def __len__(self) -> int:
-        return int(self.u.size)
-
-    @property
-    def sample_rate(self) -> float:
-        """Sampling rate 1/dt [Hz]."""
-        return 1.0 / self.dt
-
-    def __repr__(self) -> str:
-        return (
-            f"Record(name={self.name!r}, samples={len(self)}, dt={self.dt!r} s, "
-            f"duration={(len(self) - 1) * self.dt:.6g} s)"
-        )
-
-
-# --------------------------------------------------------------------------- arrays
-
-
-def _as_float_vector(values: Any, name: str) -> np.ndarray:
-    """`values` as a contiguous 1-D float64 array; TypeError/ValueError otherwise."""
-    try:
-        a = np.asarray(values)
-    except Exception as exc:  # ragged nested sequences and the like
-        raise ValueError(f"{name} cannot be read as an array: {exc}") from None
-    if a.dtype.kind not in "iuf":
-        raise TypeError(f"{name} must hold real numbers, got dtype {a.dtype}")
-    if a.ndim != 1:
-        shape = "a scalar" if a.ndim == 0 else f"shape {a.shape}"
-        raise ValueError(f"{name} must be 1-D, got {shape}")
-    if a.size == 0:
-        raise ValueError(f"{name} is empty")
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    bad = np.flatnonzero(~np.isfinite(a))
-    if bad.size:
-        k = int(bad[0])
-        raise ValueError(f"{name}[{k}] is {a[k]}; all samples must be finite ({bad.size} non-finite)")
-    return a
-
-
-def _check_dt(dt: Any) -> float:
-    if isinstance(dt, (bool, np.bool_)) or not isinstance(dt, (int, float, np.integer, np.floating)):
-        raise TypeError(f"dt must be a real number, got {type(dt).__name__}")
-    value = float(dt)
-    if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"dt must be finite and > 0 s, got {value}")
-    return value
-
-
-def validate_samples(u: Any, x: Any, dt: Any = None) -> tuple[np.ndarray, np.ndarray]:
-    """Checks a (u, x) pair and returns it as contiguous float64 arrays.
-
-    Args:
-        u: voltage samples [V], 1-D, real, finite.
-        x: displacement samples [µm], 1-D, real, finite, same length as ``u``.
-        dt: optional sampling interval [s]; if given it must be finite and > 0.
-
-    Returns:
-        ``(u, x)`` as C-contiguous float64 arrays (copies only when needed).
-
-    Raises:
-        TypeError: non-numeric (or complex, boolean) data, or a non-numeric ``dt``.
-        ValueError: wrong dimension, empty, different lengths, non-finite values,
-            or ``dt`` not finite and positive.
-    """
-    u = _as_float_vector(u, "u")
-    x = _as_float_vector(x, "x")
-    if u.size != x.size:
-        raise ValueError(f"u and x must have the same length, got {u.size} and {x.size}")
-    if dt is not None:
-        _check_dt(dt)
-    return u, x
 
 
 # --------------------------------------------------------------------------- CSV
@@ -163,7 +61,7 @@ def _parse_number(text: str) -> float:
     return float(text)
 
 
-def read_csv(path: str | os.PathLike) -> Record:
+def read_csv(path: str | os.PathLike[str]) -> Record:
     """Reads a measured record from a CSV file (format in the module docs).
 
     Args:
@@ -277,7 +175,7 @@ def read_csv(path: str | os.PathLike) -> Record:
     return Record(t=t, u=u, x=x, dt=dt, name=path.stem, meta={"path": str(path), "columns": header})
 
 
-def write_csv(path: str | os.PathLike, columns: Mapping[str, Any]) -> None:
+def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
     """Writes equal-length 1-D columns as CSV: a header line, then rows formatted ``%.9g``.
 
     Args:

@@ -75,21 +75,24 @@ but the measured record.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from .io import Record, validate_samples
+from ._core import Params, simulate
+from .checks import FloatArray, as_float_vector, check_dt
+from .record import Record
 
 __all__ = [
-    "BenchSettings",
-    "paper_input",
-    "measure",
-    "true_displacement",
-    "floor_vibration",
     "DEFAULT_DT",
     "PAPER_SEGMENTS",
+    "BenchSettings",
+    "floor_vibration",
+    "measure",
+    "paper_input",
+    "true_displacement",
 ]
 
 #: Default sampling interval [s] (10 kHz).
@@ -234,18 +237,16 @@ class BenchSettings:
         """The settings as a plain dict (tuples become lists)."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
-    def params(self):
+    def params(self) -> Params:
         """The Bouc–Wen core as a :class:`boucwen.Params`."""
-        from . import _core
-
-        return _core.Params(self.kv, self.x0, self.A, self.beta, self.gamma, self.n, self.delta)
+        return Params(self.kv, self.x0, self.A, self.beta, self.gamma, self.n, self.delta)
 
     @property
     def adc_lsb_v(self) -> float:
         """Voltage step of one A/D code [V] (0 if the A/D does not quantise)."""
         if not self.adc_bits:
             return 0.0
-        return (self.adc_max_v - self.adc_min_v) / (2**self.adc_bits - 1)
+        return (self.adc_max_v - self.adc_min_v) / float(2**self.adc_bits - 1)
 
 
 # --------------------------------------------------------------------------- input
@@ -254,7 +255,7 @@ class BenchSettings:
 def paper_input(
     dt: float = DEFAULT_DT,
     durations: Sequence[tuple[float, float]] | Mapping[float, float] | None = None,
-) -> tuple[np.ndarray, np.ndarray, list[tuple[float, int, int]]]:
+) -> tuple[FloatArray, FloatArray, list[tuple[float, int, int]]]:
     """The paper's test voltage u = 50 + 50·sin(2πf·t' − π/2) [V], f switching at minima.
 
     ``t'`` is the time since the start of the current segment, so every segment
@@ -282,8 +283,7 @@ def paper_input(
         ValueError: dt not > 0, a frequency or duration not > 0, or a duration that
             is not a whole number of periods.
     """
-    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be finite and > 0 s, got {dt!r}")
+    dt = check_dt(dt)
     pairs = list(
         durations.items() if isinstance(durations, Mapping) else (PAPER_SEGMENTS if durations is None else durations)
     )
@@ -302,13 +302,13 @@ def paper_input(
             )
         starts.append(starts[-1] + d)
     total = starts[-1]
-    count = int(math.floor(total / dt + 1e-9)) + 1
+    count = math.floor(total / dt + 1e-9) + 1
     t = np.arange(count, dtype=np.float64) * dt
     u = np.empty(count, dtype=np.float64)
     segments: list[tuple[float, int, int]] = []
     for i, (f, _) in enumerate(pairs):
-        lo = int(math.ceil(starts[i] / dt - 1e-9))
-        hi = count if i == len(pairs) - 1 else int(math.ceil(starts[i + 1] / dt - 1e-9))
+        lo = math.ceil(starts[i] / dt - 1e-9)
+        hi = count if i == len(pairs) - 1 else math.ceil(starts[i + 1] / dt - 1e-9)
         local = t[lo:hi] - starts[i]
         u[lo:hi] = 50.0 - 50.0 * np.cos(2.0 * math.pi * float(f) * local)
         segments.append((float(f), lo, hi))
@@ -318,7 +318,7 @@ def paper_input(
 # --------------------------------------------------------------------------- bench
 
 
-def _lowpass(v: np.ndarray, tau: float, step: float, y0: float) -> np.ndarray:
+def _lowpass(v: FloatArray, tau: float, step: float, y0: float) -> FloatArray:
     """Exact response of τ·dy/dt = v − y to v linear between grid points [same unit as v]."""
     a = math.exp(-step / tau)
     b = tau / step * -math.expm1(-step / tau)
@@ -336,10 +336,8 @@ def _lowpass(v: np.ndarray, tau: float, step: float, y0: float) -> np.ndarray:
     return np.asarray(out, dtype=np.float64)
 
 
-def _respond(u: np.ndarray, dt: float, s: BenchSettings) -> dict[str, np.ndarray]:
+def _respond(u: FloatArray, dt: float, s: BenchSettings) -> dict[str, FloatArray]:
     """Noise-free signals at the sample instants: u_applied [V], creep [µm], x [µm]."""
-    from . import _core
-
     m = s.oversample
     fine_dt = dt / m
     if m > 1:
@@ -356,31 +354,30 @@ def _respond(u: np.ndarray, dt: float, s: BenchSettings) -> dict[str, np.ndarray
         if gain != 0.0:
             creep_fine += gain * _lowpass(ua_fine, tau, fine_dt, ua_fine[0])
     # The core without its offset: y = kv·u_a + h [µm], then the stroke map y + ε·y².
-    bw_fine, _ = _core.simulate(s.params().replace(x0=0.0), ua_fine, fine_dt, 0.0)
+    bw_fine, _ = simulate(s.params().replace(x0=0.0), ua_fine, fine_dt, 0.0)
     y_fine = np.asarray(bw_fine, dtype=np.float64)
     x_fine = s.x0 + y_fine + s.stroke_quadratic_per_um * y_fine * y_fine + creep_fine
     return {"u_applied": ua_fine[::m].copy(), "creep": creep_fine[::m].copy(), "x": x_fine[::m].copy()}
 
 
-def floor_vibration(t: Any, settings: BenchSettings = BenchSettings()) -> np.ndarray:
+def floor_vibration(t: Any, settings: BenchSettings = BenchSettings()) -> FloatArray:
     """Relative motion of vibrometer head and stack, Σ a_k·sin(2π·f_k·t + φ_k) [µm], at times t [s]."""
-    t = np.asarray(t, dtype=np.float64)
-    out = np.zeros_like(t)
+    times = np.asarray(t, dtype=np.float64)
+    out = np.zeros_like(times)
     for f, a, phase in zip(settings.vibration_hz, settings.vibration_um, settings.vibration_phase_rad):
         if a != 0.0:
-            out += a * np.sin(2.0 * math.pi * f * t + phase)
+            out += a * np.sin(2.0 * math.pi * f * times + phase)
     return out
 
 
-def _as_input(u: Any, dt: Any) -> tuple[np.ndarray, float]:
+def _as_input(u: Any, dt: Any) -> tuple[FloatArray, float]:
     """The command as a float64 array and dt as a float; TypeError/ValueError otherwise."""
     if dt is None:
         raise TypeError("dt [s] is required")
-    u, _ = validate_samples(u, u, dt)
-    return u, float(dt)
+    return as_float_vector(u, "u"), check_dt(dt)
 
 
-def true_displacement(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings()) -> np.ndarray:
+def true_displacement(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings()) -> FloatArray:
     """Noise-free displacement x [µm] of the stack for the command u [V] sampled every dt [s].
 
     The floor vibration is not part of it (it moves the vibrometer, not the stack).
@@ -400,7 +397,7 @@ def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSetti
         seed: seed of the vibrometer noise (same seed, same record; ``None`` = fresh).
 
     Returns:
-        A :class:`~boucwen.io.Record` named ``"bench"``: ``t`` [s], ``u`` = the command
+        A :class:`~boucwen.record.Record` named ``"bench"``: ``t`` [s], ``u`` = the command
         as read by the A/D [V], ``x`` = the vibrometer reading [µm]. ``meta`` holds
         the settings (``settings``), ``seed``, ``units`` and, for checking only, the
         noise-free signals ``u_command`` [V], ``u_applied`` [V], ``creep`` [µm],

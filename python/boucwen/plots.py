@@ -8,16 +8,26 @@ Displacements and errors in µm, voltage in V, time in s.
 from __future__ import annotations
 
 import os
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-__all__ = ["plot_switch", "plot_loops"]
+from .checks import FloatArray
 
-_MEASURED_STYLE = {"color": "black", "linewidth": 1.4, "label": "measured"}
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from .diagnosis.report import Diagnosis
+
+__all__ = ["plot_diagnosis", "plot_loops", "plot_switch"]
+
+_MEASURED_STYLE: dict[str, Any] = {"color": "black", "linewidth": 1.4, "label": "measured"}
 
 
-def _figure(width: float, height: float):
+def _figure(width: float, height: float) -> Figure:
+    """A figure of ``width`` × ``height`` inches on its own Agg canvas."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -27,10 +37,10 @@ def _figure(width: float, height: float):
 
 
 def plot_switch(
-    path: str | os.PathLike,
-    t: np.ndarray,
-    x: np.ndarray,
-    predictions: Mapping[str, np.ndarray],
+    path: str | os.PathLike[str],
+    t: FloatArray,
+    x: FloatArray,
+    predictions: Mapping[str, FloatArray],
     t_switch: float,
     span: tuple[float, float],
     title: str,
@@ -68,10 +78,10 @@ def plot_switch(
 
 
 def plot_loops(
-    path: str | os.PathLike,
-    u: np.ndarray,
-    x: np.ndarray,
-    predictions: Mapping[str, np.ndarray],
+    path: str | os.PathLike[str],
+    u: FloatArray,
+    x: FloatArray,
+    predictions: Mapping[str, FloatArray],
     windows: Sequence[tuple[str, slice]],
 ) -> None:
     """Hysteresis loops x(u), one panel per window (like the paper's Fig. 9).
@@ -103,4 +113,69 @@ def plot_loops(
         ax.legend(loc="upper left", fontsize=7)
     for ax in axes[len(windows) :]:
         ax.set_visible(False)
+    fig.savefig(path, dpi=110)
+
+
+def plot_diagnosis(
+    result: Diagnosis,
+    t: ArrayLike,
+    u: ArrayLike,
+    x: ArrayLike,
+    path: str | os.PathLike[str],
+    title: str = "",
+) -> None:
+    """The figure of a diagnosis (:func:`boucwen.diagnose`), as PNG.
+
+    Panels: (a) the residual x − x̂ [µm] of the base model and of the model with the
+    effects against time t [s], (b) the loops x(u) measured and of both models
+    (u [V], x [µm]), (c) the amplitude spectrum [µm] of both residuals.
+    """
+    t_arr, u_arr, x_arr = (np.asarray(v, dtype=np.float64) for v in (t, u, x))
+    fig = _figure(11.0, 7.5)
+    grid = fig.add_gridspec(2, 2)
+    ax_r = fig.add_subplot(grid[0, :])
+    ax_l = fig.add_subplot(grid[1, 0])
+    ax_s = fig.add_subplot(grid[1, 1])
+    named = ", ".join(result.effects) if result.effects else "none"
+    ax_r.plot(
+        t_arr,
+        x_arr - result.x_base,
+        linewidth=0.7,
+        color="tab:red",
+        label=f"base model (RMS {result.rms_before:.3g} µm, max {result.max_before:.3g} µm)",
+    )
+    ax_r.plot(
+        t_arr,
+        x_arr - result.x_extended,
+        linewidth=0.7,
+        color="tab:blue",
+        label=f"with {named} (RMS {result.rms_after:.3g} µm, max {result.max_after:.3g} µm)",
+    )
+    ax_r.axhline(0.0, color="grey", linewidth=0.5)
+    ax_r.set_xlabel("time t [s]")
+    ax_r.set_ylabel("error x − x̂ [µm]")
+    ax_r.set_title(f"(a) residual before and after{': ' + title if title else ''}")
+    ax_r.legend(loc="upper right", fontsize=8)
+    ax_r.grid(True, alpha=0.3)
+    ax_l.plot(u_arr, x_arr, color="black", linewidth=1.2, label="measured")
+    ax_l.plot(u_arr, result.x_base, color="tab:red", linewidth=0.7, linestyle="--", label="base model")
+    ax_l.plot(u_arr, result.x_extended, color="tab:blue", linewidth=0.7, linestyle=":", label=f"with {named}")
+    ax_l.set_xlabel("voltage u [V]")
+    ax_l.set_ylabel("displacement x [µm]")
+    ax_l.set_title("(b) loops")
+    ax_l.legend(loc="upper left", fontsize=8)
+    ax_l.grid(True, alpha=0.3)
+    dt = float(t_arr[1] - t_arr[0]) if t_arr.size > 1 else 1.0
+    freqs = np.fft.rfftfreq(t_arr.size, dt)[1:]
+    for err, color, label in (
+        (x_arr - result.x_base, "tab:red", "base model"),
+        (x_arr - result.x_extended, "tab:blue", f"with {named}"),
+    ):
+        amp = np.abs(np.fft.rfft(err - err.mean()))[1:] * 2.0 / t_arr.size
+        ax_s.loglog(freqs, np.maximum(amp, 1e-12), color=color, linewidth=0.6, label=label)
+    ax_s.set_xlabel("frequency [Hz]")
+    ax_s.set_ylabel("residual amplitude [µm]")
+    ax_s.set_title("(c) residual spectrum")
+    ax_s.legend(loc="lower left", fontsize=8)
+    ax_s.grid(True, alpha=0.3, which="both")
     fig.savefig(path, dpi=110)

@@ -31,8 +31,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Deque, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -47,7 +48,6 @@ __all__ = [
     "RefParams",
     "advance_h",
     "hysteresis_rate",
-    "paper_input",
     "simulate",
     "simulate_fine",
 ]
@@ -79,7 +79,7 @@ class RefParams(NamedTuple):
     delta: float
 
     @classmethod
-    def from_any(cls, params: Any) -> "RefParams":
+    def from_any(cls, params: Any) -> RefParams:
         """From a :class:`boucwen.Params`, a mapping or a sequence of 7 values; validated."""
         if isinstance(params, Mapping):
             values = [params[name] for name in NAMES]
@@ -199,7 +199,7 @@ def _implicit_step(p: RefParams, h0: float, u_end: float, udot: float, step: flo
     return h
 
 
-def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> Optional[int]:
+def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> int | None:
     """RK4 sub-steps for one interval (None: more than MAX_SUBSTEPS).
 
     Enough that |∂ḣ/∂h|·Δt ≤ STIFFNESS_STEP, with |∂ḣ/∂h| ≤ n·(|β|+|γ|)·|u̇|·|h|^(n−1)
@@ -235,7 +235,7 @@ def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> Opti
 NEAR_POWER_MAX_EPS = 0.01
 
 
-def _near_power(n: float, h_ref: float, hn_ref: float, h: float) -> Optional[float]:
+def _near_power(n: float, h_ref: float, hn_ref: float, h: float) -> float | None:
     """|h|^n = |h_ref|^n·(1 + ε)^n to ε⁴, for h of the sign of h_ref and |ε| ≤ 0.01; else None."""
     if h_ref == 0.0 or h * h_ref <= 0.0:
         return None
@@ -292,8 +292,8 @@ def advance_h(p: RefParams, h: float, u0: float, u1: float, dt: float) -> float:
 
 
 def simulate(
-    params: Any, u: ArrayLike, dt: float, h0: float = 0.0, u_prev: Optional[float] = None
-) -> Tuple[NDArray[np.float64], float]:
+    params: Any, u: ArrayLike, dt: float, h0: float = 0.0, u_prev: float | None = None
+) -> tuple[NDArray[np.float64], float]:
     """Simulates a record: returns ``(x, h_final)``, x [µm], h_final [µm].
 
     Same contract as :func:`boucwen.simulate`: u [V] piecewise linear between
@@ -320,11 +320,11 @@ def simulate_fine(
     u: ArrayLike,
     dt: float,
     h0: float = 0.0,
-    u_prev: Optional[float] = None,
+    u_prev: float | None = None,
     substeps: int = 1000,
     *,
     sequential: bool = False,
-) -> Tuple[NDArray[np.float64], float]:
+) -> tuple[NDArray[np.float64], float]:
     """Independent accuracy reference: classic RK4 with ``substeps`` fixed steps per sample.
 
     No stiffness rule, no implicit fallback, no bound on h: meant for parameters
@@ -362,13 +362,29 @@ def simulate_fine(
     return p.kv * u_arr + p.x0 + h_at, float(h_at[-1])
 
 
+def _interval_rate(lin: float, w_pos: float, w_neg: float, drift: float, n: float) -> Callable[[float, float], float]:
+    """dh/dt (h, u) of eq. (5) within one interval, where u̇ is constant:
+    A·u̇ − (β·|u̇|·sgn(h) + γ·u̇)·|h|^n + δ·sgn(u̇)·u, with ``lin`` = A·u̇, ``w_pos`` =
+    β·|u̇| + γ·u̇ (weight of |h|^n for h > 0), ``w_neg`` = −β·|u̇| + γ·u̇ (h < 0),
+    ``drift`` = δ·sgn(u̇)."""
+
+    def rate(hh: float, uu: float) -> float:
+        if hh > 0.0:
+            return lin - w_pos * _pow(hh, n) + drift * uu
+        if hh < 0.0:
+            return lin - w_neg * _pow(-hh, n) + drift * uu
+        return lin + drift * uu
+
+    return rate
+
+
 def _fine_sequential(p: RefParams, points: NDArray[np.float64], dt: float, h: float, m: int) -> NDArray[np.float64]:
     """h at every sample point, RK4 with m fixed steps per interval, one step after the other."""
     out = np.empty_like(points)
     step = dt / m
     half = 0.5 * step
     big_a, beta, gamma, n, delta = p.A, p.beta, p.gamma, p.n, p.delta
-    values: List[float] = points.tolist()
+    values: list[float] = points.tolist()
     if values:
         out[0] = h
     for k in range(1, len(values)):
@@ -377,18 +393,13 @@ def _fine_sequential(p: RefParams, points: NDArray[np.float64], dt: float, h: fl
             udot = (u1 - u0) / dt
             # Within the interval u̇ is constant, so eq. (5) reads
             # dh/dt = A·u̇ − (β·|u̇|·sgn(h) + γ·u̇)·|h|^n + δ·sgn(u̇)·u(t).
-            lin = big_a * udot
-            drift = delta * _sgn(udot)
-            w_pos = beta * abs(udot) + gamma * udot  # weight of |h|^n for h > 0
-            w_neg = -beta * abs(udot) + gamma * udot  # for h < 0
-
-            def rate(hh: float, uu: float) -> float:
-                if hh > 0.0:
-                    return lin - w_pos * _pow(hh, n) + drift * uu
-                if hh < 0.0:
-                    return lin - w_neg * _pow(-hh, n) + drift * uu
-                return lin + drift * uu
-
+            rate = _interval_rate(
+                lin=big_a * udot,
+                w_pos=beta * abs(udot) + gamma * udot,
+                w_neg=-beta * abs(udot) + gamma * udot,
+                drift=delta * _sgn(udot),
+                n=n,
+            )
             for i in range(m):
                 ua = u0 + udot * (step * i)
                 k1 = rate(h, ua)
@@ -416,7 +427,7 @@ def _fine_all_intervals(
 
     step = dt / m
     half = 0.5 * step
-    h = h_start.copy()
+    h: NDArray[np.float64] = h_start.copy()
     with np.errstate(over="ignore", invalid="ignore"):
         for i in range(m):
             ua = u0 + udot * (step * i)
@@ -430,7 +441,7 @@ def _fine_all_intervals(
 
 def _fine_parareal(
     p: RefParams, points: NDArray[np.float64], dt: float, h0: float, m: int, tol: float = 1e-13, max_iter: int = 12
-) -> Optional[NDArray[np.float64]]:
+) -> NDArray[np.float64] | None:
     """The sequential fine solution by parareal iteration; None if it does not converge."""
     count = points.size
     if count < 2:
@@ -459,23 +470,6 @@ def _fine_parareal(
             h_at[j + 1] = g_new + fine[j] - coarse_old[j]
             coarse_old[j] = g_new
     return None
-
-
-def paper_input(dt: float, tail_s: float = 0.05) -> NDArray[np.float64]:
-    """The paper's input u = 50 + 50·sin(2πft − π/2) [V] sampled every dt [s].
-
-    f = 1 Hz for t < 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for
-    ``tail_s`` seconds; the phase restarts at each switch (a minimum, u = 0).
-    """
-    dt = _positive_dt(dt)
-    segments = [(1.0, 0.0), (10.0, 3.0), (100.0, 3.3), (200.0, 3.33)]
-    total = round((3.33 + tail_s) / dt)
-    u = np.empty(total)
-    for k in range(total):
-        t = k * dt
-        f, start = next((f, s) for f, s in reversed(segments) if t >= s - 1e-12)
-        u[k] = 50.0 + 50.0 * math.sin(2.0 * math.pi * f * (t - start) - math.pi / 2)
-    return u
 
 
 # ---------------------------------------------------------------------------
@@ -536,7 +530,7 @@ class PaperIdentifier:
         noise_gate: float = 3.0,
         min_delta_t: float = 3.0,
         min_u_std_v: float = 1e-6,
-        n_bounds: Tuple[float, float] = (0.5, 4.0),
+        n_bounds: tuple[float, float] = (0.5, 4.0),
     ) -> None:
         self.dt = _positive_dt(dt)
         self.init = RefParams.from_any(init)
@@ -586,9 +580,9 @@ class PaperIdentifier:
         """Back to the state right after construction."""
         self._params = self.init
         self._h = self.h0
-        self._raw: List[_Raw] = []  # the four raw samples before the newest, oldest first
-        self._window: Deque[_Point] = deque(maxlen=self.window_len)
-        self._status: Dict[str, Any] = {
+        self._raw: list[_Raw] = []  # the four raw samples before the newest, oldest first
+        self._window: deque[_Point] = deque(maxlen=self.window_len)
+        self._status: dict[str, Any] = {
             "samples": 0,
             "window_full": False,
             "line_fit": "held",
@@ -608,7 +602,7 @@ class PaperIdentifier:
         return self._h
 
     @property
-    def status(self) -> Dict[str, Any]:
+    def status(self) -> dict[str, Any]:
         """What the last push did (the keys of ``Identifier.status`` but "refreshed")."""
         return dict(self._status)
 
@@ -624,11 +618,11 @@ class PaperIdentifier:
 
         self._status["samples"] += 1
         if len(self._raw) == 4:
-            point = self._complete(self._raw + [newest])
+            point = self._complete([*self._raw, newest])
             self._window.append(point)  # the oldest leaves once N are held
         self._status["window_full"] = len(self._window) == self.window_len
         self._refit()
-        self._raw = (self._raw + [newest])[-4:]
+        self._raw = [*self._raw, newest][-4:]
         return prediction
 
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
@@ -641,9 +635,9 @@ class PaperIdentifier:
 
     # -- the method ---------------------------------------------------------
 
-    def _window_columns(self) -> Dict[str, NDArray[Any]]:
+    def _window_columns(self) -> dict[str, NDArray[Any]]:
         pts = list(self._window)
-        cols: Dict[str, NDArray[Any]] = {
+        cols: dict[str, NDArray[Any]] = {
             name: np.array([getattr(q, name) for q in pts], dtype=np.float64)
             for name in ("u", "x", "y", "udot", "a", "b", "dx_diff")
         }
@@ -651,7 +645,7 @@ class PaperIdentifier:
         cols["positive"] = np.array([q.positive for q in pts], dtype=bool)
         return cols
 
-    def _complete(self, s: List[_Raw]) -> _Point:
+    def _complete(self, s: list[_Raw]) -> _Point:
         """The window point of the middle one of five samples, classified with the current
         estimates and the statistics of the window before it enters. Derivatives by the
         five-point central difference."""

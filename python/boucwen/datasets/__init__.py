@@ -22,12 +22,13 @@ the licence text is in ``meta["licence_text"]`` and the files sit unchanged in
 from __future__ import annotations
 
 from importlib import resources
+from typing import Any
 
 import numpy as np
 
-from ..io import Record
+from ..record import Record
 
-__all__ = ["load", "names", "DATA_DIR"]
+__all__ = ["DATA_DIR", "load", "names"]
 
 #: Folder (inside this package) that holds the micromanipulator files.
 DATA_DIR = "yan9a_micromanipulator"
@@ -75,7 +76,7 @@ def load(name: str) -> Record:
         name: one of :func:`names`.
 
     Returns:
-        A :class:`~boucwen.io.Record` with ``t`` [s] (0, 0.005, …), ``u`` = file column 1
+        A :class:`~boucwen.record.Record` with ``t`` [s] (0, 0.005, …), ``u`` = file column 1
         (command [V]), ``x`` = file column 5 (displacement [µm]), ``dt`` = 0.005 s and
         ``meta`` with keys ``source``, ``file``, ``licence``, ``licence_text``,
         ``citation``, ``units``, ``description``, ``notes`` (and ``desired`` [µm] for
@@ -92,7 +93,7 @@ def load(name: str) -> Record:
     if data.shape[1] != ncols:
         raise ValueError(f"{filename}: expected {ncols} columns, found {data.shape[1]}")
     t = np.arange(data.shape[0], dtype=np.float64) * _DT
-    meta = {
+    meta: dict[str, Any] = {
         "source": _SOURCE,
         "file": f"{DATA_DIR}/{filename}",
         "licence": "MIT, Copyright (c) 2019 Yan Naing Aye",

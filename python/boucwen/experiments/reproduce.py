@@ -55,37 +55,40 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from .. import plant
+from .. import evaluation, plant
 from .._core import Identifier, Params, simulate
-from .. import evaluation
 from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 
+if TYPE_CHECKING:
+    from .._core import _IdentifierMethod
+
 __all__ = [
-    "run",
-    "OnlineMethod",
+    "ADAPTATION_FACTOR",
+    "ADAPTATION_RULE",
+    "DEFAULT_OUT",
     "ONLINE_METHODS",
-    "available_online_methods",
-    "default_online_method",
-    "fixed_parameter_prediction",
-    "table1_from_predictions",
-    "adaptation_times",
-    "steady_state_slice",
-    "default_window",
-    "SEGMENTS",
-    "QUICK_SEGMENTS",
     "PAPER_TABLE1",
     "PAPER_TABLE2",
+    "QUICK_SEGMENTS",
+    "SEGMENTS",
     "STEADY_STATE",
-    "ADAPTATION_RULE",
-    "ADAPTATION_FACTOR",
-    "DEFAULT_OUT",
+    "OnlineMethod",
+    "adaptation_times",
+    "available_online_methods",
+    "default_online_method",
+    "default_window",
+    "fixed_parameter_prediction",
+    "run",
+    "steady_state_slice",
+    "table1_from_predictions",
 ]
 
 #: Default output directory of ``boucwen reproduce``.
@@ -146,7 +149,7 @@ class OnlineMethod:
     """
 
     label: str
-    method: str
+    method: _IdentifierMethod
     options: Mapping[str, Any] = field(default_factory=dict)
     description: str = ""
 
@@ -195,14 +198,14 @@ def default_online_method(labels: Sequence[str]) -> str:
 def default_window(segments: Sequence[tuple[float, int, int]], dt: float) -> int:
     """One period of the highest frequency [samples], at least 16 (see the module docs)."""
     fmax = max(f for f, _, _ in segments)
-    return max(16, int(round(1.0 / (fmax * dt))))
+    return max(16, round(1.0 / (fmax * dt)))
 
 
 # --------------------------------------------------------------------------- metrics
 
 
 def _period(f: float, dt: float) -> int:
-    return max(1, int(round(1.0 / (f * dt))))
+    return max(1, round(1.0 / (f * dt)))
 
 
 def steady_state_slice(f: float, lo: int, hi: int, dt: float) -> slice:
@@ -267,7 +270,14 @@ def _params_dict(p: Params) -> dict[str, float]:
 
 
 def _run_online(
-    m: OnlineMethod, u: np.ndarray, x: np.ndarray, dt: float, window: int, init: Params, h0: float, segments
+    m: OnlineMethod,
+    u: np.ndarray,
+    x: np.ndarray,
+    dt: float,
+    window: int,
+    init: Params,
+    h0: float,
+    segments: Sequence[tuple[float, int, int]],
 ) -> dict[str, Any]:
     """Runs one online method over the record and scores it (see :mod:`boucwen.evaluation`).
 
@@ -341,7 +351,14 @@ def _fmt_row(name: str, values: Sequence[float | None], width: int = 9, fmt: str
     return f"{name:<34}" + "".join(f"{c:>{width}}" for c in cells)
 
 
-def _print_tables(log, freqs, results, labels, descriptions, adapt):
+def _print_tables(
+    log: Callable[[str], None],
+    freqs: Sequence[str],
+    results: Mapping[str, Any],
+    labels: Sequence[str],
+    descriptions: Mapping[str, str],
+    adapt: Mapping[str, Mapping[str, Mapping[str, float]]],
+) -> None:
     heads = [f"{f} Hz" for f in freqs]
     t1, t1s, base = results["table1"], results["table1_one_step"], results["baselines"]
     log("")
@@ -405,7 +422,7 @@ def _print_tables(log, freqs, results, labels, descriptions, adapt):
 
 
 def run(
-    out_dir: str | os.PathLike = DEFAULT_OUT,
+    out_dir: str | os.PathLike[str] = DEFAULT_OUT,
     *,
     quick: bool = False,
     window: int | None = None,
@@ -461,7 +478,7 @@ def run(
 
     _, lo1, hi1 = segments[0]
     step(f"traditional method: output-error fit on the {freqs[0]} Hz part ({hi1 - lo1} samples)")
-    fit_opts = {"n_candidates": 16, "n_starts": 2} if quick else {}
+    fit_opts: dict[str, Any] = {"n_candidates": 16, "n_starts": 2} if quick else {}
     trad: FitResult = fit(u[lo1:hi1], x[lo1:hi1], dt, seed=seed, **fit_opts)
     step(
         f"  {trad.params!r}, h0 = {trad.h0:.4g} µm; rms {trad.rms_um:.4g} µm, max "
@@ -566,17 +583,17 @@ def run(
     results = _json_safe(results)
     with open(out / "results.json", "w", encoding="utf-8") as fh:
         json.dump(results, fh, indent=2, allow_nan=False)
-    np.savez_compressed(
-        out / "predictions.npz",
-        t=t,
-        u=u,
-        x=x,
-        dt=np.float64(dt),
-        segments=np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
+    arrays: dict[str, Any] = {
+        "t": t,
+        "u": u,
+        "x": x,
+        "dt": np.float64(dt),
+        "segments": np.array([[f, lo, hi] for f, lo, hi in segments], dtype=np.float64),
         **{f"x_{k}": v for k, v in one_step.items()},
         **{f"x_period_ahead_{k}": v for k, v in traces.items()},
         **{f"x_fixed_{k}": v for k, v in fixed.items()},
-    )
+    }
+    np.savez_compressed(out / "predictions.npz", **arrays)
 
     if figures:
         step("figures")
@@ -594,7 +611,16 @@ def run(
     return results
 
 
-def _figures(out: Path, t, u, x, predictions, fixed, segments, dt) -> None:
+def _figures(
+    out: Path,
+    t: np.ndarray,
+    u: np.ndarray,
+    x: np.ndarray,
+    predictions: Mapping[str, np.ndarray],
+    fixed: Mapping[str, np.ndarray],
+    segments: Sequence[tuple[float, int, int]],
+    dt: float,
+) -> None:
     from ..plots import plot_loops, plot_switch
 
     names = ["fig6_1_to_10hz.png", "fig7_10_to_100hz.png", "fig8_100_to_200hz.png"]

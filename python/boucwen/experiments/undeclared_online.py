@@ -1,7 +1,7 @@
 """Online identification on the records with undeclared effects.
 
 ``python -m boucwen.experiments.undeclared --online [--seeds N]`` takes the records of
-:mod:`boucwen.experiments.undeclared` (one effect of the vocabulary each, or none),
+:mod:`boucwen.experiments.undeclared_records` (one effect of the vocabulary each, or none),
 and compares three models of each against the *noise-free* signal:
 
 - **offline base**: :func:`boucwen.fit` of the base model on the whole record;
@@ -27,9 +27,12 @@ from typing import Any, TextIO
 import numpy as np
 
 from .._core import Identifier
-from .undeclared import cases, make_record
+from ..diagnosis import diagnose
+from ..fit import fit
+from ..metrics import rms
+from .undeclared_records import cases, make_record
 
-__all__ = ["START_UP_S", "HELD_OUT_FRACTION", "online_rows", "run_online_table"]
+__all__ = ["HELD_OUT_FRACTION", "START_UP_S", "online_rows", "run_online_table"]
 
 #: Samples of the first START_UP_S [s] are left out of every RMS (the online
 #: identifier's h and covariance settle; the same span for all three models).
@@ -38,18 +41,11 @@ START_UP_S = 0.5
 HELD_OUT_FRACTION = 0.3
 
 
-def _rms(v: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(v**2)))
-
-
 def online_rows(seeds: int = 1) -> list[dict[str, Any]]:
-    """One dict per record of :func:`boucwen.experiments.undeclared.cases`: the
+    """One dict per record of :func:`boucwen.experiments.undeclared_records.cases`: the
     effect, the effects the diagnosis named, and the RMS errors [µm] of the three
     models after the start-up (``*_rms_um``) and over the last 30 % (``*_tail_um``)."""
-    from ..diagnose import diagnose
-    from ..fit import fit
-
-    rows = []
+    rows: list[dict[str, Any]] = []
     for effect, seed, pset, noise in cases(seeds):
         rec = make_record(effect, seed, pset, noise)
         t0 = time.perf_counter()
@@ -60,8 +56,8 @@ def online_rows(seeds: int = 1) -> list[dict[str, Any]]:
         x_online = ident.push_many(rec.u, rec.x)
         t2 = time.perf_counter()
         n = rec.u.size
-        start = int(round(START_UP_S / rec.dt))
-        tail = int(round((1.0 - HELD_OUT_FRACTION) * n))
+        start = round(START_UP_S / rec.dt)
+        tail = round((1.0 - HELD_OUT_FRACTION) * n)
         row: dict[str, Any] = {
             "effect": effect,
             "param_set": pset,
@@ -73,8 +69,8 @@ def online_rows(seeds: int = 1) -> list[dict[str, Any]]:
         }
         for key, xm in (("base", base.x_fit), ("extended", d.x_extended), ("rpem", x_online)):
             err = np.asarray(xm) - rec.x_true
-            row[f"{key}_rms_um"] = _rms(err[start:])
-            row[f"{key}_tail_um"] = _rms(err[tail:])
+            row[f"{key}_rms_um"] = rms(err[start:])
+            row[f"{key}_tail_um"] = rms(err[tail:])
         rows.append(row)
     return rows
 

@@ -1,0 +1,101 @@
+"""The result of a diagnosis and the files it is written to (JSON report, CSV predictions)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._core import EffectSet
+from ..checks import FloatArray
+from ..io import write_csv
+
+__all__ = ["Diagnosis", "jsonable", "write_predictions", "write_report"]
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """Result of :func:`boucwen.diagnose`.
+
+    Attributes:
+        effects: names of the effects added, in the order added ([] when none).
+        rms_before, max_before: RMS and maximum absolute error [µm] of the base model
+            fitted on the whole record.
+        rms_after, max_after: the same with the effects added (equal to *before* when
+            none was added).
+        params: ``{"base": {kv, x0, A, beta, gamma, n, delta}, "h0_um": …, <effect>:
+            {…}, "base_only": {"base": {...}, "h0_um": …}}`` — the extended model's
+            values and, under ``base_only``, the base model's.
+        evidence: what the decision rests on (see :mod:`boucwen.diagnosis`).
+        x_base, x_extended: displacement [µm] of the two models over the record.
+        effect_set: the fitted :class:`boucwen.EffectSet`.
+    """
+
+    effects: list[str]
+    rms_before: float
+    max_before: float
+    rms_after: float
+    max_after: float
+    params: dict[str, Any]
+    evidence: dict[str, Any]
+    x_base: FloatArray
+    x_extended: FloatArray
+    effect_set: EffectSet = field(default_factory=EffectSet)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON report (without the arrays)."""
+        return {
+            "effects": list(self.effects),
+            "rms_before": self.rms_before,
+            "max_before": self.max_before,
+            "rms_after": self.rms_after,
+            "max_after": self.max_after,
+            "params": self.params,
+            "evidence": self.evidence,
+        }
+
+    def summary(self) -> str:
+        """One line: effects and errors."""
+        named = ", ".join(self.effects) if self.effects else "none"
+        return (
+            f"effects: {named}; RMS {self.rms_before:.4g} → {self.rms_after:.4g} µm, "
+            f"max {self.max_before:.4g} → {self.max_after:.4g} µm"
+        )
+
+    def __repr__(self) -> str:
+        return f"Diagnosis({self.summary()})"
+
+
+def jsonable(obj: Any) -> Any:
+    """Replaces numpy scalars and non-finite floats (→ None) so that json.dumps works."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def write_report(result: Diagnosis, path: str | os.PathLike[str], data: dict[str, Any] | None = None) -> None:
+    """Writes the JSON report (:meth:`Diagnosis.to_dict`, plus ``data`` if given)."""
+    doc = result.to_dict()
+    if data is not None:
+        doc["data"] = data
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(doc, fh, indent=2, allow_nan=False)
+
+
+def write_predictions(result: Diagnosis, t: ArrayLike, x: ArrayLike, path: str | os.PathLike[str]) -> None:
+    """Writes ``t,x,x_base,x_extended`` (s, µm) with a header line, one row per sample."""
+    write_csv(path, {"t": t, "x": x, "x_base": result.x_base, "x_extended": result.x_extended})

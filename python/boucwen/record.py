@@ -1,0 +1,173 @@
+"""A measured record, and the one place where a record is checked.
+
+A record is a uniformly sampled pair of signals: the voltage ``u`` [V] applied to
+(or commanded for) the actuator and the displacement ``x`` [µm] it produced, with
+the sample times ``t`` [s] and the sampling interval ``dt`` [s].
+
+Every public entry point that takes data (:func:`boucwen.fit`,
+:func:`boucwen.effects.fit_extended`, :func:`boucwen.diagnose`,
+:func:`boucwen.diagnosis.residual_evidence`) turns its ``(u, x, dt)`` into a
+:class:`Record` with :func:`validate_record` once; the layers below take the
+:class:`Record` and do not check the samples again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .checks import FloatArray, as_float_vector, check_dt
+
+__all__ = ["Record", "validate_record", "validate_samples"]
+
+
+def _checked_pair(u: Any, x: Any) -> tuple[FloatArray, FloatArray]:
+    u_arr = as_float_vector(u, "u")
+    x_arr = as_float_vector(x, "x")
+    if u_arr.size != x_arr.size:
+        raise ValueError(f"u and x must have the same length, got {u_arr.size} and {x_arr.size}")
+    return u_arr, x_arr
+
+
+def _checked(u: Any, x: Any, dt: Any) -> tuple[FloatArray, FloatArray, float]:
+    u_arr, x_arr = _checked_pair(u, x)
+    return u_arr, x_arr, check_dt(dt)
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """A uniformly sampled measurement; building one checks it.
+
+    Attributes:
+        t: sample times [s], float64, shape (N,).
+        u: actuator voltage [V], float64, shape (N,), finite.
+        x: actuator displacement [µm], float64, shape (N,), finite.
+        dt: sampling interval [s] (finite, > 0).
+        name: short label of the record.
+        meta: free-form details (source, licence, units, extra signals).
+
+    Raises:
+        TypeError: non-numeric data or dt.
+        ValueError: arrays not 1-D, empty, of different lengths or not finite; dt
+            not finite and > 0.
+    """
+
+    t: FloatArray
+    u: FloatArray
+    x: FloatArray
+    dt: float
+    name: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        u, x, dt = _checked(self.u, self.x, self.dt)
+        t = as_float_vector(self.t, "t")
+        if t.shape != u.shape:
+            raise ValueError(f"t has {t.size} samples but u and x have {u.size}")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "dt", dt)
+        object.__setattr__(self, "name", str(self.name))
+        object.__setattr__(self, "meta", dict(self.meta))
+
+    @classmethod
+    def _of_checked(cls, t: FloatArray, u: FloatArray, x: FloatArray, dt: float, name: str = "") -> Record:
+        """A record of arrays that are already known to be valid (no second check)."""
+        rec = object.__new__(cls)
+        for key, value in (("t", t), ("u", u), ("x", x), ("dt", dt), ("name", name), ("meta", {})):
+            object.__setattr__(rec, key, value)
+        return rec
+
+    def __len__(self) -> int:
+        return int(self.u.size)
+
+    @property
+    def sample_rate(self) -> float:
+        """Sampling rate 1/dt [Hz]."""
+        return 1.0 / self.dt
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the last sample, (N − 1)·dt [s]."""
+        return self.dt * (self.u.size - 1)
+
+    def part(self, start: int, stop: int | None = None) -> Record:
+        """Samples ``start`` … ``stop − 1`` (Python slice rules) as a record, without ``meta``.
+
+        The arrays are views of this record's; the part is valid by construction and
+        not checked again. Raises ``ValueError`` if it would be empty.
+        """
+        sel = slice(start, stop)
+        u = self.u[sel]
+        if u.size == 0:
+            raise ValueError(f"samples {start}:{stop} of a record of {len(self)} are empty")
+        return Record._of_checked(self.t[sel], u, self.x[sel], self.dt, self.name)
+
+    def decimated(self, factor: int) -> Record:
+        """Every ``factor``-th sample (from the first), sampled every ``factor``·dt [s];
+        views of this record's arrays, not checked again."""
+        q = int(factor)
+        if q < 1:
+            raise ValueError(f"factor must be >= 1, got {factor!r}")
+        return Record._of_checked(self.t[::q], self.u[::q], self.x[::q], self.dt * q, self.name)
+
+    def realigned(self, delay_samples: int) -> Record:
+        """The record with a sensor delay of ``delay_samples`` (d ≥ 0) taken out: u[k] paired with x[k + d].
+
+        The result is d samples shorter; its times are those of u.
+        """
+        d = int(delay_samples)
+        if not 0 <= d < len(self):
+            raise ValueError(f"delay_samples must be in 0…{len(self) - 1}, got {delay_samples!r}")
+        n = len(self) - d
+        return Record._of_checked(self.t[:n], self.u[:n], self.x[d:], self.dt, self.name)
+
+    def __repr__(self) -> str:
+        return (
+            f"Record(name={self.name!r}, samples={len(self)}, dt={self.dt!r} s, "
+            f"duration={(len(self) - 1) * self.dt:.6g} s)"
+        )
+
+
+def validate_record(u: Any, x: Any, dt: Any, name: str = "") -> Record:
+    """Checks ``(u, x, dt)`` and returns them as a :class:`Record` with times ``k·dt`` [s].
+
+    Args:
+        u: voltage samples [V], 1-D, real, finite.
+        x: displacement samples [µm], 1-D, real, finite, same length as ``u``.
+        dt: sampling interval [s], finite and > 0.
+        name: label of the record.
+
+    Raises:
+        TypeError: non-numeric (or complex, boolean) data, or a non-numeric ``dt``.
+        ValueError: wrong dimension, empty, different lengths, non-finite values,
+            or ``dt`` not finite and positive.
+    """
+    u_arr, x_arr, step = _checked(u, x, dt)
+    t = np.arange(u_arr.size, dtype=np.float64) * step
+    return Record._of_checked(t, u_arr, x_arr, step, str(name))
+
+
+def validate_samples(u: Any, x: Any, dt: Any = None) -> tuple[FloatArray, FloatArray]:
+    """Checks a (u, x) pair and returns it as contiguous float64 arrays.
+
+    Args:
+        u: voltage samples [V], 1-D, real, finite.
+        x: displacement samples [µm], 1-D, real, finite, same length as ``u``.
+        dt: optional sampling interval [s]; if given it must be finite and > 0.
+
+    Returns:
+        ``(u, x)`` as C-contiguous float64 arrays (copies only when needed).
+
+    Raises:
+        TypeError: non-numeric (or complex, boolean) data, or a non-numeric ``dt``.
+        ValueError: wrong dimension, empty, different lengths, non-finite values,
+            or ``dt`` not finite and positive.
+    """
+    u_arr, x_arr = _checked_pair(u, x)
+    if dt is not None:
+        check_dt(dt)
+    return u_arr, x_arr
