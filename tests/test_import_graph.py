@@ -3,7 +3,8 @@
 The graph is read from the source with ``ast``: one node per module of
 ``python/boucwen`` (``.py`` files, plus the compiled core by its ``.pyi`` stub), one
 edge per ``import`` / ``from … import`` of another boucwen module anywhere in a file
-(inside functions too: a deferred import hides a cycle, it does not remove it).
+(inside functions too: a deferred import hides a cycle, it does not remove it), but
+not an import under ``if TYPE_CHECKING:``, which never runs.
 ``from package import name`` points at the submodule ``package.name`` when there is
 one, else at the package. The implicit import of a parent package when a submodule
 is loaded is not an edge (every package would be a cycle with its own modules).
@@ -39,7 +40,17 @@ def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
     is_package = path.name == "__init__.py"
     package = name if is_package else name.rpartition(".")[0]
     out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    type_only = {
+        id(inner)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and ast.unparse(node.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+        for stmt in node.body
+        for inner in ast.walk(stmt)
+    }
+    for node in ast.walk(tree):
+        if id(node) in type_only:
+            continue
         if isinstance(node, ast.Import):
             out.update(alias.name for alias in node.names if alias.name in modules)
         elif isinstance(node, ast.ImportFrom):

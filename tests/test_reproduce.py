@@ -56,8 +56,19 @@ def test_tables_agree_with_saved_predictions(quick_run):
         for label, row in results["table1"].items():
             if label == "online":
                 label = f"online_{results['default_online_method']}"
+            # Table 1 is period-ahead: the frozen models' open-loop predictions.
+            expect = np.max(np.abs(x[ss] - data[f"x_period_ahead_{label}"][ss]))
+            assert row[key] == pytest.approx(expect, abs=1e-12), (label, key)
+        for label, row in results["table1_one_step"].items():
+            if label == "online":
+                label = f"online_{results['default_online_method']}"
             expect = np.max(np.abs(x[ss] - data[f"x_{label}"][ss]))
             assert row[key] == pytest.approx(expect, abs=1e-12), (label, key)
+        # The model-free baselines, recomputed.
+        prev = np.concatenate([x[:1], x[:-1]])
+        assert results["baselines"]["persistence"][key] == pytest.approx(np.max(np.abs(x[ss] - prev[ss])), abs=1e-12)
+        two_tap = np.concatenate([x[:2], 2 * x[1:-1] - x[:-2]])
+        assert results["baselines"]["two_tap"][key] == pytest.approx(np.max(np.abs(x[ss] - two_tap[ss])), abs=1e-12)
         for label, row in results["table1_fixed"].items():
             if label == "online":
                 continue
@@ -75,7 +86,7 @@ def test_traditional_prediction_is_the_fit_simulated(quick_run):
     data = np.load(out / "predictions.npz")
     fit = results["traditional_fit"]
     x, _ = simulate(Params.from_dict(fit["params"]), data["u"], float(data["dt"]), fit["h0_um"])
-    np.testing.assert_allclose(data["x_traditional"], x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(data["x_period_ahead_traditional"], x, rtol=0, atol=1e-12)
     # Its steady-state error at 1 Hz is where it was fitted: the smallest of its row.
     row = results["table1"]["traditional"]
     assert row["1"] <= min(row.values()) + 1e-12

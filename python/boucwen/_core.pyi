@@ -23,12 +23,13 @@ part is one new section (and one line in ``__all__``):
   takes and gives), ``EffectSet``, ``simulate_extended``
 """
 
-from typing import Any, ClassVar, Literal, TypedDict, final
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypedDict, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .config import HorizonConfig, PaperConfig, RpemConfig
+if TYPE_CHECKING:  # type-only: the compiled core does not import the config module
+    from .config import HorizonConfig, PaperConfig, RpemConfig
 
 __all__ = [
     "EffectSet",
@@ -324,8 +325,8 @@ class Identifier:
     def method(self) -> _IdentifierMethod:
         """The online method in use."""
     @property
-    def config(self) -> HorizonConfig | RpemConfig | PaperConfig:
-        """The configuration in use."""
+    def config(self) -> dict[str, Any]:
+        """The configuration in use, as a dict of the options of the method's config class."""
     @property
     def window(self) -> int | None:
         """The paper method's window N [samples]; None for the other methods."""

@@ -199,24 +199,15 @@ impl PyIdentifier {
         self.inner.method()
     }
 
-    /// The configuration in use: a `HorizonConfig`, `RpemConfig` or `PaperConfig`
-    /// (the paper's window is `window`).
+    /// The configuration in use, as a dict of its options (the fields of the
+    /// method's `HorizonConfig`, `RpemConfig` or `PaperConfig`: `RpemConfig(**ident.config)`
+    /// rebuilds it; the paper's window is `window`).
     #[getter]
-    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let module = py.import("boucwen.config")?;
+    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         match &self.inner {
-            AnyIdentifier::Rpem(id) => {
-                let kwargs = slots_dict(py, rpem_slots(&mut id.config().clone()))?;
-                module.getattr("RpemConfig")?.call((), Some(&kwargs))
-            }
-            AnyIdentifier::Paper(id) => {
-                let kwargs = slots_dict(py, paper_slots(&mut id.config().clone()))?;
-                module.getattr("PaperConfig")?.call((), Some(&kwargs))
-            }
-            AnyIdentifier::Horizon(id) => {
-                let kwargs = slots_dict(py, horizon_slots(&mut id.config().clone()))?;
-                module.getattr("HorizonConfig")?.call((), Some(&kwargs))
-            }
+            AnyIdentifier::Rpem(id) => slots_dict(py, rpem_slots(&mut id.config().clone())),
+            AnyIdentifier::Paper(id) => slots_dict(py, paper_slots(&mut id.config().clone())),
+            AnyIdentifier::Horizon(id) => slots_dict(py, horizon_slots(&mut id.config().clone())),
         }
     }
 
