@@ -10,14 +10,17 @@ import boucwen
 def make_identifier(
     method: str, dt: float, window: Any, init: Any, h0: float = 0.0, **options: Any
 ) -> boucwen.Identifier:
-    """An identifier of `method` ("paper" or "rpem") with the options of its config
+    """An identifier of `method` ("horizon", "paper" or "rpem") with the options of its config
     given by name; `window` is the paper method's N (not used by "rpem"); `effects`
     goes to "rpem"."""
     if method == "paper":
         config = boucwen.PaperConfig(**options) if options else None
         return boucwen.Identifier.paper(dt, window, init, h0, config=config)
+    if method == "horizon":
+        config = boucwen.HorizonConfig(**options) if options else None
+        return boucwen.Identifier.horizon(dt, init, h0, config=config)
     if method == "rpem":
         effects = options.pop("effects", None)
         config = boucwen.RpemConfig(**options) if options else None
         return boucwen.Identifier.rpem(dt, init, h0, config=config, effects=effects)
-    raise ValueError(f"invalid method = {method!r}: expected 'paper' or 'rpem'")
+    raise ValueError(f"invalid method = {method!r}: expected 'horizon', 'paper' or 'rpem'")

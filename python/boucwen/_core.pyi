@@ -207,6 +207,8 @@ class _RpemStatus(TypedDict):
     """Prediction error e = x − x̂ of the sample [µm]."""
     trace: float
     """tr P after the push (scaled units)."""
+    noise_um2: float
+    """R in use: the learnt variance of the prediction error [µm²]."""
 
 class _HorizonStatus(TypedDict):
     """``Identifier.status`` of the moving-horizon method: what the last push did."""

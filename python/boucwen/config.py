@@ -74,7 +74,9 @@ class RpemConfig:
     p0_effects: float = _RPEM["p0_effects"]
     """Initial covariance of the effects' coordinates (ln fc, creep gains' logits)."""
     noise_um2: float = _RPEM["noise_um2"]
-    """R: expected variance of the prediction error [µm²]."""
+    """R: the least variance of the prediction error [µm²]; R is learnt above it."""
+    noise_memory_samples: float = _RPEM["noise_memory_samples"]
+    """Memory of the running mean of squared prediction errors R follows above noise_um2 [samples]; inf: fixed."""
     max_trace: float = _RPEM["max_trace"]
     """Bound on tr P (scaled units)."""
     max_step: float = _RPEM["max_step"]

@@ -31,6 +31,7 @@ pub(crate) fn rpem_slots(c: &mut RpemConfig) -> Vec<(&'static str, Slot<'_>)> {
         ("offset_walk_um", Slot::Float(&mut c.offset_walk_um)),
         ("p0_effects", Slot::Float(&mut c.p0_effects)),
         ("noise_um2", Slot::Float(&mut c.noise_um2)),
+        ("noise_memory_samples", Slot::Float(&mut c.noise_memory_samples)),
         ("max_trace", Slot::Float(&mut c.max_trace)),
         ("max_step", Slot::Float(&mut c.max_step)),
         ("max_offset_step_um", Slot::Float(&mut c.max_offset_step_um)),

@@ -248,6 +248,7 @@ impl PyIdentifier {
                 d.set_item("restarted", s.restarted)?;
                 d.set_item("innovation_um", s.innovation_um)?;
                 d.set_item("trace", s.trace)?;
+                d.set_item("noise_um2", s.noise_um2)?;
             }
             AnyStatus::Horizon(s) => {
                 d.set_item("samples", s.samples)?;

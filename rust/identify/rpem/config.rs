@@ -12,9 +12,10 @@ pub struct RpemConfig {
     /// exp(−|Δu|/`memory_travel_v`) for every later interval in which u moves by
     /// |Δu|. One period of the paper's 0–100 V sine is 200 V of travel at any
     /// frequency, so the memory spans the same number of periods at 1 Hz and at
-    /// 200 Hz, and nothing is forgotten while u holds (no wind-up). Default 2000 V
-    /// (ten periods; shorter memories let the parameters drift at 200 Hz on the
-    /// simulated bench); `f64::INFINITY` turns it off.
+    /// 200 Hz, and nothing is forgotten while u holds (no wind-up). Default 400 V
+    /// (two periods: long enough to average sensor noise and floor vibration, short
+    /// enough to follow a change of frequency; on the simulated bench the model is
+    /// best period-ahead there); `f64::INFINITY` turns it off.
     pub memory_travel_v: f64,
     /// Initial covariance P₀ = `p0`·I of the scaled parameters θᵢ/scaleᵢ: the prior
     /// standard deviation of θᵢ is √p0·scaleᵢ. Default 1e-3 (3 % of the scale; larger
@@ -23,9 +24,10 @@ pub struct RpemConfig {
     /// Random walk of the offset x0 [µm per sample, standard deviation]: x0 may
     /// wander by this much from one sample to the next (creep, drift, thermal), so
     /// its variance grows by `offset_walk_um`² each sample, whatever the input does
-    /// (P\[x0,x0\] stays bounded because x0 is always observed). Default 0.05 µm:
-    /// the offset follows what the model cannot explain within a few samples,
-    /// which makes the prediction one step ahead sharp; 0 makes x0 a constant.
+    /// (P\[x0,x0\] stays bounded because x0 is always observed). Default 0: x0 is a
+    /// parameter like the others. A walking offset follows whatever the model cannot
+    /// explain within a few samples: it makes the one-step prediction sharp but the
+    /// *model* worse (frozen at any instant, x0 carries that instant's vibration).
     pub offset_walk_um: f64,
     /// Initial covariance of the effects' coordinates: ln fc of the input lag and
     /// the logistic coordinate η = ln(g/(gmax − g)) of each creep gain, which near
@@ -34,9 +36,15 @@ pub struct RpemConfig {
     /// (about 22 %): the effects are meant to start from an offline extended fit
     /// (`fit_extended`, `diagnose`) or a guess within some 30 %.
     pub p0_effects: f64,
-    /// R: expected variance of the prediction error \[µm²\]. Default 1e-4 µm²
-    /// (0.01 µm: sensor noise plus what the model cannot explain).
+    /// R: the least variance the prediction error is expected to have \[µm²\] (sensor
+    /// noise and the modelling floor). Default 1e-4 µm² (0.01 µm). R is learnt from the
+    /// data above it (see `noise_memory_samples`).
     pub noise_um2: f64,
+    /// Memory \[samples\] of the running mean of the squared prediction errors that R
+    /// follows (R = max(that mean, `noise_um2`)): on a record with vibration or an
+    /// unmodelled effect the gain falls by itself, instead of chasing them. Default
+    /// 2000; `f64::INFINITY` keeps R = `noise_um2`.
+    pub noise_memory_samples: f64,
     /// Bound on tr P (scaled units). Default 1.0.
     pub max_trace: f64,
     /// Largest change of any parameter in one sample, as a fraction of its scale
@@ -67,11 +75,12 @@ impl Default for RpemConfig {
     fn default() -> Self {
         RpemConfig {
             forgetting: 1.0,
-            memory_travel_v: 2000.0,
-            offset_walk_um: 0.05,
+            memory_travel_v: 400.0,
+            offset_walk_um: 0.0,
             p0: 1e-3,
             p0_effects: 0.05,
             noise_um2: 1e-4,
+            noise_memory_samples: 2000.0,
             max_trace: 1.0,
             max_step: 0.01,
             max_offset_step_um: 0.5,
@@ -125,6 +134,9 @@ impl RpemConfig {
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
             return bad("n_bounds", lo, "need 0 < n_min <= n_max, both finite");
         }
+        if self.noise_memory_samples.is_nan() || self.noise_memory_samples < 1.0 {
+            return bad("noise_memory_samples", self.noise_memory_samples, "must be >= 1 sample (inf keeps R fixed)");
+        }
         if !(self.offset_walk_um.is_finite() && self.offset_walk_um >= 0.0) {
             return bad("offset_walk_um", self.offset_walk_um, "must be finite and >= 0 µm");
         }
@@ -172,4 +184,6 @@ pub struct RpemStatus {
     pub innovation_um: f64,
     /// tr P after the push (scaled units).
     pub trace: f64,
+    /// R in use after the push: the learnt variance of the prediction error \[µm²\].
+    pub noise_um2: f64,
 }

@@ -336,7 +336,12 @@ impl RpemIdentifier {
         let travel = self.u_prev.map_or(0.0, |u0| (u - u0).abs());
         let first = self.u_prev.is_none();
         self.u_prev = Some(u);
-        if first {
+        // Without creep, nothing is learnt while u holds: a hold carries no information
+        // on the hysteresis, and repeating one regressor would let every parameter
+        // drift to absorb a constant error (the learnt R is kept as it was). With creep,
+        // holds are where its gains show, so they are used.
+        if first || (travel == 0.0 && self.shape.n_creep == 0 && cfg.offset_walk_um == 0.0) {
+            status.noise_um2 = self.status.noise_um2.max(cfg.noise_um2);
             return status;
         }
         let gmax = cfg.creep_gain_max_um_per_v;
@@ -351,7 +356,14 @@ impl RpemIdentifier {
         let psi = psi.component_mul(&jac).component_mul(&active);
         let p: SMatrix<f64, M, M> = self.p.fixed_view::<M, M>(0, 0).into_owned();
         let p_psi = p * psi;
-        let s = cfg.noise_um2 + dot_as_full(&psi, &p_psi);
+        let noise = if self.status.samples == 0 { cfg.noise_um2 } else { self.status.noise_um2 };
+        status.noise_um2 = if cfg.noise_memory_samples.is_finite() {
+            let a = 1.0 / cfg.noise_memory_samples;
+            (noise + a * (e * e - noise)).max(cfg.noise_um2)
+        } else {
+            noise
+        };
+        let s = noise + dot_as_full(&psi, &p_psi);
         let gain = p_psi / s;
         let mut step = gain * e;
         // Trust region: every parameter but the offset moves by at most

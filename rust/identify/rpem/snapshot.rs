@@ -48,6 +48,7 @@ impl Snapshot for RpemIdentifier {
             offset_walk_um,
             p0_effects,
             noise_um2,
+            noise_memory_samples,
             max_trace,
             max_step,
             max_offset_step_um,
@@ -75,6 +76,7 @@ impl Snapshot for RpemIdentifier {
             creep_gain_max_um_per_v,
             fc_bounds_hz.0,
             fc_bounds_hz.1,
+            noise_memory_samples,
         ]);
         w.f64s(&scales);
         w.f64(*dt);
@@ -96,21 +98,31 @@ impl Snapshot for RpemIdentifier {
         }
         w.opt_f64(*u_prev);
         w.f64s(p.as_slice());
-        let RpemStatus { samples, updated, step_limited, projected, trace_capped, restarted, innovation_um, trace } =
-            *status;
+        let RpemStatus {
+            samples,
+            updated,
+            step_limited,
+            projected,
+            trace_capped,
+            restarted,
+            innovation_um,
+            trace,
+            noise_um2: learnt_noise,
+        } = *status;
         w.u64(samples);
         for flag in [updated, step_limited, projected, trace_capped, restarted] {
             w.u8(flag as u8);
         }
         w.f64(innovation_um);
         w.f64(trace);
+        w.f64(learnt_noise);
         w.finish()
     }
 
     fn from_bytes(bytes: &[u8]) -> Result<Self> {
         let mut r = Reader::new(bytes, KIND_RPEM)?;
         let config_at = r.offset();
-        let c = r.f64s::<16>()?;
+        let c = r.f64s::<17>()?;
         let scales = r.f64s::<NUM_BASE>()?;
         let config = RpemConfig {
             forgetting: c[0],
@@ -127,6 +139,7 @@ impl Snapshot for RpemIdentifier {
             creep_gain_scale_um_per_v: c[12],
             creep_gain_max_um_per_v: c[13],
             fc_bounds_hz: (c[14], c[15]),
+            noise_memory_samples: c[16],
             scales,
         };
         let dt = r.f64()?;
@@ -207,13 +220,23 @@ impl Snapshot for RpemIdentifier {
         }
         let innovation_um = r.f64()?;
         let trace = r.f64()?;
+        let noise_um2 = r.f64()?;
         r.end()?;
         if (samples == 0) != id.u_prev.is_none() {
             return Err(corrupt(at, "sample count does not match the stored previous input"));
         }
         let [updated, step_limited, projected, trace_capped, restarted] = flags;
-        id.status =
-            RpemStatus { samples, updated, step_limited, projected, trace_capped, restarted, innovation_um, trace };
+        id.status = RpemStatus {
+            samples,
+            updated,
+            step_limited,
+            projected,
+            trace_capped,
+            restarted,
+            innovation_um,
+            trace,
+            noise_um2,
+        };
         Ok(id)
     }
 }

@@ -215,7 +215,8 @@ fn identifies_input_lag_and_creep_from_effects_started_off() {
         creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0], gain_um_per_v: vec![0.0011, 0.0026, 0.00105] }),
         ..EffectSet::none()
     };
-    let cfg = RpemConfig::for_effects(&start);
+    // A long memory (ten periods of travel): on noise-free data nothing needs forgetting.
+    let cfg = RpemConfig { memory_travel_v: 2000.0, ..RpemConfig::for_effects(&start) };
     assert_eq!(cfg.offset_walk_um, 0.0);
     let mut ext = RpemIdentifier::with_effects(dt, truth, &start, 0.0, cfg).unwrap();
     let mut base = RpemIdentifier::new(dt, truth, 0.0, RpemConfig::default()).unwrap();
@@ -283,7 +284,8 @@ fn recovers_known_parameters_from_noise_free_data() {
     let truth = Params::paper_1hz();
     let u = rich_input(dt, 6.0);
     let (x, _) = simulate(&truth, &u, dt, 0.0, None).unwrap();
-    let cfg = RpemConfig { offset_walk_um: 0.0, ..Default::default() };
+    // A long memory (ten periods of travel): on noise-free data nothing needs forgetting.
+    let cfg = RpemConfig { memory_travel_v: 2000.0, ..Default::default() };
     let mut id = RpemIdentifier::new(dt, perturbed(), 0.0, cfg).unwrap();
     let mut last_err = 0.0f64;
     let last_second = u.len() - 10_000;
@@ -349,7 +351,7 @@ fn rejects_bad_config() {
         RpemConfig { forgetting: 1.5, ..Default::default() },
         RpemConfig { noise_um2: -1.0, ..Default::default() },
         RpemConfig { max_step: f64::NAN, ..Default::default() },
-        RpemConfig { n_bounds: (0.5, 3.0), ..Default::default() },
+        RpemConfig { n_bounds: (0.0, 3.0), ..Default::default() },
         RpemConfig { scales: [0.0; NUM_BASE], ..Default::default() },
     ];
     for cfg in bad {
