@@ -104,8 +104,7 @@ def _grid_map(
     lo, hi = (np.percentile(inl, [1, 99]) if inl.size else (np.min(finite), np.max(finite))) if finite.size else (0, 1)
     from matplotlib import colormaps
 
-    cmap = colormaps["viridis"].copy()
-    cmap.set_bad("lightgrey")
+    cmap = colormaps["viridis"].with_extremes(bad="lightgrey")
     image = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=lo, vmax=hi, origin="upper", interpolation="nearest")
     fig.colorbar(image, ax=ax, shrink=0.8, label=("log10 " if log else "") + UNITS.get(column, column))
     sel = placed & outlier

@@ -41,6 +41,7 @@ import logging
 import os
 import sys
 import time
+import uuid
 from collections.abc import Iterator
 from typing import Any, TextIO
 
@@ -102,7 +103,7 @@ def _cluster(
         threads_per_worker=THREADS_PER_WORKER,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=":0" if with_dashboard else None,
+        dashboard_address=":0",  # any free port: several runs (or engineers) may share the machine
         silence_logs=logging.ERROR,
         env=dict(WORKER_ENV),
     )
@@ -147,13 +148,13 @@ def _compute(
     progress: Progress,
 ) -> None:
     """Submits one task per record and stores each row as it arrives."""
+    # Dask task keys: readable in the dashboard, and new for every run (a key cancelled by an
+    # interrupted run may still be known to a shared scheduler).
+    run_id = uuid.uuid4().hex[:8]
     pending = {}
     for ref in todo:
-        key = keys[ref.channel]
-        future = client.submit(
-            run_task, ref, options, key=f"boucwen-{options.kind}-{file_name(ref.channel)}-{key[:16]}"
-        )
-        pending[future] = ref
+        key = f"boucwen-{options.kind}-{file_name(ref.channel)}-{run_id}"
+        pending[client.submit(run_task, ref, options, key=key)] = ref
     try:
         for future in as_completed(list(pending)):
             ref = pending.pop(future)
