@@ -6,9 +6,11 @@ Generates a mirror of rows × cols actuators (:mod:`boucwen.fleet.generate`, the
 the full 32 × 32 fleet: two test patterns, 4 815 samples at 1 kHz), then fits it once per
 worker count on a fresh local cluster (one single-threaded process per worker) and prints
 one table: cluster start-up [s], compute time from the first submission to the last
-result [s], records per second, and the speed-up over one worker. The machine's load
-average is printed before and after: on a shared machine other work takes cores too.
-With ``--rounds R`` the sequence of worker counts is run R times and the median is shown.
+result [s], records per second, the speed-up over one worker, the CPU time one record
+takes [s] and the share of the cores the workers got (their CPU time over compute time
+× min(workers, CPUs)). The machine's load average is printed as the runs go: on a shared
+machine other work takes cores too, which the last column shows. With ``--rounds R`` the
+sequence of worker counts is run R times and the median is shown.
 """
 
 from __future__ import annotations
@@ -52,24 +54,35 @@ def main(argv: list[str] | None = None) -> int:
                 table = fit_many(
                     root / "mirror" / "records", root / f"out-{w}-{r}", workers=w, progress=False, figure=False
                 )
-                info = table.attrs["run"]
+                info = dict(table.attrs["run"])
+                info["cpu_s"] = float(table["cpu_s"].sum())
+                info["cpu_per_record_s"] = float(table["cpu_s"].median())
+                info["core_share"] = info["cpu_s"] / (info["compute_s"] * min(w, os.cpu_count() or 1))
                 runs[w].append(info)
                 print(
                     f"  round {r + 1}, {w} worker{'s' if w > 1 else ''}: {info['records_per_s']:.2f} records/s "
-                    f"({info['compute_s']:.1f} s); {load()}",
+                    f"({info['compute_s']:.1f} s, {info['core_share']:.0%} of the cores); {load()}",
                     flush=True,
                 )
         print(f"after: {load()}")
 
     base = statistics.median(i["records_per_s"] for i in runs[counts[0]])
     print()
-    print("| workers (1 thread each) | records | start-up [s] | compute [s] | records/s | speed-up vs 1 |")
-    print("|---:|---:|---:|---:|---:|---:|")
+    print(
+        f"| workers (1 thread each) | records | start-up [s] | compute [s] | records/s | speed-up vs {counts[0]} "
+        "| CPU per record [s] | share of the cores got |"
+    )
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
     for w in counts:
-        rate = statistics.median(i["records_per_s"] for i in runs[w])
-        startup = statistics.median(i["startup_s"] for i in runs[w])
-        compute = statistics.median(i["compute_s"] for i in runs[w])
-        print(f"| {w} | {records} | {startup:.1f} | {compute:.1f} | {rate:.2f} | {rate / base:.2f}× |")
+
+        def med(name: str, w: int = w) -> float:
+            return statistics.median(i[name] for i in runs[w])
+
+        rate = med("records_per_s")
+        print(
+            f"| {w} | {records} | {med('startup_s'):.1f} | {med('compute_s'):.1f} | {rate:.2f} | {rate / base:.2f}× "
+            f"| {med('cpu_per_record_s'):.2f} | {med('core_share'):.0%} |"
+        )
     return 0
 
 

@@ -512,3 +512,41 @@ def test_progress_line_counts_rate_and_time_left():
     assert 0.9 < bar.rate < 1.1 and format_duration(4 / bar.rate) in line
     assert stream.getvalue().splitlines()[0].startswith("batch fit: 5/10 records")  # not a terminal: full lines
     assert [format_duration(s) for s in (42, 185, 7620, float("inf"))] == ["42s", "3m05s", "2h07m", "?"]
+
+
+def test_connects_to_a_running_scheduler_by_address(mirror, client, tmp_path):
+    root, actuators = mirror
+    src = _copy_records(root / "records", tmp_path / "src", [a.channel for a in actuators[:2]])
+    table = fit_many(src, tmp_path / "res", scheduler=client.scheduler.address, progress=False, figure=False)
+    assert (table["status"] == "ok").all()
+    assert table.attrs["run"]["cluster"]["scheduler"] == client.scheduler.address
+    assert table.attrs["run"]["cluster"]["workers"] == 2
+
+
+def test_task_keeps_what_the_diagnosis_left_unexplained(mirror, monkeypatch):
+    """A diagnosis that reports `unexplained` gets it into the row (as JSON) and the JSON detail."""
+    from types import SimpleNamespace
+
+    from boucwen.fleet import tasks
+    from boucwen.fleet.source import find_records
+
+    root, _ = mirror
+    ref = find_records(root / "records")[0]
+    report = SimpleNamespace(
+        params={"base": dict.fromkeys(tasks.PARAM_COLUMNS, 0.1), "h0_um": 0.0},
+        rms_before=0.3,
+        max_before=1.0,
+        rms_after=0.2,
+        max_after=0.8,
+        effects=["creep"],
+        unexplained={"rms_um": 0.15, "note": "start-up transient"},
+        to_dict=lambda: {"effects": ["creep"]},
+    )
+    monkeypatch.setattr(tasks, "diagnose", lambda *a, **k: report)
+    row = tasks.run_task(ref, tasks.TaskOptions(kind="diagnose"))
+    assert row["status"] == "ok" and row["effects"] == "creep"
+    assert json.loads(row["unexplained"]) == report.unexplained
+    assert row["detail"]["unexplained"] == report.unexplained
+    del report.unexplained  # an older Diagnosis: no such field, no column value
+    row = tasks.run_task(ref, tasks.TaskOptions(kind="diagnose"))
+    assert row["status"] == "ok" and row["unexplained"] is None

@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from ..plots import _figure
+from .outliers import SCORED_COLUMNS
 from .tasks import PARAM_COLUMNS
 
 __all__ = ["UNITS", "plot_fleet"]
@@ -62,7 +63,8 @@ def _histogram(ax: Axes, table: pd.DataFrame, column: str, scored: np.ndarray, o
     ax.xaxis.set_major_locator(MaxNLocator(4))
     ax.set_xlabel(UNITS.get(column, column), fontsize=8)
     ax.tick_params(labelsize=7)
-    title = f"{column}: {wild.size} outlier{'s' if wild.size != 1 else ''}" if wild.size else f"{column}: no outlier"
+    name = column if column in SCORED_COLUMNS else f"{column} (not scored)"
+    title = f"{name}: {wild.size} outlier record{'s' if wild.size != 1 else ''}" if wild.size else f"{name}: no outlier"
     if below or above:
         title += " (◀ ▶ off scale)"
     ax.set_title(title, fontsize=8)

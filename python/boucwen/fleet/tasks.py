@@ -24,7 +24,9 @@ Columns of a row (:data:`ROW_COLUMNS`; units in the names or below):
   ``fit``); ``unexplained``: what the diagnosis left unexplained, as JSON text, when
   the installed :class:`boucwen.Diagnosis` reports it;
 * ``success``, ``nfev``: the fit's convergence flag and simulation count;
-* ``elapsed_s``: wall time of the task [s]; ``worker``: ``host:pid`` that ran it;
+* ``elapsed_s``: wall time of the task [s]; ``cpu_s``: CPU time its worker process spent
+  meanwhile [s] (below ``elapsed_s`` when other work shares the cores); ``worker``:
+  ``host:pid`` that ran it;
   ``error``: the message of an error row (``""`` otherwise).
 
 The row's ``detail`` entry holds the full JSON report (:meth:`boucwen.FitResult.to_dict`
@@ -72,6 +74,7 @@ ROW_COLUMNS: tuple[str, ...] = (
     "samples",
     "dt_s",
     "elapsed_s",
+    "cpu_s",
     "worker",
     "origin",
     "error",
@@ -183,7 +186,7 @@ def empty_row(ref: RecordRef, options: TaskOptions) -> dict[str, Any]:
 
 def run_task(ref: RecordRef, options: TaskOptions) -> dict[str, Any]:
     """Fits or diagnoses one record; returns its row (module docs). Never raises for bad data."""
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     row = empty_row(ref, options)
     row["worker"] = f"{socket.gethostname()}:{os.getpid()}"
     try:
@@ -193,4 +196,5 @@ def run_task(ref: RecordRef, options: TaskOptions) -> dict[str, Any]:
     except Exception as exc:  # a bad record (or a model failure) is a row, never a lost fleet
         row.update(status="error", error=_message(exc))
     row["elapsed_s"] = time.perf_counter() - started
+    row["cpu_s"] = time.process_time() - cpu_started
     return row
