@@ -43,7 +43,7 @@ import sys
 import time
 import uuid
 from collections.abc import Iterator
-from typing import Any, TextIO
+from typing import Any, Callable, TextIO
 
 import pandas as pd
 from distributed import Client, LocalCluster, as_completed
@@ -53,7 +53,7 @@ from .outliers import attention_list, flag_outliers
 from .progress import Progress
 from .source import PathLike, RecordRef, find_records
 from .store import ResultStore, atomic_write, atomic_write_text, file_name, result_key
-from .tasks import TaskOptions, _message, empty_row, run_task
+from .tasks import TaskOptions, empty_row, error_message, run_task
 
 __all__ = ["THREADS_PER_WORKER", "WORKER_ENV", "diagnose_many", "fit_many", "run_fleet", "summary"]
 
@@ -78,7 +78,7 @@ def _check_workers(workers: Any) -> int | None:
 
 @contextlib.contextmanager
 def _cluster(
-    scheduler: str | None, workers: int | None, client: Client | None, say: Any
+    scheduler: str | None, workers: int | None, client: Client | None, say: Callable[[str], None]
 ) -> Iterator[tuple[Client, dict[str, Any]]]:
     """A client to run on: the given one, one connected to ``scheduler``, or a local cluster."""
     if client is not None:
@@ -88,9 +88,9 @@ def _cluster(
         try:
             remote = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except Exception as exc:
-            raise OSError(f"cannot connect to the Dask scheduler at {scheduler}: {_message(exc)}") from None
+            raise OSError(f"cannot connect to the Dask scheduler at {scheduler}: {error_message(exc)}") from None
         try:
-            info = _describe(remote, scheduler)
+            info = _describe(remote, "remote")
             say(f"connected to {scheduler}: {info['workers']} workers, {info['threads']} threads; {_dashboard(info)}")
             yield remote, info
         finally:
@@ -123,13 +123,19 @@ def _cluster(
         cluster.close()
 
 
-def _describe(client: Client, scheduler: str) -> dict[str, Any]:
+def _describe(client: Client, kind: str) -> dict[str, Any]:
     threads = client.nthreads()
     link = None
     with contextlib.suppress(Exception):
         services = client.scheduler_info().get("services", {})
         link = client.dashboard_link if "dashboard" in services else None
-    return {"scheduler": scheduler, "workers": len(threads), "threads": sum(threads.values()), "dashboard": link}
+    return {
+        "kind": kind,
+        "scheduler": getattr(client.scheduler, "address", None),
+        "workers": len(threads),
+        "threads": sum(threads.values()),
+        "dashboard": link,
+    }
 
 
 def _dashboard(info: dict[str, Any]) -> str:
@@ -162,7 +168,7 @@ def _compute(
                 row = future.result()
             except Exception as exc:  # the task never returned (e.g. its worker died every time)
                 row = empty_row(ref, options)
-                row.update(status="failed", error=_message(exc))
+                row.update(status="failed", error=error_message(exc))
             store.write(row, keys[ref.channel])
             progress.update(error=row["status"] in ("error", "failed"))
             future.release()

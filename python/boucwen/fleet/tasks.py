@@ -49,7 +49,16 @@ from ..diagnose import _jsonable
 from ..io import Record
 from .source import RecordRef, load_record
 
-__all__ = ["ERROR_COLUMNS", "KINDS", "PARAM_COLUMNS", "ROW_COLUMNS", "TaskOptions", "run_task"]
+__all__ = [
+    "ERROR_COLUMNS",
+    "KINDS",
+    "PARAM_COLUMNS",
+    "ROW_COLUMNS",
+    "TaskOptions",
+    "empty_row",
+    "error_message",
+    "run_task",
+]
 
 #: What a task can do with a record.
 KINDS = ("fit", "diagnose")
@@ -111,7 +120,7 @@ class TaskOptions:
         return asdict(self)
 
 
-def _message(exc: BaseException) -> str:
+def error_message(exc: BaseException) -> str:
     """One line: the message of a ValueError/TypeError, else the type and the message."""
     text = " ".join(str(exc).split())
     if isinstance(exc, (ValueError, TypeError)) and text:
@@ -194,7 +203,7 @@ def run_task(ref: RecordRef, options: TaskOptions) -> dict[str, Any]:
         row.update(samples=len(record), dt_s=record.dt)
         row.update(_fit_columns(record, options) if options.kind == "fit" else _diagnose_columns(record, options))
     except Exception as exc:  # a bad record (or a model failure) is a row, never a lost fleet
-        row.update(status="error", error=_message(exc))
+        row.update(status="error", error=error_message(exc))
     row["elapsed_s"] = time.perf_counter() - started
     row["cpu_s"] = time.process_time() - cpu_started
     return row
