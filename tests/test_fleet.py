@@ -38,15 +38,15 @@ def mirror(tmp_path_factory):
     return root, actuators
 
 
+def _two_workers():
+    """Two single-threaded worker processes on the loopback interface (HTTP server on any free port)."""
+    return LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0")
+
+
 @pytest.fixture(scope="module")
 def client():
-    """Two single-threaded worker processes on the loopback interface, shared by the tests."""
-    with (
-        LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
-        ) as cluster,
-        Client(cluster) as c,
-    ):
+    """A client on two workers (see _two_workers), shared by the tests of this module."""
+    with _two_workers() as cluster, Client(cluster) as c:
         yield c
 
 
@@ -333,12 +333,7 @@ def test_killing_a_worker_mid_run_loses_and_duplicates_nothing(tmp_path):
     out = tmp_path / "res"
     killed = {}
 
-    with (
-        LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
-        ) as cluster,
-        Client(cluster) as c,
-    ):
+    with _two_workers() as cluster, Client(cluster) as c:
         pids = c.run(os.getpid)
 
         def kill_one_when_running():

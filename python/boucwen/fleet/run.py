@@ -270,6 +270,7 @@ def run_fleet(
     info.update(
         status={str(k): int(v) for k, v in counts.items()},
         outliers=int(table["outlier"].sum()),
+        figure=bool(figure and len(table)),
         wall_s=time.perf_counter() - started,
     )
     atomic_write_text(store.root / "run.json", json.dumps(info, indent=2, default=str) + "\n")
@@ -308,5 +309,6 @@ def summary(table: pd.DataFrame) -> str:
         lines.append("no outlier, no error")
     out = info.get("out")
     if out:
-        lines.append(f"wrote {out}: results.parquet, results.csv, outliers.csv, records/*.json, run.json")
+        figure = ", fleet.png" if info.get("figure") else ""
+        lines.append(f"wrote {out}: results.parquet, results.csv, outliers.csv{figure}, records/*.json, run.json")
     return "\n".join(lines)
