@@ -1,5 +1,6 @@
 # Sourced by the other scripts: a virtual environment in .venv with boucwen built
-# (release) and installed, plus the test tools when BOUCWEN_TEST=1.
+# (release) and installed, plus the test tools and the fleet extra (Dask, pandas,
+# pyarrow) when BOUCWEN_TEST=1.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -12,7 +13,7 @@ fi
 . .venv/bin/activate
 python -m pip install -q --upgrade pip >/dev/null
 extras=""
-[ "${BOUCWEN_TEST:-0}" = 1 ] && extras="[test]"
+[ "${BOUCWEN_TEST:-0}" = 1 ] && extras="[test,fleet]"
 echo "== building and installing boucwen (release build of the Rust extension)"
 # A stale build of the extension must never shadow the fresh one.
 find python/boucwen -maxdepth 1 -name '_core*.so' -delete

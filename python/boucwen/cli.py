@@ -9,9 +9,13 @@ Subcommands:
   simulated bench (:mod:`boucwen.experiments.reproduce`).
 * ``boucwen diagnose (DATA.csv | --dataset NAME) --json REPORT.json --predictions PRED.csv
   [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnosis`).
+* ``boucwen batch fit|diagnose SOURCE --out DIR [--scheduler ADDRESS] [--workers N]
+  [--layout CSV]``: a fleet of records on Dask (:mod:`boucwen.batch`; exit code 1 when a
+  record ended as an error or did not converge; needs ``pip install boucwen[fleet]``).
 
 Exit codes: 0 success; 1 ``fit`` finished without converging (the result is still
-printed and written); 2 error. Every error (bad file, bad data, unwritable output)
+printed and written), or a ``batch`` record did; 2 error (a missing optional
+dependency included). Every error (bad file, bad data, unwritable output)
 ends the program with exit code 2 and a single line ``boucwen <subcommand>: error: <message>`` on stderr.
 
 Adding a subcommand: write ``_add_<name>(subparsers)`` that creates its parser and
@@ -203,10 +207,53 @@ def _add_diagnose(sub: _Subparsers) -> None:
     p.set_defaults(handler=_cmd_diagnose)
 
 
+# --------------------------------------------------------------------------- batch
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from .batch import run_fleet, summary  # ImportError naming `pip install boucwen[fleet]` without the extra
+
+    table = run_fleet(
+        args.kind,
+        args.source,
+        args.out,
+        layout=args.layout,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        seed=args.seed,
+        figure=not args.no_figure,
+        progress=not args.quiet,
+    )
+    print(summary(table))
+    return EXIT_OK if bool((table["status"] == "ok").all()) else EXIT_NOT_CONVERGED
+
+
+def _add_batch(sub: _Subparsers) -> None:
+    p = sub.add_parser(
+        "batch",
+        help="fit or diagnose a fleet of records on Dask",
+        description="Fits or diagnoses every record of SOURCE (a folder or glob of CSV records t,u,x, "
+        "or one long CSV/Parquet table with a channel column), one Dask task per record, on a local "
+        "cluster or the scheduler at --scheduler. Writes a table (Parquet, CSV), per-record JSON, the "
+        "outliers and a fleet figure into --out; a re-run skips the records already done. Exit code 1 "
+        "when some record ended as an error or did not converge (its row says why).",
+    )
+    p.add_argument("kind", choices=("fit", "diagnose"), help="what to do with each record")
+    p.add_argument("source", metavar="SOURCE", help="folder, glob (quoted) or long table of records")
+    p.add_argument("--out", required=True, metavar="DIR", help="result folder (created)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler to use (default: a local cluster)")
+    p.add_argument("--workers", type=int, metavar="N", help="local worker processes, 1 thread each (default: CPUs)")
+    p.add_argument("--layout", metavar="CSV", help="channel,row,col of each record on the mirror's grid (maps)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the fits' random starts (default 0)")
+    p.add_argument("--no-figure", action="store_true", help="skip DIR/fleet.png")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(handler=_cmd_batch)
+
+
 # --------------------------------------------------------------------------- main
 
 #: One registration function per subcommand, in help order.
-SUBCOMMANDS: list[Callable[[_Subparsers], None]] = [_add_fit, _add_reproduce, _add_diagnose]
+SUBCOMMANDS: list[Callable[[_Subparsers], None]] = [_add_fit, _add_reproduce, _add_diagnose, _add_batch]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -231,7 +278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(exc.code or 0)
     try:
         return int(args.handler(args))
-    except (ValueError, TypeError, OSError) as exc:
+    except (ValueError, TypeError, OSError, ImportError) as exc:
         message = " ".join(str(exc).split()) or type(exc).__name__
         print(f"boucwen {args.command}: error: {message}", file=sys.stderr)
         return EXIT_ERROR

@@ -35,7 +35,7 @@ import numpy as np
 from .record import Record, validate_samples
 
 # Record and validate_samples live in boucwen.record; they are importable from here too.
-__all__ = ["REQUIRED_COLUMNS", "Record", "read_csv", "validate_samples", "write_csv"]
+__all__ = ["REQUIRED_COLUMNS", "Record", "read_csv", "sampling_interval", "validate_samples", "write_csv"]
 
 #: Columns :func:`read_csv` needs: time [s], voltage [V], displacement [µm].
 REQUIRED_COLUMNS = ("t", "u", "x")
@@ -155,24 +155,42 @@ def read_csv(path: str | os.PathLike[str]) -> Record:
 
     data = np.array(rows, dtype=np.float64)
     t, u, x = data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy()
+    dt, problem = sampling_interval(t)
+    if problem is not None:
+        k, message = problem
+        raise _fail(path, message, line_nos[k])
+    return Record(t=t, u=u, x=x, dt=dt, name=path.stem, meta={"path": str(path), "columns": header})
+
+
+def sampling_interval(t: np.ndarray) -> tuple[float, tuple[int, str] | None]:
+    """The mean step of sample times and, if they are not uniformly sampled, why.
+
+    Args:
+        t: sample times [s], finite, 1-D, at least 2 samples.
+
+    Returns:
+        ``(dt, problem)``: the mean step ``dt = (t[-1] - t[0]) / (N - 1)`` [s] and
+        ``None`` when ``t`` is strictly increasing and uniform within the tolerance of
+        the module docs; otherwise ``problem = (k, message)`` with ``k`` the index of
+        the first offending sample and a one-line message.
+    """
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0.0)
     if bad.size:
         k = int(bad[0])
-        raise _fail(path, f"time not strictly increasing: t = {t[k + 1]!r} s after t = {t[k]!r} s", line_nos[k + 1])
+        return 0.0, (k + 1, f"time not strictly increasing: t = {t[k + 1]!r} s after t = {t[k]!r} s")
     dt = float((t[-1] - t[0]) / (t.size - 1))
     tol = STEP_RTOL * dt + STAMP_RTOL * float(np.max(np.abs(t)))
     dev = np.abs(steps - dt)
     worst = int(np.argmax(dev))
     if dev[worst] > tol:
-        raise _fail(
-            path,
+        return dt, (
+            worst + 1,
             f"non-uniform sampling: step {steps[worst]:.9g} s differs from the "
             f"mean step {dt:.9g} s by {100.0 * dev[worst] / dt:.3g}% "
             f"(tolerance {100.0 * tol / dt:.3g}%)",
-            line_nos[worst + 1],
         )
-    return Record(t=t, u=u, x=x, dt=dt, name=path.stem, meta={"path": str(path), "columns": header})
+    return dt, None
 
 
 def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
