@@ -11,13 +11,16 @@ echo "== cargo clippy --all-targets --all-features -- -D warnings"
 cargo clippy --all-targets --all-features -- -D warnings
 echo "== cargo doc --no-deps (warnings are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
-echo "== ruff check python tests benches"
-ruff check python tests benches
-echo "== ruff format --check python tests benches"
-ruff format --check python tests benches
+echo "== ruff check python tests benches examples"
+ruff check python tests benches examples
+echo "== ruff format --check python tests benches examples"
+ruff format --check python tests benches examples
 echo "== mypy (strict, python/boucwen)"
 mypy
 echo "== cargo test --release"
 cargo test --release
+echo "== examples"
+cargo run --release --quiet --example identify
+python examples/fit_and_identify.py
 echo "== pytest"
 python -m pytest -q -p no:cacheprovider tests
