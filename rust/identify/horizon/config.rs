@@ -5,7 +5,7 @@ use crate::error::{Error, Result};
 /// Tuning of [`super::HorizonIdentifier`], with documented defaults ([`Default`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HorizonConfig {
-    /// Length of the horizon measured in input travel [V]: the window holds the newest
+    /// Length of the horizon measured in input travel \[V\]: the window holds the newest
     /// samples over which u has moved by this much in all. One period of a 0–100 V
     /// sine is 200 V of travel at any frequency, so the default 300 V is the newest
     /// one and a half periods at 1 Hz and at 200 Hz alike (longer windows follow a
@@ -23,9 +23,11 @@ pub struct HorizonConfig {
     /// A pass leads to an update only when it spans at least this fraction of
     /// `memory_travel_v` (or half of `max_window` samples). Default 0.5.
     pub min_pass_fraction: f64,
-    /// Relative Tikhonov weight that keeps the normal equations well posed when the
-    /// window does not excite every parameter: ρ·mean(diag JᵀJ) is added to the
-    /// diagonal. Default 1e-6.
+    /// Relative weight of a proximal term that keeps each update near the current
+    /// estimates in the directions the window does not determine well (and the normal
+    /// equations well posed): ρ·mean(diag JᵀJ) is added to the diagonal. Default 1e-3:
+    /// started from an offline fit on a record that does not change, the model stays
+    /// within a few % of the fit period-ahead instead of chasing the window's noise.
     pub ridge: f64,
     /// Initial Levenberg–Marquardt damping μ (relative to diag JᵀJ). Default 1e-3.
     pub damping: f64,
@@ -37,7 +39,7 @@ pub struct HorizonConfig {
     /// β + γ and β − γ are held at or above this [µm^(1−n)/V]. Default 1e-6.
     pub margin: f64,
     /// Scale of each parameter (kv, x0, A, β, γ, n, δ) and of the window's initial h
-    /// [µm]: the update works on θᵢ/scaleᵢ. Default (0.2, 0.1, 0.07, 0.02, 0.02, 1.5,
+    /// \[µm\]: the update works on θᵢ/scaleᵢ. Default (0.2, 0.1, 0.07, 0.02, 0.02, 1.5,
     /// 0.007, 0.1).
     pub scales: [f64; 8],
 }
@@ -49,7 +51,7 @@ impl Default for HorizonConfig {
             max_window: 40_000,
             samples_per_push: 16,
             min_pass_fraction: 0.5,
-            ridge: 1e-6,
+            ridge: 1e-3,
             damping: 1e-3,
             max_step: 0.5,
             n_bounds: (0.25, 4.0),
@@ -60,7 +62,7 @@ impl Default for HorizonConfig {
 }
 
 impl HorizonConfig {
-    /// Largest accepted `max_window` [samples].
+    /// Largest accepted `max_window` \[samples\].
     pub const MAX_WINDOW: usize = 10_000_000;
 
     /// Checks every value; the error names the offending option.
@@ -110,9 +112,9 @@ pub struct HorizonStatus {
     pub updates: u64,
     /// Samples in the window.
     pub window_samples: u64,
-    /// Input travel over the window [V].
+    /// Input travel over the window \[V\].
     pub window_travel_v: f64,
-    /// RMS output error over the window's last pass, with the estimates it ran [µm].
+    /// RMS output error over the window's last pass, with the estimates it ran \[µm\].
     pub rms_um: f64,
     /// Levenberg–Marquardt damping μ after the last update.
     pub damping: f64,

@@ -61,7 +61,7 @@ const ND: usize = 6;
 type Normal = SMatrix<f64, NZ, NZ>;
 type Vector = SVector<f64, NZ>;
 
-/// One stored sample: u [V], x [µm], the input travel up to it [V], and the h of the
+/// One stored sample: u \[V\], x \[µm\], the input travel up to it \[V\], and the h of the
 /// last pass there with its derivatives over (A, β, γ, n, δ, h_s).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Entry {
@@ -81,7 +81,7 @@ struct Pass {
     cursor: u64,
     /// Parameters the pass runs.
     params: Params,
-    /// h at the pass's start [µm].
+    /// h at the pass's start \[µm\].
     h_start: f64,
     /// h and its derivatives at the last simulated sample.
     h: Dual<ND>,
@@ -125,15 +125,15 @@ pub struct HorizonIdentifier {
     /// Absolute index of the window's first sample.
     start: u64,
     pass: Pass,
-    /// Mean squared error of the last finished pass [µm²] (∞ before the first).
+    /// Mean squared error of the last finished pass \[µm²\] (∞ before the first).
     last_mse: f64,
     damping: f64,
     status: HorizonStatus,
 }
 
 impl HorizonIdentifier {
-    /// An identifier for samples every `dt` [s], starting from `init` (used as given)
-    /// with model state `h0` [µm].
+    /// An identifier for samples every `dt` \[s\], starting from `init` (used as given)
+    /// with model state `h0` \[µm\].
     pub fn new(dt: f64, init: Params, h0: f64, config: HorizonConfig) -> Result<Self> {
         positive_dt(dt)?;
         init.validate()?;
