@@ -21,10 +21,15 @@
 //! The Python bindings live in `python/` behind the `python` feature; this crate's
 //! numerics never depend on them.
 
+#![cfg_attr(not(feature = "std"), no_std)]
+
+extern crate alloc;
+
 pub mod effects;
 pub mod error;
 pub mod format;
 pub mod identify;
+pub mod math;
 pub mod model;
 pub mod params;
 

@@ -8,3 +8,6 @@ echo "== cargo test --release"
 cargo test --release
 echo "== pytest"
 python -m pytest -q -p no:cacheprovider tests
+echo "== no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
+rustup target add thumbv7em-none-eabihf
+cargo rustc --release --lib --crate-type rlib --no-default-features --target thumbv7em-none-eabihf
