@@ -16,6 +16,7 @@
 //! - [`model`]: the operator, its integrator, the per-sample [`Model`] and [`simulate`].
 //! - [`identify`]: online identifiers behind one trait, [`identify::OnlineIdentifier`].
 //! - [`Error`]: every fallible call returns it; nothing here panics on user input.
+//! - [`bank`]: C channels (identifier + model each) stepped with one call per frame.
 //! - [`Snapshot`]: save a [`Model`] or an identifier to bytes and restore it bit for bit.
 //!
 //! The Python bindings live in `python/` behind the `python` feature; this crate's
@@ -25,6 +26,7 @@
 
 extern crate alloc;
 
+pub mod bank;
 pub mod effects;
 pub mod error;
 pub mod format;
@@ -36,6 +38,7 @@ pub mod params;
 #[cfg(feature = "python")]
 mod python;
 
+pub use bank::{Bank, ModelBank};
 pub use effects::{simulate_extended, EffectSet, ExtendedModel};
 pub use error::{Error, Result};
 pub use format::Snapshot;
