@@ -150,6 +150,8 @@ impl ModelBank {
             return Err(Error::LengthMismatch { what: "bank output", expected: channels, found: x_out.len() });
         }
         if self.started {
+            // Indexed: each channel reads its parameters from seven arrays.
+            #[allow(clippy::needless_range_loop)]
             for c in 0..channels {
                 self.h[c] = advance_h(&self.params(c), self.h[c], self.u_prev[c], u[c], self.dt);
             }

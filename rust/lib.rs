@@ -35,6 +35,8 @@ pub mod math;
 pub mod model;
 pub mod params;
 
+#[cfg(feature = "ffi")]
+pub mod ffi;
 #[cfg(feature = "python")]
 mod python;
 

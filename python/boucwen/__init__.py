@@ -8,18 +8,19 @@ Precision Engineering 38 (2014) 921–927).
 
 - :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
 - :class:`Identifier` identifies them online, one sample at a time (configured by
-  :class:`RpemConfig` or :class:`PaperConfig`);
+  :class:`RpemConfig` or :class:`PaperConfig`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
-from ._core import Identifier, Model, Params, __version__, paper_input, simulate
+from ._core import Bank, Identifier, Model, Params, __version__, paper_input, simulate
 from ._core import EffectSet, simulate_extended
 from .config import PaperConfig, RpemConfig
 from .diagnose import Diagnosis, diagnose
 from .fit import FitResult, fit
 
 __all__ = [
+    "Bank",
     "Identifier",
     "PaperConfig",
     "RpemConfig",
