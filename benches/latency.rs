@@ -13,8 +13,11 @@
 //!
 //! Timer: the time-stamp counter (`rdtsc` between `lfence`s) on x86-64, converted to
 //! ns against `Instant` over 200 ms; `Instant` elsewhere. The cost of an empty
-//! timed region (its median) is subtracted from every sample. The process is pinned
-//! to one core (the last one) on Linux. Release build (`cargo bench`).
+//! timed region (its median) is subtracted from every sample. On Linux the process is
+//! pinned to one core (the last one) and, where permitted, runs under `SCHED_FIFO`
+//! as a real-time loop would (`--no-rt` turns that off), so that other processes
+//! on that core do not preempt it; the kernel's real-time throttling still takes
+//! 50 ms of every second, which shows in the max column. Release build (`cargo bench`).
 //!
 //! Rows: `Model::step`; `rpem` push (the default online method); the paper's method at
 //! N = 100 … 100 000; `simulate` throughput; and a hand-written floor: one RK4
@@ -92,17 +95,28 @@ impl Timer {
 
 #[cfg(target_os = "linux")]
 fn pin_to_one_core() -> String {
-    // SAFETY: plain libc calls on a zeroed cpu_set_t of this process.
+    // SAFETY: plain libc calls on zeroed structs of this process.
     unsafe {
         let cores = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
         let core = cores - 1;
         let mut set: libc::cpu_set_t = std::mem::zeroed();
         libc::CPU_SET(core, &mut set);
-        if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0 {
+        let pinned = if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0 {
             format!("pinned to core {core} of {cores}")
         } else {
             "not pinned (sched_setaffinity failed)".into()
-        }
+        };
+        // As a real-time loop runs: SCHED_FIFO, so that ordinary processes on the same
+        // core do not preempt the measurement (needs the privilege; else say so).
+        let param = libc::sched_param { sched_priority: 10 };
+        let policy = if std::env::args().any(|a| a == "--no-rt") {
+            "normal scheduling (--no-rt)"
+        } else if libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 {
+            "SCHED_FIFO priority 10"
+        } else {
+            "normal scheduling (SCHED_FIFO not permitted)"
+        };
+        format!("{pinned}, {policy}")
     }
 }
 
