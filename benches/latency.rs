@@ -201,18 +201,16 @@ impl Floor {
         let pred = kv * u + x0 + self.h;
         let phi = [u, 1.0, udot * DT, -udot.abs() * DT * hn, -udot * DT * hn, 0.0, u * su * DT];
         let mut pphi = [0.0; 7];
-        for i in 0..7 {
-            for j in 0..7 {
-                pphi[i] += self.cov[i][j] * phi[j];
-            }
+        for (out, row) in pphi.iter_mut().zip(&self.cov) {
+            *out = row.iter().zip(&phi).map(|(c, f)| c * f).sum::<f64>();
         }
         let s = 1e-4 + (0..7).map(|i| phi[i] * pphi[i]).sum::<f64>();
         let e = x - pred;
-        for i in 0..7 {
-            let k = pphi[i] / s;
-            self.p[i] += k * e * 1e-3;
-            for j in 0..7 {
-                self.cov[i][j] -= k * pphi[j];
+        for ((p, row), &pp) in self.p.iter_mut().zip(self.cov.iter_mut()).zip(&pphi) {
+            let k = pp / s;
+            *p += k * e * 1e-3;
+            for (c, &pj) in row.iter_mut().zip(&pphi) {
+                *c -= k * pj;
             }
         }
         self.p[5] = n;
