@@ -4,8 +4,8 @@
 set -euo pipefail
 export BOUCWEN_TEST=1
 . "$(dirname "$0")/setup_env.sh"
-echo "== cargo test --release"
-cargo test --release
+echo "== cargo test --release --features ffi"
+cargo test --release --features ffi
 echo "== pytest"
 python -m pytest -q -p no:cacheprovider tests
 echo "== no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
