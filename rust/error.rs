@@ -4,7 +4,7 @@
 //! (names and reasons are `&'static str`), so the per-sample paths can reject a
 //! sample without touching the heap.
 
-use std::fmt;
+use core::fmt;
 
 /// What went wrong, precisely enough to be shown to a user as one line.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,10 +41,11 @@ impl fmt::Display for Error {
     }
 }
 
+#[cfg(feature = "std")]
 impl std::error::Error for Error {}
 
 /// Result alias of the crate.
-pub type Result<T> = std::result::Result<T, Error>;
+pub type Result<T> = core::result::Result<T, Error>;
 
 /// Checks that a sample is finite.
 #[inline]

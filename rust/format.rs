@@ -15,6 +15,8 @@
 //! Each type writes and reads itself with `Writer` and `Reader`, beside its own
 //! code: `model/mod.rs`, `identify/paper/snapshot.rs`, `identify/rpem/snapshot.rs`.
 
+use alloc::vec::Vec;
+
 use crate::error::{Error, Result};
 use crate::params::Params;
 

@@ -16,23 +16,31 @@
 //! - [`model`]: the operator, its integrator, the per-sample [`Model`] and [`simulate`].
 //! - [`identify`]: online identifiers behind one trait, [`identify::OnlineIdentifier`].
 //! - [`Error`]: every fallible call returns it; nothing here panics on user input.
+//! - [`bank`]: C channels (identifier + model each) stepped with one call per frame.
 //! - [`Snapshot`]: save a [`Model`] or an identifier to bytes and restore it bit for bit.
 //!
 //! The Python bindings live in `python/` behind the `python` feature; this crate's
 //! numerics never depend on them.
 
+#![cfg_attr(not(feature = "std"), no_std)]
+
 extern crate alloc;
 
+pub mod bank;
 pub mod effects;
 pub mod error;
 pub mod format;
 pub mod identify;
+pub mod math;
 pub mod model;
 pub mod params;
 
+#[cfg(feature = "ffi")]
+pub mod ffi;
 #[cfg(feature = "python")]
 mod python;
 
+pub use bank::{Bank, ModelBank};
 pub use effects::{simulate_extended, EffectSet, ExtendedModel};
 pub use error::{Error, Result};
 pub use format::Snapshot;

@@ -17,10 +17,13 @@ echo "== ruff format --check python tests benches examples"
 ruff format --check python tests benches examples
 echo "== mypy (strict, python/boucwen)"
 mypy
-echo "== cargo test --release"
-cargo test --release
+echo "== cargo test --release --features ffi"
+cargo test --release --features ffi
 echo "== examples"
 cargo run --release --quiet --example identify
 python examples/fit_and_identify.py
 echo "== pytest"
 python -m pytest -q -p no:cacheprovider tests
+echo "== no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
+rustup target add thumbv7em-none-eabihf
+cargo rustc --release --lib --crate-type rlib --no-default-features --target thumbv7em-none-eabihf

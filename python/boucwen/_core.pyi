@@ -21,6 +21,7 @@ part is one new section (and one line in ``__all__``):
   ``_RpemStatus``, ``_HorizonStatus`` (type-only names, absent at run time), ``Identifier``
 - effects: ``_CreepParams`` … ``_EffectParams`` (type-only: the dicts ``EffectSet``
   takes and gives), ``EffectSet``, ``simulate_extended``
+- channels: ``Bank``
 """
 
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypedDict, final
@@ -32,6 +33,7 @@ if TYPE_CHECKING:  # type-only: the compiled core does not import the config mod
     from .config import HorizonConfig, PaperConfig, RpemConfig
 
 __all__ = [
+    "Bank",
     "EffectSet",
     "Identifier",
     "Model",
@@ -377,6 +379,60 @@ class _EffectParams(TypedDict, total=False):
     resonance: _ResonanceParams
     drift: _DriftParams
     delay: _DelayParams
+
+@final
+class Bank:
+    """C independent channels, each an online identifier and a model, stepped with
+    one call per frame (adaptive optics, multi-axis stages).
+
+    - ``Bank(channels, dt, init, h0=0.0, *, config=None)``: rpem channels (as ``Bank.rpem``);
+    - ``Bank.paper(channels, dt, window, init, h0=0.0, *, config=None)``.
+
+    Every channel starts from ``init`` and ``h0`` [µm] and learns on its own; its
+    results are bit for bit those of a single :class:`Identifier` (and :class:`Model`)
+    fed the same samples. A frame or call with a non-finite value raises
+    ``ValueError`` before any channel changes.
+    """
+
+    def __new__(
+        cls, channels: int, dt: float, init: Params, h0: float = 0.0, *, config: RpemConfig | None = None
+    ) -> Bank: ...
+    @staticmethod
+    def rpem(channels: int, dt: float, init: Params, h0: float = 0.0, *, config: RpemConfig | None = None) -> Bank:
+        """A bank of rpem channels."""
+    @staticmethod
+    def paper(
+        channels: int,
+        dt: float,
+        window: int,
+        init: Params,
+        h0: float = 0.0,
+        *,
+        config: PaperConfig | None = None,
+    ) -> Bank:
+        """A bank of channels of the paper's method over ``window`` samples."""
+    @property
+    def channels(self) -> int:
+        """The number of channels C."""
+    @property
+    def method(self) -> _IdentifierMethod:
+        """The online method of every channel."""
+    def push(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
+        """One frame: C voltages [V] and C measurements [µm]; returns C predictions [µm]."""
+    def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
+        """T frames, u and x of shape (T, C); returns (T, C) predictions [µm] (GIL released)."""
+    def step_models(self, u: ArrayLike) -> NDArray[np.float64]:
+        """One frame for the models: C voltages [V] in, C displacements [µm] out."""
+    def step_models_many(self, u: ArrayLike) -> NDArray[np.float64]:
+        """T frames for the models: u of shape (T, C) [V]; returns (T, C) displacements [µm]."""
+    def adopt_estimates(self) -> None:
+        """Every model takes its identifier's current estimates (model states kept)."""
+    def params(self, channel: int) -> Params:
+        """The current estimates of channel ``channel``'s identifier."""
+    def model_params(self, channel: int) -> Params:
+        """The parameters of channel ``channel``'s model."""
+    def reset(self) -> None:
+        """Every identifier and model back to its state right after construction."""
 
 @final
 class EffectSet:

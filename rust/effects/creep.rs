@@ -11,6 +11,9 @@
 //! creep law of piezo stacks. For fixed τ_i the output is linear in the gains, which
 //! makes them cheap to fit. Each element starts in equilibrium with the first voltage.
 
+use alloc::vec;
+use alloc::vec::Vec;
+
 use super::{first_order_coefficient, first_order_step, Effect};
 use crate::error::{Error, Result};
 
@@ -79,7 +82,7 @@ impl Creep {
         let tau_s: Vec<f64> = (0..count)
             .map(|i| {
                 let f = if count > 1 { i as f64 / (count - 1) as f64 } else { 0.0 };
-                tau_min_s * (tau_max_s / tau_min_s).powf(f)
+                tau_min_s * crate::math::powf(tau_max_s / tau_min_s, f)
             })
             .collect();
         let creep = Creep { gain_um_per_v: vec![0.0; tau_s.len()], tau_s };

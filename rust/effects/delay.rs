@@ -4,6 +4,9 @@
 //! x_measured[k] = x[k − d]     (x\[0\] for k < d)
 //! ```
 
+use alloc::vec;
+use alloc::vec::Vec;
+
 use super::Effect;
 use crate::error::{Error, Result};
 

@@ -35,7 +35,7 @@ impl Effect for InputLag {
 impl InputLag {
     /// Time constant τ = 1/(2π·fc) \[s\].
     pub fn tau_s(&self) -> f64 {
-        1.0 / (2.0 * std::f64::consts::PI * self.fc_hz)
+        1.0 / (2.0 * core::f64::consts::PI * self.fc_hz)
     }
 
     /// The per-sample coefficients for a sampling interval `dt` \[s\].

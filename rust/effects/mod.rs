@@ -29,6 +29,9 @@ pub mod drift;
 pub mod input_lag;
 pub mod resonance;
 
+use alloc::vec;
+use alloc::vec::Vec;
+
 use nalgebra::Vector2;
 
 pub use creep::Creep;
@@ -59,7 +62,7 @@ pub trait Effect {
 /// exp(−dt/τ).
 #[inline]
 pub(crate) fn first_order_coefficient(tau: f64, dt: f64) -> f64 {
-    (-dt / tau).exp()
+    crate::math::exp(-dt / tau)
 }
 
 /// Exact step of τ·ẏ = v − y over `dt` while v moves linearly from `v0` to `v1`

@@ -59,7 +59,7 @@ impl Resonance {
                 reason: "the natural frequency must be below the Nyquist frequency 1/(2·dt)",
             });
         }
-        let w = 2.0 * std::f64::consts::PI * self.fn_hz;
+        let w = 2.0 * core::f64::consts::PI * self.fn_hz;
         // d/dt [z, ż, y, Δy] with ẏ = Δy/dt over the interval.
         #[rustfmt::skip]
         let m = Matrix4::new(
@@ -68,13 +68,56 @@ impl Resonance {
             0.0,    0.0,                    0.0,   1.0 / dt,
             0.0,    0.0,                    0.0,   0.0,
         ) * dt;
-        let e = m.exp();
+        let e = matrix_exp(m);
         Ok(ResonanceStage {
             phi: e.fixed_view::<2, 2>(0, 0).into_owned(),
             from_y: Vector2::new(e[(0, 2)], e[(1, 2)]),
             from_dy: Vector2::new(e[(0, 3)], e[(1, 3)]),
         })
     }
+}
+
+/// e^m: nalgebra's `exp` with `std`; without it (nalgebra's `exp` needs `std`),
+/// [`taylor_exp`].
+#[inline]
+fn matrix_exp(m: Matrix4<f64>) -> Matrix4<f64> {
+    #[cfg(feature = "std")]
+    {
+        m.exp()
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        taylor_exp(m)
+    }
+}
+
+/// e^m by scaling and squaring: m/2^s with ‖m/2^s‖₁ ≤ 1/2, its Taylor series to
+/// degree 18 (the first dropped term is below 2^−19/19! ≈ 1.6e-23 relative), then s
+/// squarings. Used without `std`; agrees with nalgebra's Padé form to about 1e-12 of the
+/// largest entry (test below).
+#[cfg_attr(feature = "std", allow(dead_code))]
+fn taylor_exp(m: Matrix4<f64>) -> Matrix4<f64> {
+    let mut norm = 0.0f64;
+    for j in 0..4 {
+        norm = norm.max((0..4).map(|i| m[(i, j)].abs()).sum::<f64>());
+    }
+    let mut scaled = m;
+    let mut squarings = 0u32;
+    while norm > 0.5 && squarings < 1100 {
+        scaled *= 0.5;
+        norm *= 0.5;
+        squarings += 1;
+    }
+    let mut term = Matrix4::identity();
+    let mut sum = Matrix4::identity();
+    for k in 1..=18 {
+        term = term * scaled / k as f64;
+        sum += term;
+    }
+    for _ in 0..squarings {
+        sum = sum * sum;
+    }
+    sum
 }
 
 /// `s[k+1] = Φ·s[k] + g_y·y[k] + g_Δ·(y[k+1] − y[k])`, s = [z, ż].
@@ -95,6 +138,26 @@ impl ResonanceStage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_no_std_exponential_matches_nalgebras() {
+        for (fn_hz, zeta, dt) in [(1500.0, 0.05, 1e-4), (40.0, 1.0, 1e-3), (4000.0, 3.0, 2.5e-5)] {
+            let w = 2.0 * std::f64::consts::PI * fn_hz;
+            #[rustfmt::skip]
+            let m = Matrix4::new(
+                0.0, 1.0, 0.0, 0.0,
+                -w * w, -2.0 * zeta * w, w * w, 0.0,
+                0.0, 0.0, 0.0, 1.0 / dt,
+                0.0, 0.0, 0.0, 0.0,
+            ) * dt;
+            let (a, b) = (taylor_exp(m), m.exp());
+            // The matrix is badly scaled (ω²·dt ≈ 9e3 against 1), and both forms round
+            // through several squarings: 1e-11 of the largest entry is rounding.
+            let scale = b.abs().max();
+            eprintln!("fn {fn_hz}: {:.1e} of the largest entry", (a - b).abs().max() / scale);
+            assert!((a - b).abs().max() <= 1e-11 * scale, "fn {fn_hz}, ζ {zeta}: {}", (a - b).abs().max());
+        }
+    }
 
     fn fine_rk4(r: &Resonance, y0: f64, y1: f64, dt: f64, s: [f64; 2]) -> [f64; 2] {
         let w = 2.0 * std::f64::consts::PI * r.fn_hz;

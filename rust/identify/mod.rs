@@ -28,6 +28,8 @@ pub mod horizon;
 pub mod paper;
 pub mod rpem;
 
+use alloc::vec::Vec;
+
 use crate::error::{finite_sample, Error, Result};
 use crate::format::{corrupt, Snapshot, KIND_HORIZON, KIND_PAPER, KIND_RPEM};
 use crate::params::Params;

@@ -24,6 +24,7 @@
 //! sub-steps, and the derivative is that of the discrete map actually computed.
 
 use super::scalar::Scalar;
+use crate::math;
 use crate::params::Params;
 
 /// RK4 sub-steps for an interval in which h may cross zero.
@@ -59,7 +60,7 @@ pub(crate) fn abs_pow(h: f64, n: f64) -> f64 {
     if a == 0.0 {
         0.0
     } else {
-        a.powf(n)
+        math::powf(a, n)
     }
 }
 
@@ -107,7 +108,7 @@ fn rate_slope(p: &Params, h: f64, udot: f64) -> f64 {
     if a == 0.0 {
         return 0.0;
     }
-    -(p.beta * udot.abs() + p.gamma * udot * sgn(h)) * p.n * a.powf(p.n - 1.0)
+    -(p.beta * udot.abs() + p.gamma * udot * sgn(h)) * p.n * math::powf(a, p.n - 1.0)
 }
 
 /// One backward-Euler step of length `step` (Newton, at most [`NEWTON_ITERATIONS`]
@@ -155,7 +156,7 @@ fn substeps(p: &Params, h: f64, k1: f64, hn: f64, udot: f64, dt: f64) -> Option<
     if (h_end - h).abs() > 0.1 * a {
         let b = h_end.abs();
         if b > 0.0 {
-            stiffness_dt = stiffness_dt.max(slope_weight * b.powf(p.n - 1.0));
+            stiffness_dt = stiffness_dt.max(slope_weight * math::powf(b, p.n - 1.0));
         }
     }
     // |h|^n is not smooth at h = 0: an interval where h may cross zero gets
@@ -171,7 +172,7 @@ fn substeps(p: &Params, h: f64, k1: f64, hn: f64, udot: f64, dt: f64) -> Option<
     } else if wanted.is_nan() || wanted > MAX_SUBSTEPS as f64 {
         return None;
     } else {
-        wanted.ceil() as u32
+        math::ceil(wanted) as u32
     };
     Some(m.max(floor))
 }
@@ -203,7 +204,7 @@ impl NearPower {
         let c3 = c2 * (n - 2.0) / 3.0;
         let c4 = c3 * (n - 3.0) / 4.0;
         let a = h_ref.abs();
-        let ln_ref = if with_ln && a > 0.0 { a.ln() } else { 0.0 };
+        let ln_ref = if with_ln && a > 0.0 { math::ln(a) } else { 0.0 };
         NearPower { h_ref, inv_abs_ref: if a > 0.0 { 1.0 / a } else { 0.0 }, hn_ref, ln_ref, c: [c1, c2, c3, c4] }
     }
 
@@ -238,7 +239,7 @@ impl NearPower {
             Some(e) => (self.power(e), if S::DERIVATIVES { self.ln(e) } else { 0.0 }),
             None => {
                 let a = h.abs();
-                let ln = if S::DERIVATIVES && a > 0.0 { a.ln() } else { 0.0 };
+                let ln = if S::DERIVATIVES && a > 0.0 { math::ln(a) } else { 0.0 };
                 (abs_pow(h, n), ln)
             }
         }
@@ -295,7 +296,7 @@ pub(crate) fn advance_forced<S: Scalar>(
             } else if S::DERIVATIVES {
                 let fixed = S::cst(star);
                 let a = star.abs();
-                let (hn, ln) = (abs_pow(star, p.n), if a > 0.0 { a.ln() } else { 0.0 });
+                let (hn, ln) = (abs_pow(star, p.n), if a > 0.0 { math::ln(a) } else { 0.0 });
                 let f_at = rate(c, fixed, fixed.abs_pow(c.n, hn, ln), u_end, udot, su);
                 S::implicit(star, h, f_at, rate_slope(p, star, udv), step)
             } else {

@@ -13,8 +13,12 @@
 pub mod integrator;
 pub mod scalar;
 
+use alloc::vec;
+use alloc::vec::Vec;
+
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::format::{corrupt, Reader, Snapshot, Writer, KIND_MODEL};
+use crate::math;
 use crate::params::Params;
 
 pub use integrator::{
@@ -154,7 +158,7 @@ pub fn simulate(params: &Params, u: &[f64], dt: f64, h0: f64, u_prev: Option<f64
 /// phase restarts there and u is continuous.
 pub fn paper_input(dt: f64, tail_s: f64) -> Vec<f64> {
     let segments = [(1.0, 0.0, 3.0), (10.0, 3.0, 3.3), (100.0, 3.3, 3.33), (200.0, 3.33, 3.33 + tail_s)];
-    let total = ((3.33 + tail_s) / dt).round() as usize;
+    let total = math::round((3.33 + tail_s) / dt) as usize;
     (0..total)
         .map(|k| {
             let t = k as f64 * dt;
@@ -164,7 +168,7 @@ pub fn paper_input(dt: f64, tail_s: f64) -> Vec<f64> {
                 .find(|(_, start, _)| t >= start - 1e-12)
                 .map(|&(f, start, _)| (f, start))
                 .unwrap_or((1.0, 0.0));
-            50.0 + 50.0 * (2.0 * std::f64::consts::PI * f * (t - start) - std::f64::consts::FRAC_PI_2).sin()
+            50.0 + 50.0 * math::sin(2.0 * core::f64::consts::PI * f * (t - start) - core::f64::consts::FRAC_PI_2)
         })
         .collect()
 }

@@ -171,8 +171,11 @@ impl<const M: usize> Scalar for Dual<M> {
             return Dual::cst(0.0);
         }
         // n·|h|^(n−1), taken at the floor below it.
-        let slope =
-            if a >= SLOPE_FLOOR_UM || n.re >= 1.0 { n.re * hn / a } else { n.re * SLOPE_FLOOR_UM.powf(n.re - 1.0) };
+        let slope = if a >= SLOPE_FLOOR_UM || n.re >= 1.0 {
+            n.re * hn / a
+        } else {
+            n.re * crate::math::powf(SLOPE_FLOOR_UM, n.re - 1.0)
+        };
         let signed = if self.re > 0.0 { slope } else { -slope };
         Dual { re: hn, du: self.du * signed + n.du * (hn * ln_abs) }
     }

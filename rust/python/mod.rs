@@ -1,6 +1,7 @@
 //! Python bindings: conversions and error mapping only; the numerics live in the
 //! crate's other modules. Compiled with the `python` feature into `boucwen._core`.
 
+mod bank;
 mod config;
 mod effects;
 mod identifier;
@@ -62,6 +63,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<params::PyParams>()?;
     m.add_class::<model::PyModel>()?;
     m.add_class::<identifier::PyIdentifier>()?;
+    m.add_class::<bank::PyBank>()?;
     m.add_function(wrap_pyfunction!(config::_config_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(config::_validate_config, m)?)?;
     m.add_function(wrap_pyfunction!(model::simulate, m)?)?;

@@ -322,3 +322,54 @@ fn the_counter_sees_allocations() {
     let (count, v) = allocations_during(|| vec![1.0f64; 1000]);
     assert!(count >= 1 && v.len() == 1000);
 }
+
+/// A bank frame (identifiers and models) allocates nothing, nor does a C-ABI push.
+#[test]
+fn bank_frames_do_not_allocate() {
+    use boucwen::{Bank, ModelBank};
+    let (u, x) = record();
+    let channels = 8;
+    let id = RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, RpemConfig::default()).expect("valid");
+    let mut bank = Bank::new(channels, id, DT).expect("valid");
+    let mut models = ModelBank::new(channels, Params::paper_1hz(), DT, 0.0).expect("valid");
+    let mut out = vec![0.0; channels];
+    let mut uf = vec![0.0; channels];
+    let mut xf = vec![0.0; channels];
+    let (n, ()) = allocations_during(|| {
+        for k in 0..5_000 {
+            for c in 0..channels {
+                uf[c] = u[(k + 911 * c) % u.len()];
+                xf[c] = x[(k + 911 * c) % u.len()];
+            }
+            bank.push(&uf, &xf, &mut out).expect("finite");
+            bank.step_models(&uf, &mut out).expect("finite");
+            models.step(&uf, &mut out).expect("finite");
+        }
+    });
+    assert_eq!(n, 0, "bank frames allocated {n} times");
+}
+
+#[cfg(feature = "ffi")]
+#[test]
+fn c_abi_push_does_not_allocate() {
+    use boucwen::ffi::*;
+    let (u, x) = record();
+    unsafe {
+        let mut p = BwParams { kv: 0.0, x0: 0.0, a: 0.0, beta: 0.0, gamma: 0.0, n: 0.0, delta: 0.0 };
+        assert_eq!(bw_params_paper_1hz(&mut p), BwStatus::BW_OK);
+        let mut id: *mut BwRpem = std::ptr::null_mut();
+        assert_eq!(bw_rpem_new(DT, &p, 0.0, std::ptr::null(), &mut id), BwStatus::BW_OK);
+        let mut model: *mut BwModel = std::ptr::null_mut();
+        assert_eq!(bw_model_new(&p, DT, 0.0, &mut model), BwStatus::BW_OK);
+        let mut y = 0.0;
+        let (n, ()) = allocations_during(|| {
+            for k in 0..5_000 {
+                assert_eq!(bw_rpem_push(id, u[k], x[k], &mut y), BwStatus::BW_OK);
+                assert_eq!(bw_model_step(model, u[k], &mut y), BwStatus::BW_OK);
+            }
+        });
+        assert_eq!(n, 0, "C-ABI pushes allocated {n} times");
+        bw_rpem_free(id);
+        bw_model_free(model);
+    }
+}

@@ -49,6 +49,7 @@ use nalgebra::{SMatrix, SVector};
 
 use super::OnlineIdentifier;
 use crate::error::{finite_sample, positive_dt, Result};
+use crate::math;
 use crate::model::scalar::{Dual, Scalar};
 use crate::model::{advance, advance_h, output, Coefficients, H_LIMIT_UM};
 use crate::params::Params;
@@ -227,8 +228,12 @@ impl HorizonIdentifier {
         // Lower triangle only was accumulated by `syger`; mirror it.
         a.fill_upper_triangle_with_lower_triangle();
         let step = a.cholesky().map(|ch| ch.solve(&pass.jtr));
-        let mut status =
-            HorizonStatus { rms_um: mse.sqrt(), damping: self.damping, updates: self.status.updates, ..self.status };
+        let mut status = HorizonStatus {
+            rms_um: math::sqrt(mse),
+            damping: self.damping,
+            updates: self.status.updates,
+            ..self.status
+        };
         status.step_limited = false;
         status.projected = false;
         let mut delta = Vector::zeros();

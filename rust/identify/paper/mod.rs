@@ -52,6 +52,7 @@ pub mod window;
 
 use super::OnlineIdentifier;
 use crate::error::{finite_sample, positive_dt, Error, Result};
+use crate::math;
 use crate::model::{advance_h, output};
 use crate::params::Params;
 pub use config::{Decomposition, PaperConfig};
@@ -258,7 +259,7 @@ fn rate_fit(cfg: &PaperConfig, s: &[f64; NSUMS], delta: f64) -> RateFit {
     // standard errors, from the residual of the two-column fit.
     let dof = c[0] - 2.0;
     let rss = (c[6] - full_a_plus_kv * c[4] - full_delta * c[5]).max(0.0);
-    let se_delta = if dof > 0.0 { (rss / dof * c[1] / det).sqrt() } else { f64::INFINITY };
+    let se_delta = if dof > 0.0 { math::sqrt(rss / dof * c[1] / det) } else { f64::INFINITY };
     let fit = if well_posed && full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta {
         RateFit { delta_in: delta, a_plus_kv: full_a_plus_kv, delta_out: full_delta, status: SubFit::Ran }
     } else {
@@ -291,7 +292,7 @@ fn shape_fit(cfg: &PaperConfig, s: &[f64; NSUMS]) -> ShapeFit {
     let n = cov / var_z;
     let log_mag = (mean_w - n * mean_z).clamp(-700.0, 700.0);
     if n >= cfg.n_bounds.0 && n <= cfg.n_bounds.1 && log_mag.is_finite() {
-        ShapeFit { n, sum_bg: sign * log_mag.exp(), status: SubFit::Ran }
+        ShapeFit { n, sum_bg: sign * math::exp(log_mag), status: SubFit::Ran }
     } else {
         held
     }
@@ -304,7 +305,7 @@ fn return_fit(cfg: &PaperConfig, s: &[f64; NSUMS], n: f64) -> ReturnFit {
     if m >= cfg.min_points as f64 {
         let log_mag = ((s[at + 2] - n * s[at + 1]) / m).clamp(-700.0, 700.0);
         if log_mag.is_finite() {
-            return ReturnFit { n_in: n, diff_gb: sign * log_mag.exp(), status: SubFit::Ran };
+            return ReturnFit { n_in: n, diff_gb: sign * math::exp(log_mag), status: SubFit::Ran };
         }
     }
     ReturnFit { n_in: n, diff_gb: 0.0, status: SubFit::Held }
@@ -402,8 +403,8 @@ impl PaperIdentifier {
             return point;
         }
         let mean_x = s[SX] / count;
-        let std_x = (s[SXX] / count - mean_x * mean_x).max(0.0).sqrt();
-        let rms_rate = (s[SDD] / count).sqrt();
+        let std_x = math::sqrt((s[SXX] / count - mean_x * mean_x).max(0.0));
+        let rms_rate = math::sqrt(s[SDD] / count);
         let h_tol = self.config.h_zero_frac * std_x;
         if udot.abs() <= self.config.rate_frac * rms_rate || udot == 0.0 || h_tol == 0.0 {
             return point;
@@ -413,7 +414,7 @@ impl PaperIdentifier {
         if udot > 0.0 && h.abs() < h_tol {
             // ẋ less the small |h|^n terms of eq. (5) at this h (current β, γ, n),
             // so that ẋ = (A + kv)·u̇ + δ·u holds at the point, not only at h = 0.
-            let hn = if h == 0.0 { 0.0 } else { h.abs().powf(p.n) };
+            let hn = if h == 0.0 { 0.0 } else { math::powf(h.abs(), p.n) };
             point.class = Class::Crossing;
             point.a = xdot + (p.beta * udot.abs() * crate::model::sgn(h) + p.gamma * udot) * hn;
         } else if h > h_tol {
@@ -422,11 +423,11 @@ impl PaperIdentifier {
             // Noise of r = (ḣ ∓ δu)/u̇ is that of ẋ over |u̇|. For white noise on x,
             // var(ẋ₅) = 13·var(ẋ₅ − ẋ₃); the signal in ẋ₅ − ẋ₃ only adds to it (safe).
             let xdot_var = 13.0 * s[SEE] / count;
-            let resolved = arg.abs() * udot.abs() >= self.config.noise_gate * xdot_var.sqrt();
+            let resolved = arg.abs() * udot.abs() >= self.config.noise_gate * math::sqrt(xdot_var);
             if arg.is_finite() && arg != 0.0 && arg.abs() >= self.config.min_arg_frac * p.a.abs() && resolved {
                 let positive = arg > 0.0;
-                point.a = h.ln();
-                point.b = arg.abs().ln();
+                point.a = math::ln(h);
+                point.b = math::ln(arg.abs());
                 point.class = if udot > 0.0 { Class::Loading { positive } } else { Class::Unloading { positive } };
             }
         }
@@ -443,7 +444,7 @@ impl PaperIdentifier {
 
         // Step 1.
         status.line_fit = SubFit::Held;
-        let var_u = s[SUU] / count - (s[SU] / count).powi(2);
+        let var_u = s[SUU] / count - math::powi(s[SU] / count, 2);
         let excited = count >= 2.0 && var_u > cfg.min_u_std_v * cfg.min_u_std_v;
         if self.window.is_full() && excited {
             if !self.rls.active || status.refreshed {
@@ -455,7 +456,7 @@ impl PaperIdentifier {
             // (a short window where u barely moves, e.g. at a turning point, does not).
             let (kv, x0) = (self.rls.theta[0], self.rls.theta[1]);
             let rss = (s[SYY] - kv * s[SUY] - x0 * s[SY]).max(0.0);
-            let se_kv = if count > 2.0 { (rss / (count - 2.0) / (count * var_u)).sqrt() } else { f64::INFINITY };
+            let se_kv = if count > 2.0 { math::sqrt(rss / (count - 2.0) / (count * var_u)) } else { f64::INFINITY };
             if self.rls.active && kv.abs() >= cfg.min_line_t * se_kv {
                 p.kv = kv;
                 p.x0 = x0;
@@ -466,7 +467,7 @@ impl PaperIdentifier {
         }
 
         // Steps 2–4, each recomputed only when its inputs changed.
-        let touched = std::mem::take(&mut self.touched);
+        let touched = core::mem::take(&mut self.touched);
         if touched & TOUCH_CROSSING != 0 || self.cache.rate.is_some_and(|r| r.delta_in != p.delta) {
             self.cache.rate = None;
         }

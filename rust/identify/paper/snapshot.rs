@@ -3,6 +3,8 @@
 //! sum, in arrival order, of the newest `(samples − 2) mod N` window points, and
 //! is recomputed from them with the same additions.
 
+use alloc::vec::Vec;
+
 use super::*;
 use crate::format::{corrupt, Reader, Snapshot, Writer, KIND_PAPER, MAX_WINDOW_LEN};
 

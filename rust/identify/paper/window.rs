@@ -8,6 +8,9 @@
 //! to each sum), there is no O(N) spike, and the error never grows past that of one
 //! window's worth of additions.
 
+use alloc::vec;
+use alloc::vec::Vec;
+
 /// A ring buffer of `Copy` items with a capacity fixed at construction (no
 /// allocation after [`Ring::with_capacity`]).
 #[derive(Debug, Clone, PartialEq)]

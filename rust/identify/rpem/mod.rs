@@ -84,6 +84,7 @@ use nalgebra::{SMatrix, SVector};
 use super::OnlineIdentifier;
 use crate::effects::{first_order_coefficient, Creep, EffectSet, InputLag};
 use crate::error::{finite_sample, positive_dt, Error, Result};
+use crate::math;
 use crate::params::Params;
 
 /// Number of base parameters (kv, x0, A, β, γ, n, δ).
@@ -282,13 +283,13 @@ fn project_params(mut p: Params, cfg: &RpemConfig) -> Params {
 /// Creep gain from its logistic coordinate: g = gmax·σ(η) ∈ [0, gmax] \[µm/V\].
 #[inline]
 fn gain_from_logit(eta: f64, gmax: f64) -> f64 {
-    gmax / (1.0 + (-eta).exp())
+    gmax / (1.0 + math::exp(-eta))
 }
 
 /// Logistic coordinate of a creep gain: η = ln(g / (gmax − g)).
 #[inline]
 fn logit_of_gain(g: f64, gmax: f64) -> f64 {
-    (g / (gmax - g)).ln()
+    math::ln(g / (gmax - g))
 }
 
 /// aᵀb summed in the order nalgebra uses for a [`NUM_PARAMS`]-vector whose slots
@@ -379,10 +380,10 @@ impl RpemIdentifier {
         let offset_capped = offset_step.clamp(-cfg.max_offset_step_um, cfg.max_offset_step_um);
         status.step_limited |= offset_capped != offset_step;
         step[I_X0] = offset_capped / self.scales[I_X0];
-        let lambda = cfg.forgetting * (-travel / cfg.memory_travel_v).exp();
+        let lambda = cfg.forgetting * math::exp(-travel / cfg.memory_travel_v);
         let mut new_p = (p - gain * p_psi.transpose()) / lambda;
         new_p = (new_p + new_p.transpose()) * 0.5;
-        new_p[(I_X0, I_X0)] += (cfg.offset_walk_um / self.scales[I_X0]).powi(2);
+        new_p[(I_X0, I_X0)] += math::powi(cfg.offset_walk_um / self.scales[I_X0], 2);
         let trace = new_p.trace();
         if trace > cfg.max_trace {
             new_p *= cfg.max_trace / trace;
@@ -401,7 +402,7 @@ impl RpemIdentifier {
                 let mut candidate = raw;
                 candidate.params = project_params(raw.params, &cfg);
                 if M == NUM_PARAMS && self.shape.lag {
-                    raw.fc_hz = (self.est.fc_hz.ln() + step[I_LN_FC] * self.scales[I_LN_FC]).exp();
+                    raw.fc_hz = math::exp(math::ln(self.est.fc_hz) + step[I_LN_FC] * self.scales[I_LN_FC]);
                     candidate.fc_hz = raw.fc_hz.clamp(cfg.fc_bounds_hz.0, cfg.fc_bounds_hz.1);
                     if candidate.fc_hz != raw.fc_hz {
                         for j in 0..M {

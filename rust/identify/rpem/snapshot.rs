@@ -5,6 +5,8 @@
 //! with the same bits. The struct patterns below are exhaustive on purpose: a
 //! field added to any of these types stops the build here until it is saved.
 
+use alloc::vec::Vec;
+
 use super::*;
 use crate::format::{corrupt, Reader, Snapshot, Writer, KIND_RPEM};
 

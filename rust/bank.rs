@@ -1,0 +1,394 @@
+//! Many channels stepped with one call per frame: an online identifier and a model
+//! per channel (adaptive optics: hundreds of actuators; multi-axis stages).
+//!
+//! A frame is one sample of every channel: `u[c]` \[V\] and `x[c]` \[µm\] for channel
+//! `c < C`. Every channel is independent and its results are bit for bit those of a
+//! single-channel object given the same samples ([`Model`] for the models, the
+//! identifier type for the identifiers): each channel runs the same code on the
+//! same numbers.
+//!
+//! Layout:
+//! - [`ModelBank`]: structure of arrays. Each quantity of the C channels (the seven
+//!   parameters, h, the last voltage) is one contiguous `Vec<f64>`, so a frame reads
+//!   and writes C consecutive values of each; the input check and the output
+//!   equation x = kv·u + x0 + h run as straight loops the compiler vectorises. The
+//!   integrator itself runs per channel (its sub-step count and its one `powf` are the
+//!   channel's own), so the channels' independent chains overlap in the processor
+//!   rather than in SIMD lanes.
+//! - [`Bank`]: the identifiers (one contiguous `Vec` of them, each with its own
+//!   fixed-size state) and a [`ModelBank`]. An inverse model per channel will be one
+//!   more field beside `models`.
+//!
+//! A frame with a non-finite value is rejected whole before any channel changes
+//! (the NaN policy of a single channel, applied to the frame). Stepping a frame
+//! allocates nothing.
+
+use alloc::vec;
+use alloc::vec::Vec;
+
+use crate::error::{finite_sample, positive_dt, Error, Result};
+use crate::identify::OnlineIdentifier;
+use crate::model::{advance_h, Model};
+use crate::params::Params;
+
+/// C per-sample models in structure-of-arrays layout; channel c behaves as a
+/// [`Model`] with parameters `params(c)` (bit for bit).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelBank {
+    dt: f64,
+    /// The parameters, one array per parameter (SoA), in the order of [`Params::to_array`].
+    kv: Vec<f64>,
+    x0: Vec<f64>,
+    a: Vec<f64>,
+    beta: Vec<f64>,
+    gamma: Vec<f64>,
+    n: Vec<f64>,
+    delta: Vec<f64>,
+    /// Hysteresis state h \[µm\] per channel.
+    h: Vec<f64>,
+    /// Last voltage \[V\] per channel (meaningful once `started`).
+    u_prev: Vec<f64>,
+    /// A frame was stepped since construction or reset (all channels start together).
+    started: bool,
+    h0: f64,
+}
+
+/// Checks that every value of a frame is finite and the frame has `channels` values.
+fn check_frame(what: &'static str, values: &[f64], channels: usize) -> Result<()> {
+    if values.len() != channels {
+        return Err(Error::LengthMismatch { what, expected: channels, found: values.len() });
+    }
+    for &v in values {
+        finite_sample(what, v)?;
+    }
+    Ok(())
+}
+
+impl ModelBank {
+    /// `channels` (≥ 1) models with the same parameters `params`, sampling interval
+    /// `dt` \[s\] and initial h `h0` \[µm\].
+    pub fn new(channels: usize, params: Params, dt: f64, h0: f64) -> Result<Self> {
+        params.validate()?;
+        positive_dt(dt)?;
+        finite_sample("h0", h0)?;
+        if channels == 0 {
+            return Err(Error::InvalidConfig {
+                name: "channels",
+                value: 0.0,
+                reason: "a bank has at least one channel",
+            });
+        }
+        let fill = |v: f64| vec![v; channels];
+        Ok(ModelBank {
+            dt,
+            kv: fill(params.kv),
+            x0: fill(params.x0),
+            a: fill(params.a),
+            beta: fill(params.beta),
+            gamma: fill(params.gamma),
+            n: fill(params.n),
+            delta: fill(params.delta),
+            h: fill(h0),
+            u_prev: fill(0.0),
+            started: false,
+            h0,
+        })
+    }
+
+    /// Number of channels C.
+    pub fn channels(&self) -> usize {
+        self.h.len()
+    }
+
+    /// Sampling interval \[s\].
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Parameters of channel `c` (panics if `c` ≥ C, as slice indexing).
+    #[inline(always)]
+    pub fn params(&self, c: usize) -> Params {
+        Params {
+            kv: self.kv[c],
+            x0: self.x0[c],
+            a: self.a[c],
+            beta: self.beta[c],
+            gamma: self.gamma[c],
+            n: self.n[c],
+            delta: self.delta[c],
+        }
+    }
+
+    /// Replaces the parameters of channel `c` (validated; the state is kept).
+    pub fn set_params(&mut self, c: usize, p: Params) -> Result<()> {
+        p.validate()?;
+        if c >= self.channels() {
+            return Err(Error::InvalidConfig { name: "channel", value: c as f64, reason: "no such channel" });
+        }
+        self.kv[c] = p.kv;
+        self.x0[c] = p.x0;
+        self.a[c] = p.a;
+        self.beta[c] = p.beta;
+        self.gamma[c] = p.gamma;
+        self.n[c] = p.n;
+        self.delta[c] = p.delta;
+        Ok(())
+    }
+
+    /// Hysteresis states h \[µm\], one per channel.
+    pub fn h(&self) -> &[f64] {
+        &self.h
+    }
+
+    /// Takes one frame of voltages `u` \[V\] (length C) and writes the displacements
+    /// x \[µm\] into `x_out` (length C). A frame with a non-finite value, or of the
+    /// wrong length, is rejected before any channel changes. Allocation-free.
+    pub fn step(&mut self, u: &[f64], x_out: &mut [f64]) -> Result<()> {
+        let channels = self.channels();
+        check_frame("u", u, channels)?;
+        if x_out.len() != channels {
+            return Err(Error::LengthMismatch { what: "bank output", expected: channels, found: x_out.len() });
+        }
+        if self.started {
+            // Indexed: each channel reads its parameters from seven arrays.
+            #[allow(clippy::needless_range_loop)]
+            for c in 0..channels {
+                self.h[c] = advance_h(&self.params(c), self.h[c], self.u_prev[c], u[c], self.dt);
+            }
+        }
+        self.started = true;
+        self.u_prev.copy_from_slice(u);
+        for (((x, &v), (&kv, &x0)), &h) in x_out.iter_mut().zip(u).zip(self.kv.iter().zip(&self.x0)).zip(&self.h) {
+            *x = kv * v + x0 + h;
+        }
+        Ok(())
+    }
+
+    /// Forgets the past: h = h0 on every channel, no previous frame.
+    pub fn reset(&mut self) {
+        self.h.iter_mut().for_each(|h| *h = self.h0);
+        self.started = false;
+    }
+
+    /// Channel `c` as a single [`Model`] in the same state (for checks and hand-over).
+    pub fn channel_model(&self, c: usize) -> Result<Model> {
+        let mut m = Model::new(self.params(c), self.dt, self.h[c])?;
+        m.set_state(crate::model::ModelState { h: self.h[c], u_prev: self.started.then(|| self.u_prev[c]) })?;
+        Ok(m)
+    }
+}
+
+/// C channels, each an online identifier of type `I` and a model, stepped one
+/// frame per call. Channel c's identifier is exactly `identifiers()[c]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bank<I> {
+    identifiers: Vec<I>,
+    models: ModelBank,
+}
+
+impl<I: OnlineIdentifier + Clone> Bank<I> {
+    /// `channels` copies of `identifier` (each channel then learns on its own) and
+    /// as many models, all starting from the identifier's parameters and h, with
+    /// sampling interval `dt` \[s\] (the identifier's).
+    pub fn new(channels: usize, identifier: I, dt: f64) -> Result<Self> {
+        let models = ModelBank::new(channels, identifier.params(), dt, identifier.h())?;
+        Ok(Bank { identifiers: vec![identifier; channels], models })
+    }
+
+    /// Number of channels C.
+    pub fn channels(&self) -> usize {
+        self.identifiers.len()
+    }
+
+    /// The identifiers, channel by channel.
+    pub fn identifiers(&self) -> &[I] {
+        &self.identifiers
+    }
+
+    /// Channel `c`'s identifier (for per-channel configuration or hand-over).
+    pub fn identifier_mut(&mut self, c: usize) -> Option<&mut I> {
+        self.identifiers.get_mut(c)
+    }
+
+    /// The models.
+    pub fn models(&self) -> &ModelBank {
+        &self.models
+    }
+
+    /// The models, mutably (parameters, reset).
+    pub fn models_mut(&mut self) -> &mut ModelBank {
+        &mut self.models
+    }
+
+    /// One frame for the identifiers: `u` \[V\] and measured `x` \[µm\] (length C
+    /// each); writes each channel's prediction (its identifier's `push`) into
+    /// `predictions` \[µm\]. A frame with a non-finite value, or of the wrong length,
+    /// is rejected before any channel changes. Allocation-free.
+    pub fn push(&mut self, u: &[f64], x: &[f64], predictions: &mut [f64]) -> Result<()> {
+        let channels = self.channels();
+        check_frame("u", u, channels)?;
+        check_frame("x", x, channels)?;
+        if predictions.len() != channels {
+            return Err(Error::LengthMismatch { what: "bank output", expected: channels, found: predictions.len() });
+        }
+        for (((id, out), &uc), &xc) in self.identifiers.iter_mut().zip(predictions.iter_mut()).zip(u).zip(x) {
+            *out = id.push(uc, xc)?;
+        }
+        Ok(())
+    }
+
+    /// `frames` frames at once, row-major (T, C): `u[t·C + c]`, `x[t·C + c]`;
+    /// predictions into `out` likewise. The whole call is rejected before any
+    /// channel changes if a value is non-finite or a length is not T·C.
+    pub fn push_many(&mut self, u: &[f64], x: &[f64], out: &mut [f64]) -> Result<()> {
+        let channels = self.channels();
+        if u.len() % channels != 0 {
+            return Err(Error::LengthMismatch {
+                what: "u (frames × channels)",
+                expected: u.len() / channels * channels,
+                found: u.len(),
+            });
+        }
+        check_frame("u", u, u.len())?;
+        check_frame("x", x, u.len())?;
+        if out.len() != u.len() {
+            return Err(Error::LengthMismatch { what: "bank output", expected: u.len(), found: out.len() });
+        }
+        for ((uf, xf), of) in u.chunks_exact(channels).zip(x.chunks_exact(channels)).zip(out.chunks_exact_mut(channels))
+        {
+            self.push(uf, xf, of)?;
+        }
+        Ok(())
+    }
+
+    /// One frame for the models: voltages `u` \[V\] in, displacements \[µm\] out
+    /// (see [`ModelBank::step`]).
+    pub fn step_models(&mut self, u: &[f64], x_out: &mut [f64]) -> Result<()> {
+        self.models.step(u, x_out)
+    }
+
+    /// Every model takes its identifier's current estimates (the models' states are
+    /// kept): call it when the models should follow what the identifiers learnt.
+    pub fn adopt_estimates(&mut self) -> Result<()> {
+        for (c, id) in self.identifiers.iter().enumerate() {
+            self.models.set_params(c, id.params())?;
+        }
+        Ok(())
+    }
+
+    /// Every identifier and model back to its state right after construction.
+    pub fn reset(&mut self) {
+        self.identifiers.iter_mut().for_each(|id| id.reset());
+        self.models.reset();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identify::{AnyIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier};
+    use crate::model::paper_input;
+
+    const DT: f64 = 1e-4;
+
+    /// C channels of different records: the paper input, shifted and scaled per
+    /// channel, measured through a model with channel-dependent parameters plus
+    /// deterministic noise.
+    fn frames(channels: usize, len: usize) -> (Vec<f64>, Vec<f64>) {
+        let base = paper_input(DT, 0.05);
+        let mut u = vec![0.0; len * channels];
+        let mut x = vec![0.0; len * channels];
+        for c in 0..channels {
+            let p = Params { kv: 0.19 + 0.01 * c as f64, beta: 0.02 + 0.002 * c as f64, ..Params::paper_1hz() };
+            let mut m = Model::new(p, DT, 0.0).unwrap();
+            for t in 0..len {
+                let v = base[(t * (c + 1) * 7) % base.len()] * (1.0 - 0.03 * c as f64);
+                u[t * channels + c] = v;
+                let noise = 1e-3 * ((t * 31 + c * 17) % 13) as f64 / 13.0;
+                x[t * channels + c] = m.step(v).unwrap() + noise;
+            }
+        }
+        (u, x)
+    }
+
+    fn channel(v: &[f64], channels: usize, c: usize) -> Vec<f64> {
+        v.iter().skip(c).step_by(channels).copied().collect()
+    }
+
+    #[test]
+    fn each_channel_equals_a_single_channel_object_bit_for_bit() {
+        let channels = 5;
+        let len = 6000;
+        let (u, x) = frames(channels, len);
+        let rpem = RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, RpemConfig::default()).unwrap();
+        let paper = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(200)).unwrap();
+        for proto in [AnyIdentifier::Rpem(rpem), AnyIdentifier::Paper(paper)] {
+            let mut bank = Bank::new(channels, proto.clone(), DT).unwrap();
+            let mut pred = vec![0.0; u.len()];
+            bank.push_many(&u, &x, &mut pred).unwrap();
+            let mut modelled = vec![0.0; u.len()];
+            for (uf, of) in u.chunks_exact(channels).zip(modelled.chunks_exact_mut(channels)) {
+                bank.step_models(uf, of).unwrap();
+            }
+            for c in 0..channels {
+                let (uc, xc) = (channel(&u, channels, c), channel(&x, channels, c));
+                let mut single = proto.clone();
+                let mut want = vec![0.0; len];
+                single.push_many(&uc, &xc, &mut want).unwrap();
+                let got = channel(&pred, channels, c);
+                assert!(
+                    got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{} channel {c}",
+                    proto.method()
+                );
+                assert_eq!(bank.identifiers()[c], single);
+                let mut model = Model::new(Params::paper_1hz(), DT, 0.0).unwrap();
+                let want: Vec<f64> = uc.iter().map(|&v| model.step(v).unwrap()).collect();
+                let got = channel(&modelled, channels, c);
+                assert!(got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()), "model channel {c}");
+                assert_eq!(bank.models().channel_model(c).unwrap(), model);
+            }
+        }
+    }
+
+    #[test]
+    fn models_follow_the_identifiers_when_asked() {
+        let channels = 3;
+        let (u, x) = frames(channels, 3000);
+        let id = RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, RpemConfig::default()).unwrap();
+        let mut bank = Bank::new(channels, id, DT).unwrap();
+        let mut pred = vec![0.0; u.len()];
+        bank.push_many(&u, &x, &mut pred).unwrap();
+        bank.adopt_estimates().unwrap();
+        for c in 0..channels {
+            assert_eq!(bank.models().params(c), bank.identifiers()[c].params());
+        }
+        assert_ne!(bank.models().params(0), bank.models().params(2));
+    }
+
+    #[test]
+    fn a_bad_frame_is_rejected_whole_and_changes_nothing() {
+        let channels = 4;
+        let (u, x) = frames(channels, 50);
+        let id = RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, RpemConfig::default()).unwrap();
+        let mut bank = Bank::new(channels, id, DT).unwrap();
+        let mut pred = vec![0.0; u.len()];
+        bank.push_many(&u, &x, &mut pred).unwrap();
+        let mut out = vec![0.0; channels];
+        bank.step_models(&u[..channels], &mut out).unwrap();
+        let before = bank.clone();
+        let mut bad = u[..channels].to_vec();
+        bad[2] = f64::NAN;
+        assert!(matches!(bank.push(&bad, &x[..channels], &mut out), Err(Error::NonFiniteSample { .. })));
+        assert!(bank.step_models(&bad, &mut out).is_err());
+        assert!(matches!(bank.push(&u[..3], &x[..3], &mut out[..3]), Err(Error::LengthMismatch { .. })));
+        let mut many = vec![0.0; 2 * channels];
+        let mut bad_many = u[..2 * channels].to_vec();
+        bad_many[channels + 1] = f64::INFINITY;
+        assert!(bank.push_many(&bad_many, &x[..2 * channels], &mut many).is_err());
+        assert!(bank.push_many(&u[..channels + 1], &x[..channels + 1], &mut many[..channels + 1]).is_err());
+        assert_eq!(bank, before);
+        assert!(ModelBank::new(0, Params::paper_1hz(), DT, 0.0).is_err());
+        assert!(bank.models_mut().set_params(channels, Params::paper_1hz()).is_err());
+    }
+}

@@ -1,0 +1,893 @@
+//! The C ABI (feature `ffi`): the per-sample [`Model`], both online methods (`rpem`,
+//! `paper`), [`simulate`](crate::simulate) and the channel [`Bank`], behind opaque
+//! handles. The header `include/boucwen.h` is generated from this file by cbindgen
+//! (`cbindgen.toml`; the test `rust/tests/ffi_header.rs` fails when it is stale).
+//!
+//! Conventions, for every function:
+//! - the return value is a [`BwStatus`]: `BW_OK`, or the reason the call did nothing
+//!   (the object is then exactly as before, as in Rust: a non-finite sample is
+//!   rejected and the state kept);
+//! - results are written through out-pointers, which must be valid (a null one gives
+//!   `BW_NULL_POINTER`); arrays are `(pointer, length)` pairs of `double`, frames of a
+//!   bank row-major (frame t, channel c at `t·C + c`);
+//! - no Rust panic crosses the boundary: each call runs under `catch_unwind` and a
+//!   panic (a bug; none is known) returns `BW_PANIC`, after which the object should
+//!   be destroyed;
+//! - `*_new` and `*_restore` allocate the object, `*_free` releases it (null is
+//!   ignored); `push`, `push_many`, `step` and the bank's frame calls allocate
+//!   nothing; `*_snapshot` copies the bytes into the caller's buffer (with
+//!   `BW_BUFFER_TOO_SMALL` and the needed length when it is too short, so a call with
+//!   capacity 0 asks for the size).
+//!
+//! Units as in Rust: u \[V\], x and h \[µm\], dt \[s\].
+//!
+//! # Safety
+//!
+//! Every function takes raw pointers from C. A handle must come from the matching
+//! `*_new`/`*_restore` and not be used after `*_free`, nor from two threads at
+//! once; an array pointer must point to at least as many `double`s as the length
+//! given (it may be null when the length is 0).
+#![allow(clippy::missing_safety_doc)]
+
+use core::ffi::c_char;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+use crate::bank::Bank;
+use crate::error::Error;
+use crate::format::Snapshot;
+use crate::identify::{
+    AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfig, PaperIdentifier, PaperStatus, RpemConfig,
+    RpemIdentifier, RpemStatus, SubFit,
+};
+use crate::model::Model;
+use crate::params::Params;
+
+/// What a call did.
+#[allow(non_camel_case_types)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BwStatus {
+    /// Done.
+    BW_OK = 0,
+    /// A model parameter is out of its domain (non-finite, or n ≤ 0).
+    BW_INVALID_PARAMETER = 1,
+    /// A configuration value (dt, window, tuning, channel count or index) is invalid.
+    BW_INVALID_CONFIG = 2,
+    /// A sample is NaN or infinite: rejected, state kept.
+    BW_NON_FINITE_SAMPLE = 3,
+    /// A snapshot is truncated, foreign or corrupt.
+    BW_CORRUPT_SNAPSHOT = 4,
+    /// Lengths that must agree do not.
+    BW_LENGTH_MISMATCH = 5,
+    /// A required pointer is null.
+    BW_NULL_POINTER = 6,
+    /// The caller's buffer is too short (the needed length was written).
+    BW_BUFFER_TOO_SMALL = 7,
+    /// A Rust panic was caught (a bug): destroy the object.
+    BW_PANIC = 8,
+}
+
+impl From<Error> for BwStatus {
+    fn from(e: Error) -> Self {
+        match e {
+            Error::InvalidParameter { .. } => BwStatus::BW_INVALID_PARAMETER,
+            Error::InvalidConfig { .. } => BwStatus::BW_INVALID_CONFIG,
+            Error::NonFiniteSample { .. } => BwStatus::BW_NON_FINITE_SAMPLE,
+            Error::CorruptSnapshot { .. } => BwStatus::BW_CORRUPT_SNAPSHOT,
+            Error::LengthMismatch { .. } => BwStatus::BW_LENGTH_MISMATCH,
+        }
+    }
+}
+
+/// The seven parameters of eqs. (3) and (5): kv \[µm/V\], x0 \[µm\], A \[µm/V\], β and γ
+/// [µm^(1−n)/V], n \[-\], δ [µm/(V·s)].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwParams {
+    pub kv: f64,
+    pub x0: f64,
+    pub a: f64,
+    pub beta: f64,
+    pub gamma: f64,
+    pub n: f64,
+    pub delta: f64,
+}
+
+impl From<Params> for BwParams {
+    fn from(p: Params) -> Self {
+        BwParams { kv: p.kv, x0: p.x0, a: p.a, beta: p.beta, gamma: p.gamma, n: p.n, delta: p.delta }
+    }
+}
+
+impl BwParams {
+    fn to_params(self) -> Result<Params, BwStatus> {
+        Params::new(self.kv, self.x0, self.a, self.beta, self.gamma, self.n, self.delta).map_err(BwStatus::from)
+    }
+}
+
+/// Tuning of the rpem method (see `RpemConfig` in the Rust docs for each value's
+/// meaning, units and default); fill it with `bw_rpem_config_default` first.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwRpemConfig {
+    pub forgetting: f64,
+    pub memory_travel_v: f64,
+    pub p0: f64,
+    pub offset_walk_um: f64,
+    pub p0_effects: f64,
+    pub noise_um2: f64,
+    pub max_trace: f64,
+    pub max_step: f64,
+    pub max_offset_step_um: f64,
+    pub n_min: f64,
+    pub n_max: f64,
+    pub margin: f64,
+    /// Scales of kv, x0, A, β, γ, n, δ (their units).
+    pub scales: [f64; 7],
+    pub creep_gain_scale_um_per_v: f64,
+    pub creep_gain_max_um_per_v: f64,
+    pub fc_min_hz: f64,
+    pub fc_max_hz: f64,
+}
+
+impl From<RpemConfig> for BwRpemConfig {
+    fn from(c: RpemConfig) -> Self {
+        BwRpemConfig {
+            forgetting: c.forgetting,
+            memory_travel_v: c.memory_travel_v,
+            p0: c.p0,
+            offset_walk_um: c.offset_walk_um,
+            p0_effects: c.p0_effects,
+            noise_um2: c.noise_um2,
+            max_trace: c.max_trace,
+            max_step: c.max_step,
+            max_offset_step_um: c.max_offset_step_um,
+            n_min: c.n_bounds.0,
+            n_max: c.n_bounds.1,
+            margin: c.margin,
+            scales: c.scales,
+            creep_gain_scale_um_per_v: c.creep_gain_scale_um_per_v,
+            creep_gain_max_um_per_v: c.creep_gain_max_um_per_v,
+            fc_min_hz: c.fc_bounds_hz.0,
+            fc_max_hz: c.fc_bounds_hz.1,
+        }
+    }
+}
+
+impl BwRpemConfig {
+    // Options the tuning gains later keep their Rust defaults.
+    #[allow(clippy::needless_update)]
+    fn to_config(self) -> RpemConfig {
+        RpemConfig {
+            forgetting: self.forgetting,
+            memory_travel_v: self.memory_travel_v,
+            p0: self.p0,
+            offset_walk_um: self.offset_walk_um,
+            p0_effects: self.p0_effects,
+            noise_um2: self.noise_um2,
+            max_trace: self.max_trace,
+            max_step: self.max_step,
+            max_offset_step_um: self.max_offset_step_um,
+            n_bounds: (self.n_min, self.n_max),
+            margin: self.margin,
+            scales: self.scales,
+            creep_gain_scale_um_per_v: self.creep_gain_scale_um_per_v,
+            creep_gain_max_um_per_v: self.creep_gain_max_um_per_v,
+            fc_bounds_hz: (self.fc_min_hz, self.fc_max_hz),
+            ..RpemConfig::default()
+        }
+    }
+}
+
+/// Tuning of the paper's method (see `PaperConfig` in the Rust docs); fill it with
+/// `bw_paper_config_default` first. `decomposition`: 0 = model (default), 1 = line.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwPaperConfig {
+    pub window_len: usize,
+    pub decomposition: u32,
+    pub h_zero_frac: f64,
+    pub rate_frac: f64,
+    pub min_points: usize,
+    pub rank_tol: f64,
+    pub min_log_spread: f64,
+    pub min_arg_frac: f64,
+    pub noise_gate: f64,
+    pub min_delta_t: f64,
+    pub min_r2: f64,
+    pub min_line_t: f64,
+    pub min_u_std_v: f64,
+    pub n_min: f64,
+    pub n_max: f64,
+}
+
+impl From<PaperConfig> for BwPaperConfig {
+    fn from(c: PaperConfig) -> Self {
+        BwPaperConfig {
+            window_len: c.window_len,
+            decomposition: match c.decomposition {
+                Decomposition::Model => 0,
+                Decomposition::Line => 1,
+            },
+            h_zero_frac: c.h_zero_frac,
+            rate_frac: c.rate_frac,
+            min_points: c.min_points,
+            rank_tol: c.rank_tol,
+            min_log_spread: c.min_log_spread,
+            min_arg_frac: c.min_arg_frac,
+            noise_gate: c.noise_gate,
+            min_delta_t: c.min_delta_t,
+            min_r2: c.min_r2,
+            min_line_t: c.min_line_t,
+            min_u_std_v: c.min_u_std_v,
+            n_min: c.n_bounds.0,
+            n_max: c.n_bounds.1,
+        }
+    }
+}
+
+impl BwPaperConfig {
+    #[allow(clippy::needless_update)]
+    fn to_config(self) -> Result<PaperConfig, BwStatus> {
+        let decomposition = match self.decomposition {
+            0 => Decomposition::Model,
+            1 => Decomposition::Line,
+            _ => return Err(BwStatus::BW_INVALID_CONFIG),
+        };
+        Ok(PaperConfig {
+            window_len: self.window_len,
+            decomposition,
+            h_zero_frac: self.h_zero_frac,
+            rate_frac: self.rate_frac,
+            min_points: self.min_points,
+            rank_tol: self.rank_tol,
+            min_log_spread: self.min_log_spread,
+            min_arg_frac: self.min_arg_frac,
+            noise_gate: self.noise_gate,
+            min_delta_t: self.min_delta_t,
+            min_r2: self.min_r2,
+            min_line_t: self.min_line_t,
+            min_u_std_v: self.min_u_std_v,
+            n_bounds: (self.n_min, self.n_max),
+            ..PaperConfig::with_window(self.window_len)
+        })
+    }
+}
+
+/// What the last push of an rpem identifier did (see `RpemStatus` in the Rust docs).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwRpemStatus {
+    pub samples: u64,
+    pub updated: bool,
+    pub step_limited: bool,
+    pub projected: bool,
+    pub trace_capped: bool,
+    pub restarted: bool,
+    /// x − x̂ of the sample \[µm\].
+    pub innovation_um: f64,
+    /// tr P (scaled units).
+    pub trace: f64,
+}
+
+impl From<RpemStatus> for BwRpemStatus {
+    fn from(s: RpemStatus) -> Self {
+        BwRpemStatus {
+            samples: s.samples,
+            updated: s.updated,
+            step_limited: s.step_limited,
+            projected: s.projected,
+            trace_capped: s.trace_capped,
+            restarted: s.restarted,
+            innovation_um: s.innovation_um,
+            trace: s.trace,
+        }
+    }
+}
+
+/// What the last push of a paper identifier did; each sub-fit 0 = held, 1 = reduced, 2 = ran.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BwPaperStatus {
+    pub samples: u64,
+    pub window_full: bool,
+    pub refreshed: bool,
+    pub line_fit: u32,
+    pub rate_fit: u32,
+    pub shape_fit: u32,
+    pub return_fit: u32,
+}
+
+fn sub_fit(s: SubFit) -> u32 {
+    match s {
+        SubFit::Held => 0,
+        SubFit::Reduced => 1,
+        SubFit::Ran => 2,
+    }
+}
+
+impl From<PaperStatus> for BwPaperStatus {
+    fn from(s: PaperStatus) -> Self {
+        BwPaperStatus {
+            samples: s.samples,
+            window_full: s.window_full,
+            refreshed: s.refreshed,
+            line_fit: sub_fit(s.line_fit),
+            rate_fit: sub_fit(s.rate_fit),
+            shape_fit: sub_fit(s.shape_fit),
+            return_fit: sub_fit(s.return_fit),
+        }
+    }
+}
+
+/// Opaque per-sample model.
+pub struct BwModel(Model);
+/// Opaque rpem identifier.
+pub struct BwRpem(RpemIdentifier);
+/// Opaque paper identifier.
+pub struct BwPaper(PaperIdentifier);
+/// Opaque bank of channels (identifier + model each).
+pub struct BwBank(Bank<AnyIdentifier>);
+
+/// Runs `f`, turning a panic into `BW_PANIC` and an `Err` into its code.
+fn guard(f: impl FnOnce() -> Result<(), BwStatus>) -> BwStatus {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(Ok(())) => BwStatus::BW_OK,
+        Ok(Err(code)) => code,
+        Err(_) => BwStatus::BW_PANIC,
+    }
+}
+
+unsafe fn get<'a, T>(ptr: *const T) -> Result<&'a T, BwStatus> {
+    ptr.as_ref().ok_or(BwStatus::BW_NULL_POINTER)
+}
+
+unsafe fn get_mut<'a, T>(ptr: *mut T) -> Result<&'a mut T, BwStatus> {
+    ptr.as_mut().ok_or(BwStatus::BW_NULL_POINTER)
+}
+
+unsafe fn put<T>(out: *mut T, value: T) -> Result<(), BwStatus> {
+    if out.is_null() {
+        return Err(BwStatus::BW_NULL_POINTER);
+    }
+    out.write(value);
+    Ok(())
+}
+
+unsafe fn slice<'a>(ptr: *const f64, len: usize) -> Result<&'a [f64], BwStatus> {
+    if len == 0 {
+        Ok(&[])
+    } else if ptr.is_null() {
+        Err(BwStatus::BW_NULL_POINTER)
+    } else {
+        Ok(core::slice::from_raw_parts(ptr, len))
+    }
+}
+
+unsafe fn slice_mut<'a>(ptr: *mut f64, len: usize) -> Result<&'a mut [f64], BwStatus> {
+    if len == 0 {
+        Ok(&mut [])
+    } else if ptr.is_null() {
+        Err(BwStatus::BW_NULL_POINTER)
+    } else {
+        Ok(core::slice::from_raw_parts_mut(ptr, len))
+    }
+}
+
+unsafe fn boxed<T>(out: *mut *mut T, value: T) -> Result<(), BwStatus> {
+    if out.is_null() {
+        return Err(BwStatus::BW_NULL_POINTER);
+    }
+    out.write(Box::into_raw(Box::new(value)));
+    Ok(())
+}
+
+unsafe fn release<T>(ptr: *mut T) {
+    if !ptr.is_null() {
+        let _ = catch_unwind(AssertUnwindSafe(|| drop(Box::from_raw(ptr))));
+    }
+}
+
+/// Copies a snapshot into the caller's buffer (`BW_BUFFER_TOO_SMALL` with `*len` the
+/// needed length if `capacity` is short).
+unsafe fn write_snapshot(bytes: &[u8], buf: *mut u8, capacity: usize, len: *mut usize) -> Result<(), BwStatus> {
+    put(len, bytes.len())?;
+    if capacity < bytes.len() {
+        return Err(BwStatus::BW_BUFFER_TOO_SMALL);
+    }
+    if buf.is_null() {
+        return Err(BwStatus::BW_NULL_POINTER);
+    }
+    core::ptr::copy_nonoverlapping(bytes.as_ptr(), buf, bytes.len());
+    Ok(())
+}
+
+unsafe fn bytes<'a>(ptr: *const u8, len: usize) -> Result<&'a [u8], BwStatus> {
+    if len == 0 {
+        Ok(&[])
+    } else if ptr.is_null() {
+        Err(BwStatus::BW_NULL_POINTER)
+    } else {
+        Ok(core::slice::from_raw_parts(ptr, len))
+    }
+}
+
+/// A static, NUL-terminated description of a status code.
+#[no_mangle]
+pub extern "C" fn bw_status_message(status: BwStatus) -> *const c_char {
+    let text: &'static [u8] = match status {
+        BwStatus::BW_OK => b"ok\0",
+        BwStatus::BW_INVALID_PARAMETER => b"invalid model parameter (non-finite, or n <= 0)\0",
+        BwStatus::BW_INVALID_CONFIG => b"invalid configuration value\0",
+        BwStatus::BW_NON_FINITE_SAMPLE => b"non-finite sample: rejected, state kept\0",
+        BwStatus::BW_CORRUPT_SNAPSHOT => b"truncated, foreign or corrupt snapshot\0",
+        BwStatus::BW_LENGTH_MISMATCH => b"array lengths do not agree\0",
+        BwStatus::BW_NULL_POINTER => b"null pointer\0",
+        BwStatus::BW_BUFFER_TOO_SMALL => b"buffer too small (needed length written)\0",
+        BwStatus::BW_PANIC => b"internal error (panic caught); destroy the object\0",
+    };
+    text.as_ptr().cast()
+}
+
+/// The paper's Table 2 values at 1 Hz.
+#[no_mangle]
+pub unsafe extern "C" fn bw_params_paper_1hz(out: *mut BwParams) -> BwStatus {
+    guard(|| put(out, Params::paper_1hz().into()))
+}
+
+// -- model ------------------------------------------------------------------------
+
+/// A per-sample model (`dt` \[s\], initial h `h0` \[µm\]) into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_new(params: *const BwParams, dt: f64, h0: f64, out: *mut *mut BwModel) -> BwStatus {
+    guard(|| {
+        let p = get(params)?.to_params()?;
+        boxed(out, BwModel(Model::new(p, dt, h0)?))
+    })
+}
+
+/// Releases a model (null is ignored).
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_free(model: *mut BwModel) {
+    release(model)
+}
+
+/// Takes the next voltage `u` \[V\]; writes the displacement \[µm\] to `*x`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_step(model: *mut BwModel, u: f64, x: *mut f64) -> BwStatus {
+    guard(|| {
+        let m = get_mut(model)?;
+        if x.is_null() {
+            return Err(BwStatus::BW_NULL_POINTER);
+        }
+        put(x, m.0.step(u)?)
+    })
+}
+
+/// The model's parameters.
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_params(model: *const BwModel, out: *mut BwParams) -> BwStatus {
+    guard(|| put(out, (*get(model)?.0.params()).into()))
+}
+
+/// Replaces the model's parameters (validated; the state is kept).
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_set_params(model: *mut BwModel, params: *const BwParams) -> BwStatus {
+    guard(|| {
+        let p = get(params)?.to_params()?;
+        Ok(get_mut(model)?.0.set_params(p)?)
+    })
+}
+
+/// The hysteresis state h \[µm\].
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_h(model: *const BwModel, h: *mut f64) -> BwStatus {
+    guard(|| put(h, get(model)?.0.h()))
+}
+
+/// Forgets the past: h = `h0` \[µm\], no previous sample.
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_reset(model: *mut BwModel, h0: f64) -> BwStatus {
+    guard(|| Ok(get_mut(model)?.0.reset(h0)?))
+}
+
+/// The model's snapshot bytes into `buf` (capacity `capacity`), length to `*len`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_snapshot(
+    model: *const BwModel,
+    buf: *mut u8,
+    capacity: usize,
+    len: *mut usize,
+) -> BwStatus {
+    guard(|| write_snapshot(&get(model)?.0.to_bytes(), buf, capacity, len))
+}
+
+/// A model rebuilt from snapshot bytes into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_model_restore(buf: *const u8, len: usize, out: *mut *mut BwModel) -> BwStatus {
+    guard(|| boxed(out, BwModel(Model::from_bytes(bytes(buf, len)?)?)))
+}
+
+/// Simulates `len` samples of `u` \[V\] into `x_out` \[µm\] from h = `h0`; the final h
+/// \[µm\] to `*h_final` (may be null). The first sample keeps h = h0.
+#[no_mangle]
+pub unsafe extern "C" fn bw_simulate(
+    params: *const BwParams,
+    u: *const f64,
+    len: usize,
+    dt: f64,
+    h0: f64,
+    x_out: *mut f64,
+    h_final: *mut f64,
+) -> BwStatus {
+    guard(|| {
+        let p = get(params)?.to_params()?;
+        let h = crate::model::simulate_into(&p, slice(u, len)?, dt, h0, None, slice_mut(x_out, len)?)?;
+        if !h_final.is_null() {
+            h_final.write(h);
+        }
+        Ok(())
+    })
+}
+
+// -- rpem -------------------------------------------------------------------------
+
+/// The rpem method's defaults.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_config_default(out: *mut BwRpemConfig) -> BwStatus {
+    guard(|| put(out, RpemConfig::default().into()))
+}
+
+/// An rpem identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
+/// `config` or null for the defaults) into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_new(
+    dt: f64,
+    init: *const BwParams,
+    h0: f64,
+    config: *const BwRpemConfig,
+    out: *mut *mut BwRpem,
+) -> BwStatus {
+    guard(|| {
+        let p = get(init)?.to_params()?;
+        let cfg = if config.is_null() { RpemConfig::default() } else { (*config).to_config() };
+        boxed(out, BwRpem(RpemIdentifier::new(dt, p, h0, cfg)?))
+    })
+}
+
+/// Releases an rpem identifier (null is ignored).
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_free(id: *mut BwRpem) {
+    release(id)
+}
+
+/// One sample (u \[V\], measured x \[µm\]); the prediction made before x is used \[µm\]
+/// to `*x_hat`. No allocation.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_push(id: *mut BwRpem, u: f64, x: f64, x_hat: *mut f64) -> BwStatus {
+    guard(|| {
+        let id = get_mut(id)?;
+        if x_hat.is_null() {
+            return Err(BwStatus::BW_NULL_POINTER);
+        }
+        put(x_hat, id.0.push(u, x)?)
+    })
+}
+
+/// `len` samples at once; predictions into `out`. Rejected whole (state kept) if any
+/// value is non-finite.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_push_many(
+    id: *mut BwRpem,
+    u: *const f64,
+    x: *const f64,
+    len: usize,
+    out: *mut f64,
+) -> BwStatus {
+    guard(|| Ok(get_mut(id)?.0.push_many(slice(u, len)?, slice(x, len)?, slice_mut(out, len)?)?))
+}
+
+/// The current estimates.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_params(id: *const BwRpem, out: *mut BwParams) -> BwStatus {
+    guard(|| put(out, get(id)?.0.params().into()))
+}
+
+/// What the last push did.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_status(id: *const BwRpem, out: *mut BwRpemStatus) -> BwStatus {
+    guard(|| put(out, get(id)?.0.status().into()))
+}
+
+/// The model's h \[µm\] after the last sample.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_h(id: *const BwRpem, h: *mut f64) -> BwStatus {
+    guard(|| put(h, get(id)?.0.h()))
+}
+
+/// Back to the state right after construction.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_reset(id: *mut BwRpem) -> BwStatus {
+    guard(|| {
+        get_mut(id)?.0.reset();
+        Ok(())
+    })
+}
+
+/// The identifier's snapshot bytes (see `bw_model_snapshot`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_snapshot(
+    id: *const BwRpem,
+    buf: *mut u8,
+    capacity: usize,
+    len: *mut usize,
+) -> BwStatus {
+    guard(|| write_snapshot(&get(id)?.0.to_bytes(), buf, capacity, len))
+}
+
+/// An rpem identifier rebuilt from snapshot bytes into `*out`; it continues bit for bit.
+#[no_mangle]
+pub unsafe extern "C" fn bw_rpem_restore(buf: *const u8, len: usize, out: *mut *mut BwRpem) -> BwStatus {
+    guard(|| boxed(out, BwRpem(RpemIdentifier::from_bytes(bytes(buf, len)?)?)))
+}
+
+// -- paper ------------------------------------------------------------------------
+
+/// The paper method's defaults for a window of `window_len` samples.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_config_default(window_len: usize, out: *mut BwPaperConfig) -> BwStatus {
+    guard(|| put(out, PaperConfig::with_window(window_len).into()))
+}
+
+/// A paper identifier (`dt` \[s\], `init`, `h0` \[µm\], tuning `config` with its
+/// window) into `*out`. The window is allocated here, once.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_new(
+    dt: f64,
+    init: *const BwParams,
+    h0: f64,
+    config: *const BwPaperConfig,
+    out: *mut *mut BwPaper,
+) -> BwStatus {
+    guard(|| {
+        let p = get(init)?.to_params()?;
+        let cfg = get(config)?.to_config()?;
+        boxed(out, BwPaper(PaperIdentifier::new(dt, p, h0, cfg)?))
+    })
+}
+
+/// Releases a paper identifier (null is ignored).
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_free(id: *mut BwPaper) {
+    release(id)
+}
+
+/// One sample (see `bw_rpem_push`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_push(id: *mut BwPaper, u: f64, x: f64, x_hat: *mut f64) -> BwStatus {
+    guard(|| {
+        let id = get_mut(id)?;
+        if x_hat.is_null() {
+            return Err(BwStatus::BW_NULL_POINTER);
+        }
+        put(x_hat, id.0.push(u, x)?)
+    })
+}
+
+/// `len` samples at once (see `bw_rpem_push_many`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_push_many(
+    id: *mut BwPaper,
+    u: *const f64,
+    x: *const f64,
+    len: usize,
+    out: *mut f64,
+) -> BwStatus {
+    guard(|| Ok(get_mut(id)?.0.push_many(slice(u, len)?, slice(x, len)?, slice_mut(out, len)?)?))
+}
+
+/// The current estimates.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_params(id: *const BwPaper, out: *mut BwParams) -> BwStatus {
+    guard(|| put(out, get(id)?.0.params().into()))
+}
+
+/// What the last push did.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_status(id: *const BwPaper, out: *mut BwPaperStatus) -> BwStatus {
+    guard(|| put(out, get(id)?.0.status().into()))
+}
+
+/// The model's h \[µm\] after the last sample.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_h(id: *const BwPaper, h: *mut f64) -> BwStatus {
+    guard(|| put(h, get(id)?.0.h()))
+}
+
+/// Back to the state right after construction.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_reset(id: *mut BwPaper) -> BwStatus {
+    guard(|| {
+        get_mut(id)?.0.reset();
+        Ok(())
+    })
+}
+
+/// The identifier's snapshot bytes (see `bw_model_snapshot`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_snapshot(
+    id: *const BwPaper,
+    buf: *mut u8,
+    capacity: usize,
+    len: *mut usize,
+) -> BwStatus {
+    guard(|| write_snapshot(&get(id)?.0.to_bytes(), buf, capacity, len))
+}
+
+/// A paper identifier rebuilt from snapshot bytes into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_restore(buf: *const u8, len: usize, out: *mut *mut BwPaper) -> BwStatus {
+    guard(|| boxed(out, BwPaper(PaperIdentifier::from_bytes(bytes(buf, len)?)?)))
+}
+
+// -- bank -------------------------------------------------------------------------
+
+/// A bank of `channels` rpem channels (identifier + model each), all starting from
+/// `init`, h `h0` \[µm\], tuning `config` (null: defaults), into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_new_rpem(
+    channels: usize,
+    dt: f64,
+    init: *const BwParams,
+    h0: f64,
+    config: *const BwRpemConfig,
+    out: *mut *mut BwBank,
+) -> BwStatus {
+    guard(|| {
+        let p = get(init)?.to_params()?;
+        let cfg = if config.is_null() { RpemConfig::default() } else { (*config).to_config() };
+        let id = AnyIdentifier::Rpem(RpemIdentifier::new(dt, p, h0, cfg)?);
+        boxed(out, BwBank(Bank::new(channels, id, dt)?))
+    })
+}
+
+/// A bank of `channels` paper channels with tuning `config` (its window included).
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_new_paper(
+    channels: usize,
+    dt: f64,
+    init: *const BwParams,
+    h0: f64,
+    config: *const BwPaperConfig,
+    out: *mut *mut BwBank,
+) -> BwStatus {
+    guard(|| {
+        let p = get(init)?.to_params()?;
+        let cfg = get(config)?.to_config()?;
+        let id = AnyIdentifier::Paper(PaperIdentifier::new(dt, p, h0, cfg)?);
+        boxed(out, BwBank(Bank::new(channels, id, dt)?))
+    })
+}
+
+/// Releases a bank (null is ignored).
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_free(bank: *mut BwBank) {
+    release(bank)
+}
+
+/// The number of channels C.
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_channels(bank: *const BwBank, out: *mut usize) -> BwStatus {
+    guard(|| put(out, get(bank)?.0.channels()))
+}
+
+/// One frame for the identifiers: `u` \[V\], `x` \[µm\] (C values each); predictions
+/// \[µm\] into `out` (C values). No allocation.
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_push(bank: *mut BwBank, u: *const f64, x: *const f64, out: *mut f64) -> BwStatus {
+    guard(|| {
+        let b = &mut get_mut(bank)?.0;
+        let c = b.channels();
+        Ok(b.push(slice(u, c)?, slice(x, c)?, slice_mut(out, c)?)?)
+    })
+}
+
+/// `frames` frames at once, row-major (frame t, channel c at `t·C + c`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_push_many(
+    bank: *mut BwBank,
+    u: *const f64,
+    x: *const f64,
+    frames: usize,
+    out: *mut f64,
+) -> BwStatus {
+    guard(|| {
+        let b = &mut get_mut(bank)?.0;
+        let len = frames.checked_mul(b.channels()).ok_or(BwStatus::BW_LENGTH_MISMATCH)?;
+        Ok(b.push_many(slice(u, len)?, slice(x, len)?, slice_mut(out, len)?)?)
+    })
+}
+
+/// One frame for the models: voltages `u` \[V\] (C values), displacements \[µm\] into `x_out`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_step_models(bank: *mut BwBank, u: *const f64, x_out: *mut f64) -> BwStatus {
+    guard(|| {
+        let b = &mut get_mut(bank)?.0;
+        let c = b.channels();
+        Ok(b.step_models(slice(u, c)?, slice_mut(x_out, c)?)?)
+    })
+}
+
+/// Every model takes its identifier's current estimates (states kept).
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_adopt_estimates(bank: *mut BwBank) -> BwStatus {
+    guard(|| Ok(get_mut(bank)?.0.adopt_estimates()?))
+}
+
+/// The current estimates of channel `channel`'s identifier.
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_params(bank: *const BwBank, channel: usize, out: *mut BwParams) -> BwStatus {
+    guard(|| {
+        let id = get(bank)?.0.identifiers().get(channel).ok_or(BwStatus::BW_INVALID_CONFIG)?;
+        put(out, id.params().into())
+    })
+}
+
+/// Every identifier and model back to its state right after construction.
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_reset(bank: *mut BwBank) -> BwStatus {
+    guard(|| {
+        get_mut(bank)?.0.reset();
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_becomes_a_status() {
+        let hook = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        let status = guard(|| panic!("deliberate"));
+        std::panic::set_hook(hook);
+        assert_eq!(status, BwStatus::BW_PANIC);
+    }
+
+    #[test]
+    fn errors_leave_state_and_null_pointers_are_reported() {
+        unsafe {
+            let mut p = BwParams { kv: 0.0, x0: 0.0, a: 0.0, beta: 0.0, gamma: 0.0, n: 0.0, delta: 0.0 };
+            assert_eq!(bw_params_paper_1hz(&mut p), BwStatus::BW_OK);
+            let mut id: *mut BwRpem = core::ptr::null_mut();
+            assert_eq!(bw_rpem_new(1e-4, &p, 0.0, core::ptr::null(), &mut id), BwStatus::BW_OK);
+            let mut x_hat = 0.0;
+            assert_eq!(bw_rpem_push(id, 1.0, 0.2, &mut x_hat), BwStatus::BW_OK);
+            let before = (*id).0.clone();
+            assert_eq!(bw_rpem_push(id, f64::NAN, 0.2, &mut x_hat), BwStatus::BW_NON_FINITE_SAMPLE);
+            assert_eq!(bw_rpem_push(id, 1.0, 0.2, core::ptr::null_mut()), BwStatus::BW_NULL_POINTER);
+            assert_eq!((*id).0, before);
+            assert_eq!(bw_rpem_push(core::ptr::null_mut(), 1.0, 0.2, &mut x_hat), BwStatus::BW_NULL_POINTER);
+            let mut len = 0usize;
+            assert_eq!(bw_rpem_snapshot(id, core::ptr::null_mut(), 0, &mut len), BwStatus::BW_BUFFER_TOO_SMALL);
+            let mut buf = vec![0u8; len];
+            assert_eq!(bw_rpem_snapshot(id, buf.as_mut_ptr(), len, &mut len), BwStatus::BW_OK);
+            let mut copy: *mut BwRpem = core::ptr::null_mut();
+            assert_eq!(bw_rpem_restore(buf.as_ptr(), len, &mut copy), BwStatus::BW_OK);
+            assert_eq!((*copy).0, (*id).0);
+            assert_eq!(bw_rpem_restore(buf.as_ptr(), len - 1, &mut copy), BwStatus::BW_CORRUPT_SNAPSHOT);
+            bw_rpem_free(copy);
+            bw_rpem_free(id);
+            bw_rpem_free(core::ptr::null_mut());
+            let bad = BwParams { n: -1.0, ..p };
+            let mut m: *mut BwModel = core::ptr::null_mut();
+            assert_eq!(bw_model_new(&bad, 1e-4, 0.0, &mut m), BwStatus::BW_INVALID_PARAMETER);
+            assert!(m.is_null());
+            let mut bank: *mut BwBank = core::ptr::null_mut();
+            assert_eq!(bw_bank_new_rpem(0, 1e-4, &p, 0.0, core::ptr::null(), &mut bank), BwStatus::BW_INVALID_CONFIG);
+            let msg = std::ffi::CStr::from_ptr(bw_status_message(BwStatus::BW_NON_FINITE_SAMPLE));
+            assert!(msg.to_str().unwrap().contains("non-finite"));
+        }
+    }
+}
