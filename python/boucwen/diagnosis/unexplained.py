@@ -257,7 +257,7 @@ def _mains_label(freq: float, fs: float, tol: float) -> str:
     for base in MAINS_HZ:
         for m in range(1, 11):
             true = m * base
-            if true < fs / 2.0:
+            if true <= fs / 2.0:
                 seen, aliased = true, False
             elif m <= 5:
                 seen, aliased = abs(((true + fs / 2.0) % fs) - fs / 2.0), True
