@@ -56,7 +56,27 @@ def test_result_fields_and_json():
     rec = make_record("drift", 0, "paper_1hz", 0.005)
     d = diagnose(rec.u, rec.x, rec.dt)
     doc = json.loads(json.dumps(d.to_dict()))
-    assert set(doc) == {"effects", "rms_before", "max_before", "rms_after", "max_after", "params", "evidence"}
+    assert set(doc) == {
+        "effects",
+        "rms_before",
+        "max_before",
+        "rms_after",
+        "max_after",
+        "params",
+        "evidence",
+        "unexplained",
+    }
+    # What is left: the noise the record was made with, estimated from x alone, and a
+    # verdict on it (at 5 nm of noise the generator's 2 nm discretisation misfit
+    # shows; tests/test_unexplained.py tests the verdict itself).
+    left = doc["unexplained"]
+    assert left["noise_um"] == pytest.approx(rec.noise_um, rel=0.15)
+    assert isinstance(left["consistent_with_noise"], bool) and 0.0 <= left["p_value"] <= 1.0
+    assert left["rms_um"] == pytest.approx(d.rms_after)
+    assert left["summary"] == d.unexplained.summary()
+    first = doc["evidence"]["rounds"][0]
+    assert first["null"]["heldout_rms_um"] > 0
+    assert first["trials"]["drift"]["gain_over_null"] >= 0.1
     assert doc["effects"] == ["drift"]
     assert doc["params"]["drift"]["rate_um_per_s"] == pytest.approx(
         rec.effects.to_dict()["drift"]["rate_um_per_s"], rel=0.05
@@ -107,7 +127,7 @@ def test_bad_data():
         diagnose(np.arange(200.0), np.arange(200.0), 0.0)
 
 
-def test_cli_writes_report_predictions_and_plot(tmp_path):
+def test_cli_writes_report_predictions_and_plot(tmp_path, capsys):
     rec = make_record("delay", 0, "paper_1hz", 0.002)
     t = np.arange(rec.u.size) * rec.dt
     data = tmp_path / "data.csv"
@@ -115,6 +135,8 @@ def test_cli_writes_report_predictions_and_plot(tmp_path):
     report, pred, fig = tmp_path / "r.json", tmp_path / "p.csv", tmp_path / "f.png"
     code = main(["diagnose", str(data), "--json", str(report), "--predictions", str(pred), "--plot", str(fig)])
     assert code == 0
+    out = capsys.readouterr().out
+    assert "residual:" in out and "consistent with noise" in out
     doc = json.loads(report.read_text())
     assert doc["effects"] == ["delay"]
     assert doc["rms_after"] < doc["rms_before"]

@@ -171,6 +171,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"effects: {', '.join(result.effects) if result.effects else 'none'}")
     print(f"error before (base model): rms {result.rms_before:.4g} um, max {result.max_before:.4g} um")
     print(f"error after (with effects): rms {result.rms_after:.4g} um, max {result.max_after:.4g} um")
+    if result.unexplained is not None:
+        print(result.unexplained.summary())
     write_report(result, args.json, data={**source, "samples": len(rec), "dt_s": rec.dt})
     print(f"wrote {args.json}")
     write_predictions(result, rec.t, rec.x, args.predictions)

@@ -128,7 +128,9 @@ def plot_diagnosis(
 
     Panels: (a) the residual x − x̂ [µm] of the base model and of the model with the
     effects against time t [s], (b) the loops x(u) measured and of both models
-    (u [V], x [µm]), (c) the amplitude spectrum [µm] of both residuals.
+    (u [V], x [µm]), (c) the amplitude spectrum [µm] of both residuals, with the
+    spectral lines left unexplained (dashed); the verdict on what is left
+    (:attr:`Diagnosis.unexplained`) is the figure's title.
     """
     t_arr, u_arr, x_arr = (np.asarray(v, dtype=np.float64) for v in (t, u, x))
     fig = _figure(11.0, 7.5)
@@ -178,4 +180,9 @@ def plot_diagnosis(
     ax_s.set_title("(c) residual spectrum")
     ax_s.legend(loc="lower left", fontsize=8)
     ax_s.grid(True, alpha=0.3, which="both")
+    left = result.unexplained
+    if left is not None:
+        for line in left.unexplained_lines:
+            ax_s.axvline(line["freq_hz"], color="tab:green", linewidth=0.6, linestyle="--")
+        fig.suptitle(left.summary(), fontsize=8)
     fig.savefig(path, dpi=110)

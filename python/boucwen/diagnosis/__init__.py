@@ -19,12 +19,23 @@ not told what it contains, and:
    (10 % by default) — an effect that only fits the noise of the fitting part does
    not earn its parameters there — and repeats from 3 until nothing is kept;
 6. refits the base model and the kept effects on the whole record and reports the
-   errors over the whole record, before (base model) and after (with the effects).
+   errors over the whole record, before (base model) and after (with the effects);
+7. tests what the final model leaves against the noise estimated from the record and
+   against what could explain it (:func:`~boucwen.diagnosis.unexplained.unexplained`):
+   ``Diagnosis.unexplained`` says whether the residual is consistent with noise and,
+   if not, which signals, spectral lines and time spans it follows — also when no
+   effect of the vocabulary accounts for it.
+
+In step 4 each round also refits the current model with nothing added and the same
+iteration budget (the *null trial*); an effect is credited only with what it cuts
+from the held-out error beyond the better of the current model and the null trial,
+so that the extra iterations of a trial fit are not taken for the effect.
 
 With no effect in the data, every trial fails step 5 and the result says so
 (``effects == []``).
 
 Modules: :mod:`~boucwen.diagnosis.evidence` (the residual statistics),
+:mod:`~boucwen.diagnosis.unexplained` (what the final model leaves, step 7),
 :mod:`~boucwen.diagnosis.search` (the procedure above),
 :mod:`~boucwen.diagnosis.report` (:class:`Diagnosis`, its JSON and CSV files); the
 figure is :func:`boucwen.plots.plot_diagnosis`.
@@ -33,6 +44,7 @@ figure is :func:`boucwen.plots.plot_diagnosis`.
 from .evidence import residual_evidence, residual_evidence_record
 from .report import Diagnosis, write_predictions, write_report
 from .search import MAX_DELAY_SAMPLES, MIN_GAIN, TRAIN_FRACTION, TRIAL_NFEV, diagnose, diagnose_record
+from .unexplained import Unexplained, noise_level, unexplained
 
 __all__ = [
     "MAX_DELAY_SAMPLES",
@@ -40,10 +52,13 @@ __all__ = [
     "TRAIN_FRACTION",
     "TRIAL_NFEV",
     "Diagnosis",
+    "Unexplained",
     "diagnose",
     "diagnose_record",
+    "noise_level",
     "residual_evidence",
     "residual_evidence_record",
+    "unexplained",
     "write_predictions",
     "write_report",
 ]

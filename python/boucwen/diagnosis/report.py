@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike
 from .._core import EffectSet
 from ..checks import FloatArray
 from ..io import write_csv
+from .unexplained import Unexplained
 
 __all__ = ["Diagnosis", "jsonable", "write_predictions", "write_report"]
 
@@ -34,6 +35,10 @@ class Diagnosis:
         evidence: what the decision rests on (see :mod:`boucwen.diagnosis`).
         x_base, x_extended: displacement [µm] of the two models over the record.
         effect_set: the fitted :class:`boucwen.EffectSet`.
+        unexplained: what the final model leaves unexplained: its residual against the
+            noise estimated from the record, the signals, spectral lines and time spans
+            it follows, and whether it is consistent with noise
+            (:class:`~boucwen.diagnosis.unexplained.Unexplained`; None if not computed).
     """
 
     effects: list[str]
@@ -46,6 +51,7 @@ class Diagnosis:
     x_base: FloatArray
     x_extended: FloatArray
     effect_set: EffectSet = field(default_factory=EffectSet)
+    unexplained: Unexplained | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON report (without the arrays)."""
@@ -57,6 +63,7 @@ class Diagnosis:
             "max_after": self.max_after,
             "params": self.params,
             "evidence": self.evidence,
+            "unexplained": None if self.unexplained is None else jsonable(self.unexplained.to_dict()),
         }
 
     def summary(self) -> str:
@@ -72,7 +79,10 @@ class Diagnosis:
 
 
 def jsonable(obj: Any) -> Any:
-    """Replaces numpy scalars and non-finite floats (→ None) so that json.dumps works."""
+    """Replaces numpy scalars and non-finite floats (→ None), and objects with a
+    ``to_dict`` method by its result, so that json.dumps works."""
+    if hasattr(obj, "to_dict") and callable(obj.to_dict):
+        return jsonable(obj.to_dict())
     if isinstance(obj, dict):
         return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
