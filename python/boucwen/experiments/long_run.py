@@ -52,7 +52,9 @@ Targets (the tracker's issue): every estimate in the region, the period-ahead er
 
 ``python -m boucwen.experiments.long_run [--quick] [--json FILE]`` prints the table
 (one line per run, progress on stderr); ``--quick`` is the shortened version (3
-repeats, 10⁵ random samples, noise 0 and 5 nm, N = 50 and 5000).
+repeats, 10⁵ random samples, noise 0 and 5 nm, N = 50 and 5000); ``--paper-bounds-off``
+runs the paper method alone with its physical bounds (``max_hysteresis_gain``,
+``max_delta_ratio``) switched off, as it ran before them (labelled ``N=…*``).
 """
 
 from __future__ import annotations
@@ -71,9 +73,11 @@ from numpy.typing import NDArray
 
 from .. import evaluation, plant
 from .._core import Identifier, Params, simulate
+from ..config import PaperConfig
 from ..fit import fit
 
 __all__ = [
+    "BOUNDS_OFF",
     "IMPLICIT_STIFFNESS",
     "NOISE_LEVELS_UM",
     "N_BOUNDS",
@@ -83,6 +87,8 @@ __all__ = [
     "SEED",
     "Case",
     "Record",
+    "bounds_off_cases",
+    "default_cases",
     "implicit_intervals",
     "main",
     "project",
@@ -129,10 +135,14 @@ class Case:
 
     method: str
     window: int | None = None
+    paper_options: tuple[tuple[str, float], ...] = ()
+    """Options of :class:`boucwen.PaperConfig` for "paper" (default: none changed)."""
 
     @property
     def label(self) -> str:
-        return f"paper N={self.window}" if self.method == "paper" else self.method
+        if self.method != "paper":
+            return self.method
+        return f"paper N={self.window}" + ("*" if self.paper_options else "")
 
     def make(self, dt: float, init: Params, h0: float) -> Identifier:
         if self.method == "horizon":
@@ -140,13 +150,23 @@ class Case:
         if self.method == "rpem":
             return Identifier.rpem(dt, init, h0)
         if self.method == "paper" and self.window is not None:
-            return Identifier.paper(dt, self.window, init, h0)
+            config = PaperConfig(**dict(self.paper_options)) if self.paper_options else None
+            return Identifier.paper(dt, self.window, init, h0, config=config)
         raise ValueError(f"invalid case {self!r}")
+
+
+#: The paper method's physical bounds switched off (``--paper-bounds-off``: how it ran before them).
+BOUNDS_OFF: tuple[tuple[str, float], ...] = (("max_hysteresis_gain", math.inf), ("max_delta_ratio", math.inf))
 
 
 def default_cases(windows: Sequence[int] = PAPER_WINDOWS) -> list[Case]:
     """horizon, rpem and the paper method at each window."""
     return [Case("horizon"), Case("rpem")] + [Case("paper", int(w)) for w in windows]
+
+
+def bounds_off_cases(windows: Sequence[int] = PAPER_WINDOWS) -> list[Case]:
+    """The paper method at each window with :data:`BOUNDS_OFF` (labelled ``paper N=…*``)."""
+    return [Case("paper", int(w), BOUNDS_OFF) for w in windows]
 
 
 # --------------------------------------------------------------------------- inputs
@@ -479,8 +499,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--quick", action="store_true", help="shortened version (3 repeats, 10^5 random samples)")
     ap.add_argument("--json", default=None, help="write the results to this file")
+    ap.add_argument(
+        "--paper-bounds-off",
+        action="store_true",
+        help="run only the paper method, with max_hysteresis_gain and max_delta_ratio = inf (labelled N=...*)",
+    )
     args = ap.parse_args(argv)
     options = quick_options() if args.quick else {}
+    if args.paper_bounds_off:
+        options["cases"] = bounds_off_cases((50, 5000) if args.quick else PAPER_WINDOWS)
 
     def progress(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
