@@ -128,3 +128,29 @@ def test_rust_identifier_agrees_with_the_reference(dt, window, decomposition, in
     assert abs(fast.h - slow.h) <= PREDICTION_TOL_UM
     # The comparison covered the sub-fits, not only the prediction with fixed estimates.
     assert must_run <= ran, ran
+
+
+def test_rust_identifier_agrees_with_the_reference_where_the_bounds_hold_estimates():
+    """Tight physical bounds (step 5's max_hysteresis_gain, step 2's max_delta_ratio), so
+    that both hold estimates on this record: the two implementations still agree sample
+    by sample, and the bounds did change the outcome."""
+    dt, window = 2e-3, 400
+    u, x = _noisy_two_frequency_loop(2500, dt)
+    loose = dict(min_r2=0.0, h_zero_frac=0.05, min_arg_frac=0.0, noise_gate=0.0)
+    bounds = dict(max_hysteresis_gain=1.2, max_delta_ratio=0.05)
+    fast = make_identifier("paper", dt, window, PAPER, **loose, **bounds)
+    slow = reference.PaperIdentifier(dt, window, PAPER, **loose, **bounds)
+    free = make_identifier("paper", dt, window, PAPER, **loose, max_hysteresis_gain=math.inf, max_delta_ratio=math.inf)
+    worst, apart = 0.0, 0.0
+    for k, (a, b) in enumerate(zip(u.tolist(), x.tolist())):
+        pf, ps = fast.push(a, b), slow.push(a, b)
+        worst = max(worst, abs(pf - ps))
+        apart = max(apart, abs(pf - free.push(a, b)))
+        status = fast.status
+        status.pop("refreshed")
+        assert status == slow.status, (k, status, slow.status)
+    assert worst <= PREDICTION_TOL_UM
+    np.testing.assert_allclose(fast.params.to_array(), slow.params.to_array(), rtol=PARAMS_RTOL, atol=1e-12)
+    # The bounds decided something: δ stayed at its start, and the predictions moved.
+    assert fast.params.delta == PAPER.delta != free.params.delta
+    assert apart > 1e3 * PREDICTION_TOL_UM

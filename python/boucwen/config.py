@@ -139,6 +139,11 @@ class PaperConfig:
     """Step 1 runs only while std(u) over the window exceeds this [V]."""
     n_bounds: tuple[float, float] = _PAPER["n_bounds"]
     """A fitted n outside these bounds is taken as a failed fit [-]."""
+    max_hysteresis_gain: float = _PAPER["max_hysteresis_gain"]
+    """Step 5 keeps β, γ, n only while (|β|+|γ|)·hₛⁿ ≤ this × |A₀|, hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀)
+    the starting model's saturation amplitude (``math.inf``: no bound)."""
+    max_delta_ratio: float = _PAPER["max_delta_ratio"]
+    """Step 2 keeps a fitted δ only while |δ|·rms(u) ≤ this × |A + kv|·rms(u̇) over its points."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "n_bounds", tuple(self.n_bounds))

@@ -531,6 +531,8 @@ class PaperIdentifier:
         min_delta_t: float = 3.0,
         min_u_std_v: float = 1e-6,
         n_bounds: tuple[float, float] = (0.5, 4.0),
+        max_hysteresis_gain: float = 4.0,
+        max_delta_ratio: float = 1.0,
     ) -> None:
         self.dt = _positive_dt(dt)
         self.init = RefParams.from_any(init)
@@ -571,7 +573,13 @@ class PaperIdentifier:
         self.min_line_t = float(min_line_t)
         self.noise_gate = float(noise_gate)
         self.min_u_std_v = float(min_u_std_v)
+        if not max_hysteresis_gain > 0.0:
+            raise ValueError(f"invalid max_hysteresis_gain = {max_hysteresis_gain}: must be > 0 (inf: no bound)")
         self.n_bounds = (float(lo), float(hi))
+        if not max_delta_ratio > 0.0:
+            raise ValueError(f"invalid max_delta_ratio = {max_delta_ratio}: must be > 0 (inf: no bound)")
+        self.max_hysteresis_gain = float(max_hysteresis_gain)
+        self.max_delta_ratio = float(max_delta_ratio)
         self.reset()
 
     # -- public -----------------------------------------------------------
@@ -686,6 +694,17 @@ class PaperIdentifier:
                 return _Point(mid.u, mid.x, y, udot, math.log(h), math.log(abs(arg)), dxd, kind, arg > 0.0)
         return unused
 
+    def _hysteresis_bounded(self, beta: float, gamma: float, n: float) -> bool:
+        """(|β|+|γ|)·hₛⁿ ≤ max_hysteresis_gain·|A₀|, hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀) the starting
+        model's saturation amplitude, compared in logarithms (off when |A₀| or |β₀|+|γ₀| is 0)."""
+        a0, s0 = abs(self.init.A), abs(self.init.beta) + abs(self.init.gamma)
+        if math.isinf(self.max_hysteresis_gain) or a0 == 0.0 or s0 == 0.0:
+            return True
+        ln_hs = (math.log(a0) - math.log(s0)) / self.init.n
+        total = abs(beta) + abs(gamma)
+        ln_total = math.log(total) if total > 0.0 else -math.inf
+        return ln_total + n * ln_hs <= math.log(self.max_hysteresis_gain * a0)
+
     def _refit(self) -> None:
         p = self._params._asdict()
         st = self._status
@@ -721,16 +740,21 @@ class PaperIdentifier:
             det = c1 * c3 - c2 * c2
             well_posed = c3 > 0.0 and det > self.rank_tol * c1 * c3
             full_a, full_delta = ((c4 * c3 - c2 * c5) / det, (c1 * c5 - c2 * c4) / det) if well_posed else (0.0, 0.0)
-            # δ only where resolved: |δ| ≥ min_delta_t standard errors of the two-column fit.
+            # δ only where resolved: |δ| ≥ min_delta_t standard errors of the two-column fit,
+            # and δ·u not outweighing the rate term on the points (max_delta_ratio).
             dof = sel.sum() - 2.0
             rss = max(c6 - full_a * c4 - full_delta * c5, 0.0)
             se_delta = math.sqrt(rss / dof * c1 / det) if well_posed and dof > 0.0 else math.inf
-            if well_posed and math.isfinite(full_delta) and abs(full_delta) >= self.min_delta_t * se_delta:
+            # The rate term from the fit with δ held (well conditioned where u̇ and u are
+            # nearly collinear, when the two-column fit can trade one for the other).
+            reduced = (c4 - p["delta"] * c2) / c1
+            bounded = abs(full_delta) * math.sqrt(c3) <= self.max_delta_ratio * abs(reduced) * math.sqrt(c1)
+            if well_posed and math.isfinite(full_delta) and abs(full_delta) >= self.min_delta_t * se_delta and bounded:
                 a_plus_kv = full_a
                 p["delta"] = full_delta
                 st["rate_fit"] = "ran"
             else:  # u̇ and u nearly collinear, or δ not resolved: fit A + kv alone, keep δ
-                a_plus_kv = (c4 - p["delta"] * c2) / c1
+                a_plus_kv = reduced
                 st["rate_fit"] = "reduced"
             if math.isfinite(a_plus_kv):
                 p["A"] = a_plus_kv - p["kv"]
@@ -773,9 +797,10 @@ class PaperIdentifier:
                 st["return_fit"] = "ran"
 
         # Step 5 (eqs. 15–16), accepted only where h stays bounded for every
-        # input (β + γ > 0 and β − γ > 0); otherwise β, γ and n are held.
+        # input (β + γ > 0 and β − γ > 0) and the hysteresis terms stay physically
+        # bounded (max_hysteresis_gain); otherwise β, γ and n are held.
         beta, gamma = 0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb)
-        if beta + gamma > 0.0 and beta - gamma > 0.0:
+        if beta + gamma > 0.0 and beta - gamma > 0.0 and self._hysteresis_bounded(beta, gamma, p["n"]):
             p["beta"], p["gamma"] = beta, gamma
         else:
             st["shape_fit"] = "held"

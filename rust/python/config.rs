@@ -76,6 +76,8 @@ pub(crate) fn paper_slots(c: &mut PaperConfig) -> Vec<(&'static str, Slot<'_>)> 
         ("min_line_t", Slot::Float(&mut c.min_line_t)),
         ("min_u_std_v", Slot::Float(&mut c.min_u_std_v)),
         ("n_bounds", Slot::Pair(&mut c.n_bounds)),
+        ("max_hysteresis_gain", Slot::Float(&mut c.max_hysteresis_gain)),
+        ("max_delta_ratio", Slot::Float(&mut c.max_delta_ratio)),
     ]
 }
 

@@ -54,6 +54,24 @@ pub struct PaperConfig {
     pub min_u_std_v: f64,
     /// A slope outside these bounds is taken as a failed fit and n is kept. Default 0.5 to 4.
     pub n_bounds: (f64, f64),
+    /// Step 5 accepts β, γ, n only while the hysteresis terms stay physically bounded:
+    /// (|β|+|γ|)·hₛⁿ ≤ this × |A₀|, where hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀) is the
+    /// saturation amplitude of the starting model (A₀, β₀, γ₀, n₀; the guard is off
+    /// when |A₀| or |β₀|+|γ₀| is 0, or with `f64::INFINITY`). At the starting model's
+    /// own saturation amplitude the new model's |h|ⁿ terms may be at most this many
+    /// times |A₀|, i.e. its saturation amplitude may shrink at most this^(1/n)-fold
+    /// (4.5-fold at n = 1.52). Without it, on long noisy records steps 3–4 fed by a
+    /// local line fit (short windows) or by points near h ≈ 0 give β ± γ that pass
+    /// the sign test with |β|, |γ| many orders of magnitude too large. Default 10.
+    pub max_hysteresis_gain: f64,
+    /// Step 2 keeps a fitted δ only while the δ·u term does not outweigh the rate
+    /// term on its points: |δ|·rms(u) ≤ this × |A + kv|·rms(u̇), A + kv from the fit
+    /// with δ held (else it fits A + kv alone and keeps δ, as for an unresolved δ). δ·u·sgn(u̇) is the model's small
+    /// asymmetry; where the crossing points span a narrow range of u (one frequency,
+    /// long windows) an unbounded δ absorbs what the model misses and grows to
+    /// thousands of times its size (|δ| ≈ 28 µm/(V·s) on noise-free bench data at
+    /// N = 5000), and the model's h, and with it step 1, follow. Default 1.
+    pub max_delta_ratio: f64,
 }
 
 impl PaperConfig {
@@ -79,6 +97,8 @@ impl PaperConfig {
             min_delta_t: 3.0,
             min_u_std_v: 1e-6,
             n_bounds: (0.5, 4.0),
+            max_hysteresis_gain: 4.0,
+            max_delta_ratio: 1.0,
         }
     }
 
@@ -110,6 +130,12 @@ impl PaperConfig {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(name, v, "must be finite and >= 0");
             }
+        }
+        if self.max_delta_ratio.is_nan() || self.max_delta_ratio <= 0.0 {
+            return bad("max_delta_ratio", self.max_delta_ratio, "must be > 0 (inf: no bound)");
+        }
+        if self.max_hysteresis_gain.is_nan() || self.max_hysteresis_gain <= 0.0 {
+            return bad("max_hysteresis_gain", self.max_hysteresis_gain, "must be > 0 (inf: no bound)");
         }
         let (lo, hi) = self.n_bounds;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {

@@ -24,15 +24,19 @@
 //!      on [u̇, u] gives A + kv and δ (ẋ is first corrected by the small
 //!      |h|^n terms of eq. (5) at the point's h, with the current β, γ, n). If the two columns are nearly collinear (one
 //!      frequency puts every such point at the same (u, u̇)), only A + kv is fitted
-//!      and δ is kept.
+//!      and δ is kept. So is δ where δ·u would outweigh the rate term on the
+//!      points (`max_delta_ratio`).
 //!    - step 3 (eqs. 10–12): u̇ > 0 and h above the tolerance: r = (ḣ − δu)/u̇,
 //!      ln|A − r| = ln|β+γ| + n·ln h. The sign of A − r is carried: points of each
 //!      sign are summed apart and the larger group decides the sign of β + γ.
 //!    - step 4 (eqs. 13–14): u̇ < 0, h above the tolerance: r = (ḣ + δu)/u̇,
 //!      ln|γ−β| = mean(ln|A − r| − n·ln h), sign carried as in step 3.
 //!    - step 5: β, γ from β+γ and γ−β, accepted only where h stays bounded for
-//!      every input (β + γ > 0 and β − γ > 0, as in the paper's Table 2);
-//!      otherwise β, γ and n are held.
+//!      every input (β + γ > 0 and β − γ > 0, as in the paper's Table 2) and the
+//!      hysteresis terms stay physically bounded: (|β|+|γ|)·hₛⁿ at most
+//!      `max_hysteresis_gain`·|A₀| at the starting model's saturation amplitude hₛ
+//!      (without it, long noisy records drive |β|, |γ| to 10³–10⁸ with β ± γ
+//!      still > 0); otherwise β, γ and n are held.
 //!
 //!    Steps 3–4 leave out points whose |A − r| is below `min_arg_frac`·|A| (a
 //!    small difference of nearly equal numbers: its logarithm is mostly error) or
@@ -256,14 +260,19 @@ fn rate_fit(cfg: &PaperConfig, s: &[f64; NSUMS], delta: f64) -> RateFit {
     let (full_a_plus_kv, full_delta) =
         if well_posed { ((c[4] * c[3] - c[2] * c[5]) / det, (c[1] * c[5] - c[2] * c[4]) / det) } else { (0.0, 0.0) };
     // δ is kept only where the data resolve it: |δ| at least `min_delta_t`
-    // standard errors, from the residual of the two-column fit.
+    // standard errors, from the residual of the two-column fit; and only while
+    // δ·u does not outweigh the rate term on the points (`max_delta_ratio`).
     let dof = c[0] - 2.0;
     let rss = (c[6] - full_a_plus_kv * c[4] - full_delta * c[5]).max(0.0);
     let se_delta = if dof > 0.0 { math::sqrt(rss / dof * c[1] / det) } else { f64::INFINITY };
-    let fit = if well_posed && full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta {
+    // The rate term is measured by the one-column fit (well conditioned where u̇ and
+    // u are nearly collinear, when the two-column fit can trade one for the other).
+    let reduced = (c[4] - delta * c[2]) / c[1];
+    let bounded = full_delta.abs() * math::sqrt(c[3]) <= cfg.max_delta_ratio * reduced.abs() * math::sqrt(c[1]);
+    let fit = if well_posed && full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta && bounded {
         RateFit { delta_in: delta, a_plus_kv: full_a_plus_kv, delta_out: full_delta, status: SubFit::Ran }
     } else {
-        RateFit { delta_in: delta, a_plus_kv: (c[4] - delta * c[2]) / c[1], delta_out: delta, status: SubFit::Reduced }
+        RateFit { delta_in: delta, a_plus_kv: reduced, delta_out: delta, status: SubFit::Reduced }
     };
     if fit.a_plus_kv.is_finite() {
         fit
@@ -309,6 +318,18 @@ fn return_fit(cfg: &PaperConfig, s: &[f64; NSUMS], n: f64) -> ReturnFit {
         }
     }
     ReturnFit { n_in: n, diff_gb: 0.0, status: SubFit::Held }
+}
+
+/// Step 5's physical bound ([`PaperConfig::max_hysteresis_gain`]): (|β|+|γ|)·hₛⁿ ≤
+/// K·|A₀| with hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀) the starting model's saturation
+/// amplitude, compared in logarithms.
+fn hysteresis_bounded(cfg: &PaperConfig, init: &Params, beta: f64, gamma: f64, n: f64) -> bool {
+    let (a0, s0) = (init.a.abs(), init.beta.abs() + init.gamma.abs());
+    if cfg.max_hysteresis_gain == f64::INFINITY || a0 == 0.0 || s0 == 0.0 {
+        return true;
+    }
+    let ln_hs = (math::ln(a0) - math::ln(s0)) / init.n;
+    math::ln(beta.abs() + gamma.abs()) + n * ln_hs <= math::ln(cfg.max_hysteresis_gain * a0)
 }
 
 /// The paper's online identifier (see the module docs).
@@ -497,9 +518,10 @@ impl PaperIdentifier {
         let diff_gb = if ret.status == SubFit::Ran { ret.diff_gb } else { p.gamma - p.beta };
 
         // Step 5, kept only inside the region where h stays bounded for every
-        // input (β + γ > 0 and β − γ > 0); otherwise β and γ are held.
+        // input (β + γ > 0 and β − γ > 0) and where the hysteresis terms stay
+        // physically bounded (`max_hysteresis_gain`); otherwise β, γ and n are held.
         let (beta, gamma) = (0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb));
-        if beta + gamma > 0.0 && beta - gamma > 0.0 {
+        if beta + gamma > 0.0 && beta - gamma > 0.0 && hysteresis_bounded(&cfg, &self.init, beta, gamma, p.n) {
             p.beta = beta;
             p.gamma = gamma;
         } else {

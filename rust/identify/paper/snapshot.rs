@@ -30,6 +30,8 @@ impl Snapshot for PaperIdentifier {
             c.min_u_std_v,
             c.n_bounds.0,
             c.n_bounds.1,
+            c.max_hysteresis_gain,
+            c.max_delta_ratio,
         ]);
         w.f64(self.dt);
         w.params(&self.init);
@@ -89,8 +91,8 @@ impl Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, min_delta_t, min_u_std_v, n_lo, n_hi] =
-            r.f64s::<10>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, min_delta_t, min_u_std_v, n_lo, n_hi, max_hysteresis_gain, max_delta_ratio] =
+            r.f64s::<12>()?;
         let config = PaperConfig {
             window_len,
             decomposition,
@@ -106,6 +108,8 @@ impl Snapshot for PaperIdentifier {
             min_delta_t,
             min_u_std_v,
             n_bounds: (n_lo, n_hi),
+            max_hysteresis_gain,
+            max_delta_ratio,
         };
         let dt = r.f64()?;
         let init = r.params()?;
