@@ -17,10 +17,13 @@
 //! - [`identify`]: online identifiers behind one trait, [`identify::OnlineIdentifier`].
 //! - [`Error`]: every fallible call returns it; nothing here panics on user input.
 //! - [`Snapshot`]: save a [`Model`] or an identifier to bytes and restore it bit for bit.
+//! - [`compensate`]: the inverse model ([`Inverse`]), PI/PID feedback and the adaptive
+//!   compensator ([`Compensator`]) that cancel the hysteresis in a control loop.
 //!
 //! The Python bindings live in `python/` behind the `python` feature; this crate's
 //! numerics never depend on them.
 
+pub mod compensate;
 pub mod effects;
 pub mod error;
 pub mod identify;
@@ -31,6 +34,7 @@ pub mod snapshot;
 #[cfg(feature = "python")]
 mod python;
 
+pub use compensate::{invert, Compensator, ExtendedInverse, Inverse, VoltageLimits};
 pub use effects::{simulate_extended, EffectSet, ExtendedModel};
 pub use error::{Error, Result};
 pub use model::{simulate, simulate_into, Model, ModelState};
