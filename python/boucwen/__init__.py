@@ -9,10 +9,13 @@ Precision Engineering 38 (2014) 921–927).
 - :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
 - :class:`Identifier` identifies them online, one sample at a time;
 - :func:`fit` identifies them offline from a record (output-error least squares);
+- :class:`Inverse` and :func:`invert` give the voltage for a desired displacement,
+  :class:`Compensator` does so in a control loop with online identification and feedback;
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
 from ._core import Identifier, Model, Params, __version__, paper_input, simulate
+from ._core import Compensator, Inverse, invert
 from ._core import EffectSet, simulate_extended
 from .diagnose import Diagnosis, diagnose
 from .fit import FitResult, fit
@@ -24,6 +27,9 @@ __all__ = [
     "__version__",
     "paper_input",
     "simulate",
+    "Inverse",
+    "invert",
+    "Compensator",
     "fit",
     "FitResult",
     "EffectSet",

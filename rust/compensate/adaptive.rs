@@ -19,6 +19,14 @@
 //! `push`, `params` and `h` of [`OnlineIdentifier`]. With `adapt` off, the
 //! identifier is not used: a fixed inverse plus feedback.
 //!
+//! **Admissible estimates.** The inverse is well posed only while x(u) rises along
+//! both branches, kv + A − (±β + γ)·|h|^n > 0. In closed loop an online estimate can
+//! wander to where that fails (kv and x0 trade off against each other, A against kv).
+//! The inverse therefore takes new estimates only if both branch slopes stay at
+//! least [`MIN_SLOPE_FRACTION`]·kv for every |h| up to the largest |h| seen so far;
+//! otherwise it keeps the last admissible ones (and its own h) and the status says
+//! so. The identifier itself keeps running.
+//!
 //! Missing measurements (`None` after the first sample) leave the estimates and the
 //! feedback integral as they are; the identifier then no longer sees every voltage,
 //! so from that sample on the inverse keeps its own h and takes only the estimates.
@@ -32,6 +40,20 @@ use crate::error::{finite_sample, Result};
 use crate::identify::OnlineIdentifier;
 use crate::model::ModelState;
 use crate::params::Params;
+
+/// Least slope of x(u) on either branch, as a fraction of kv, for estimates the
+/// inverse takes (see the module docs).
+pub const MIN_SLOPE_FRACTION: f64 = 0.1;
+
+/// Both branch slopes kv + A − (±β + γ)·|h|^n [µm/V] are at least
+/// [`MIN_SLOPE_FRACTION`]·kv for every |h| ≤ `h_bound` [µm] (the extremes are at
+/// |h| = 0 and |h| = `h_bound`).
+pub fn admissible(p: &Params, h_bound: f64) -> bool {
+    let floor = MIN_SLOPE_FRACTION * p.kv;
+    let base = p.kv + p.a;
+    let hn = if h_bound > 0.0 { h_bound.powf(p.n) } else { 0.0 };
+    p.kv > 0.0 && base >= floor && base - (p.beta + p.gamma) * hn >= floor && base - (p.gamma - p.beta) * hn >= floor
+}
 
 /// How the compensator combines its parts. `Default`: adaptive, feedforward on, no
 /// feedback.
@@ -69,6 +91,11 @@ pub struct CompensatorStatus {
     pub samples: u64,
     /// The identifier has seen every voltage (no missing measurement so far).
     pub in_step: bool,
+    /// The identifier's estimates were not admissible this sample (the inverse kept
+    /// the last admissible ones, see [`admissible`]).
+    pub estimates_held: bool,
+    /// Samples whose estimates were held since construction.
+    pub held_samples: u64,
 }
 
 /// The last applied sample.
@@ -88,6 +115,8 @@ pub struct Compensator<I: OnlineIdentifier> {
     config: CompensatorConfig,
     last: Option<Applied>,
     in_step: bool,
+    /// Largest |h| of the inverse and the identifier so far [µm].
+    h_peak: f64,
     status: CompensatorStatus,
 }
 
@@ -98,6 +127,7 @@ impl<I: OnlineIdentifier> Compensator<I> {
         let inverse = Inverse::new(identifier.params(), dt, identifier.h(), limits)?;
         let feedback = Pid::new(config.gains, dt)?;
         Ok(Compensator {
+            h_peak: identifier.h().abs(),
             identifier,
             inverse,
             feedback,
@@ -120,6 +150,7 @@ impl<I: OnlineIdentifier> Compensator<I> {
             prediction_um: f64::NAN,
             error_um: f64::NAN,
             samples: self.status.samples + 1,
+            held_samples: self.status.held_samples,
             ..Default::default()
         };
         let mut v = self.feedback.hold();
@@ -128,9 +159,16 @@ impl<I: OnlineIdentifier> Compensator<I> {
                 let e = finite_sample("x_d - x_meas", last.x_d - x)?;
                 if self.config.adapt {
                     status.prediction_um = self.identifier.push(last.u, x)?;
-                    self.inverse.set_params(self.identifier.params())?;
-                    if self.in_step {
-                        self.inverse.set_state(ModelState { h: self.identifier.h(), u_prev: Some(last.u) })?;
+                    let (estimates, h) = (self.identifier.params(), self.identifier.h());
+                    self.h_peak = self.h_peak.max(h.abs());
+                    if admissible(&estimates, self.h_peak) {
+                        self.inverse.set_params(estimates)?;
+                        if self.in_step {
+                            self.inverse.set_state(ModelState { h, u_prev: Some(last.u) })?;
+                        }
+                    } else {
+                        status.estimates_held = true;
+                        status.held_samples += 1;
                     }
                 }
                 status.error_um = e;
@@ -141,6 +179,7 @@ impl<I: OnlineIdentifier> Compensator<I> {
         }
         let command = if self.config.feedforward { x_d + v } else { v };
         let u = self.inverse.step(command)?;
+        self.h_peak = self.h_peak.max(self.inverse.h().abs());
         let inverse_status = self.inverse.status();
         self.last = Some(Applied { u, x_d, clip: inverse_status.clip });
         status.inverse = inverse_status;
@@ -252,6 +291,18 @@ mod tests {
         assert!(comp.step(3.0, Some(f64::NAN)).is_err());
         assert!(comp.step(f64::INFINITY, Some(1.0)).is_err());
         assert_eq!(comp, before);
+    }
+
+    #[test]
+    fn admissibility_follows_the_branch_slopes() {
+        let p = Params::paper_1hz();
+        assert!(admissible(&p, 0.0) && admissible(&p, 5.0));
+        // kv + A nearly zero: the loop is flat.
+        assert!(!admissible(&Params { a: -0.185, ..p }, 0.0));
+        // The loading slope turns negative at large |h|.
+        let soft = Params { beta: 0.05, gamma: 0.04, n: 1.0, ..p };
+        assert!(admissible(&soft, 0.5) && !admissible(&soft, 2.0));
+        assert!(!admissible(&Params { kv: -0.19, ..p }, 0.0));
     }
 
     #[test]

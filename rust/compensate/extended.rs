@@ -271,6 +271,11 @@ impl ExtendedInverse {
         Ok(())
     }
 
+    /// Restores a status taken with [`ExtendedInverse::status`] (counters included).
+    pub fn set_status(&mut self, status: InverseStatus) {
+        self.status = status;
+    }
+
     /// Forgets the past: h = h0, no previous sample, t = 0, counters zero.
     pub fn reset(&mut self) {
         self.state.samples = 0;

@@ -554,6 +554,12 @@ impl Inverse {
         self.status
     }
 
+    /// Restores a status taken with [`Inverse::status`] (counters included), e.g.
+    /// after a snapshot.
+    pub fn set_status(&mut self, status: InverseStatus) {
+        self.status = status;
+    }
+
     /// Forgets the past: h = h0, no previous sample, counters zero.
     pub fn reset(&mut self) {
         self.state = ModelState { h: self.h0, u_prev: None };

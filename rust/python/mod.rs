@@ -1,6 +1,7 @@
 //! Python bindings: conversions and error mapping only; the numerics live in the
 //! crate's other modules. Compiled with the `python` feature into `boucwen._core`.
 
+mod compensate;
 mod effects;
 mod identifier;
 mod model;
@@ -65,6 +66,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<effects::PyEffectSet>()?;
     m.add_function(wrap_pyfunction!(effects::simulate_extended, m)?)?;
     m.add_function(wrap_pyfunction!(model::paper_input, m)?)?;
+    m.add_class::<compensate::PyInverse>()?;
+    m.add_function(wrap_pyfunction!(compensate::invert, m)?)?;
+    m.add_class::<compensate::PyCompensator>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
