@@ -25,7 +25,9 @@
 //! The inverse therefore takes new estimates only if both branch slopes stay at
 //! least [`MIN_SLOPE_FRACTION`]·kv for every |h| up to the largest |h| seen so far;
 //! otherwise it keeps the last admissible ones (and its own h) and the status says
-//! so. The identifier itself keeps running.
+//! so, but moves their offset x0 so that at the last sample its model gives what the
+//! identifier's updated model gives: the offset keeps following the measurement as
+//! with admissible estimates. The identifier itself keeps running.
 //!
 //! Missing measurements (`None` after the first sample) leave the estimates and the
 //! feedback integral as they are; the identifier then no longer sees every voltage,
@@ -38,7 +40,7 @@ use super::feedback::{Pid, PidGains};
 use super::inverse::{Clip, Inverse, InverseStatus, VoltageLimits};
 use crate::error::{finite_sample, Result};
 use crate::identify::OnlineIdentifier;
-use crate::model::ModelState;
+use crate::model::{output, ModelState};
 use crate::params::Params;
 
 /// Least slope of x(u) on either branch, as a fraction of kv, for estimates the
@@ -167,6 +169,9 @@ impl<I: OnlineIdentifier> Compensator<I> {
                             self.inverse.set_state(ModelState { h, u_prev: Some(last.u) })?;
                         }
                     } else {
+                        let held = *self.inverse.params();
+                        let gap = output(&estimates, last.u, h) - output(&held, last.u, self.inverse.h());
+                        self.inverse.set_params(Params { x0: held.x0 + gap, ..held })?;
                         status.estimates_held = true;
                         status.held_samples += 1;
                     }
