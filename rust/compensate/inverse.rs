@@ -221,34 +221,44 @@ struct Point {
     f: f64,
 }
 
-/// The evaluated point with the smallest |F|, and the evaluation count.
+/// The evaluated point with the smallest |F|, the answer at a limit if a limit
+/// binds, and the evaluation count.
 struct Search<'e, 'p> {
     eq: &'e IntervalEquation<'p>,
     tol: f64,
     evaluations: u32,
     best: Option<Solution>,
+    /// The limit a promising side ran into before F changed sign.
+    limit: Option<Solution>,
 }
 
 impl Search<'_, '_> {
-    fn offer(&mut self, w: f64, f: f64, h: f64, clip: Clip) {
+    fn offer(&mut self, w: f64, f: f64, h: f64) {
         let better = match self.best {
             None => true,
             Some(b) => f.abs() < b.residual.abs(),
         };
         if better && f.is_finite() {
-            self.best = Some(Solution { w, h, residual: f, clip, evaluations: 0 });
+            self.best = Some(Solution { w, h, residual: f, clip: Clip::None, evaluations: 0 });
         }
     }
 
     /// Evaluates F at w (None when the budget is spent).
-    fn eval(&mut self, w: f64, clip: Clip) -> Option<Point> {
+    fn eval(&mut self, w: f64) -> Option<(Point, f64)> {
         if self.evaluations >= MAX_EVALUATIONS {
             return None;
         }
         self.evaluations += 1;
         let (f, h) = self.eq.eval(w);
-        self.offer(w, f, h, clip);
-        Some(Point { w, f })
+        self.offer(w, f, h);
+        Some((Point { w, f }, h))
+    }
+
+    /// Records that the root lies beyond a limit: the answer is u = that limit.
+    fn bind(&mut self, w: f64, f: f64, h: f64, clip: Clip) {
+        if self.limit.is_none() && f.is_finite() {
+            self.limit = Some(Solution { w, h, residual: f, clip, evaluations: 0 });
+        }
     }
 
     fn done(&self) -> bool {
@@ -256,13 +266,14 @@ impl Search<'_, '_> {
     }
 
     fn finish(self) -> Solution {
-        let mut s = self.best.unwrap_or(Solution {
-            w: self.eq.w_prev,
-            h: self.eq.h,
-            residual: f64::INFINITY,
-            clip: Clip::None,
-            evaluations: 0,
-        });
+        let fallback =
+            Solution { w: self.eq.w_prev, h: self.eq.h, residual: f64::INFINITY, clip: Clip::None, evaluations: 0 };
+        let mut s = match (self.best, self.limit) {
+            (Some(b), _) if b.residual.abs() <= self.tol => b,
+            (_, Some(l)) => l,
+            (Some(b), None) => b,
+            (None, None) => fallback,
+        };
         s.evaluations = self.evaluations;
         s
     }
@@ -280,7 +291,7 @@ impl Search<'_, '_> {
                     return; // the bracket is down to adjacent floats
                 }
             }
-            let Some(p) = self.eval(c, Clip::None) else { return };
+            let Some((p, _)) = self.eval(c) else { return };
             if p.f == 0.0 {
                 return;
             }
@@ -302,36 +313,30 @@ impl Search<'_, '_> {
         let (far, near, far_clip, near_clip) =
             if sigma > 0.0 { (hi, lo, Clip::High, Clip::Low) } else { (lo, hi, Clip::Low, Clip::High) };
         if sigma * (far - w0) <= 0.0 {
-            // No room on this side: the root lies beyond the limit the last sample sat on.
-            if let Some(b) = self.best.as_mut() {
-                if b.w == far && w0 == far {
-                    b.clip = far_clip;
-                }
+            // No room on this side: the last sample sat on the limit and the root lies beyond it.
+            if w0 == far {
+                let f0 = self.eq.linear * w0 + self.eq.offset + self.eq.h;
+                self.bind(w0, f0, self.eq.h, far_clip);
             }
             return;
         }
         let mut a = Point { w: w0, f: f_side };
         if sigma * (near - w0) > 0.0 {
             // The kink lies outside the limits: this side starts at the near limit.
-            let Some(p) = self.eval(near, Clip::None) else { return };
+            let Some((p, h)) = self.eval(near) else { return };
             if self.done() {
                 return;
             }
             if (p.f > 0.0) != (f_side > 0.0) {
                 // The root lies between the kink and the limit, outside the limits.
-                if let Some(b) = self.best.as_mut() {
-                    if b.w == near {
-                        b.clip = near_clip;
-                    }
-                }
+                self.bind(near, p.f, h, near_clip);
                 return;
             }
             a = p;
         }
         let mut w = w0 + sigma * d0;
         for _ in 0..MAX_SEARCH_STEPS {
-            let at_limit = sigma * (w - far) >= 0.0;
-            if at_limit {
+            if sigma * (w - far) >= 0.0 {
                 w = far;
             }
             if sigma * (w - a.w) <= 0.0 {
@@ -341,22 +346,17 @@ impl Search<'_, '_> {
                     w = far;
                 }
             }
-            let Some(p) = self.eval(w, if w == far { far_clip } else { Clip::None }) else { return };
+            let Some((p, h)) = self.eval(w) else { return };
             if self.done() {
-                if let Some(b) = self.best.as_mut() {
-                    b.clip = Clip::None; // the root is on the limit itself
-                }
                 return;
             }
             if (p.f > 0.0) != (a.f > 0.0) {
-                if let Some(b) = self.best.as_mut() {
-                    b.clip = Clip::None;
-                }
                 self.refine(a, p);
                 return;
             }
             if w == far {
-                return; // f keeps its sign up to the limit: clipped there
+                self.bind(far, p.f, h, far_clip); // F keeps its sign up to the limit
+                return;
             }
             // Secant through the last two points, extrapolated to F = 0.
             let slope = (p.f - a.f) / (p.w - a.w);
@@ -374,12 +374,12 @@ impl Search<'_, '_> {
 
 /// Solves an [`IntervalEquation`] for w within [lo, hi] (see the module docs).
 pub(crate) fn solve(eq: &IntervalEquation<'_>, lo: f64, hi: f64, tol: f64) -> Solution {
-    let mut search = Search { eq, tol, evaluations: 0, best: None };
+    let mut search = Search { eq, tol, evaluations: 0, best: None, limit: None };
     let w0 = eq.w_prev;
     let f0 = eq.linear * w0 + eq.offset + eq.h;
     let hold_allowed = lo <= w0 && w0 <= hi;
     if hold_allowed {
-        search.offer(w0, f0, eq.h, Clip::None);
+        search.offer(w0, f0, eq.h);
         if search.done() {
             return search.finish();
         }
@@ -404,15 +404,16 @@ pub(crate) fn solve(eq: &IntervalEquation<'_>, lo: f64, hi: f64, tol: f64) -> So
             search.side(sigma, d, f_side, lo, hi);
         }
     }
-    if !search.done() && hold_allowed {
-        // No root on either side: the target sits in the step at the kink (a
+    let any_promising = promising(d_up) || promising(d_down);
+    if !search.done() && hold_allowed && !any_promising {
+        // Neither side has a root: the target sits in the step at the kink (a
         // reversal, see the module docs). The smallest move lands on the one-sided value.
         for (sigma, f_side) in [(1.0, f_up), (-1.0, f_down)] {
             let best = search.best.map_or(f64::INFINITY, |b| b.residual.abs());
             if f_side.abs() < best {
                 let w = w0 + sigma * 1e-12 * w0.abs().max(1.0);
                 if lo <= w && w <= hi {
-                    search.eval(w, Clip::None);
+                    search.eval(w);
                 }
             }
         }
