@@ -14,26 +14,36 @@ Precision Engineering 38 (2014) 921–927).
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
-from ._core import Identifier, Model, Params, __version__, paper_input, simulate
-from ._core import Compensator, Inverse, invert
-from ._core import EffectSet, simulate_extended
+from ._core import (
+    Compensator,
+    EffectSet,
+    Identifier,
+    Inverse,
+    Model,
+    Params,
+    __version__,
+    invert,
+    paper_input,
+    simulate,
+    simulate_extended,
+)
 from .diagnose import Diagnosis, diagnose
 from .fit import FitResult, fit
 
 __all__ = [
+    "Compensator",
+    "Diagnosis",
+    "EffectSet",
+    "FitResult",
     "Identifier",
+    "Inverse",
     "Model",
     "Params",
     "__version__",
+    "diagnose",
+    "fit",
+    "invert",
     "paper_input",
     "simulate",
-    "Inverse",
-    "invert",
-    "Compensator",
-    "fit",
-    "FitResult",
-    "EffectSet",
     "simulate_extended",
-    "diagnose",
-    "Diagnosis",
 ]

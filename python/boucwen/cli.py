@@ -26,7 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
@@ -208,7 +208,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _add_track(sub) -> None:
+def _add_track(sub: Any) -> None:
     from .experiments.track import DEFAULT_OUT
 
     p = sub.add_parser(

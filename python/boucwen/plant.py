@@ -502,8 +502,10 @@ class Bench:
         s = settings
         self._m = s.oversample
         fine_dt = self.dt / s.oversample
-        self._lag = None if math.isinf(s.amplifier_fc_hz) else _lowpass_coefficients(
-            1.0 / (2.0 * math.pi * s.amplifier_fc_hz), fine_dt
+        self._lag = (
+            None
+            if math.isinf(s.amplifier_fc_hz)
+            else _lowpass_coefficients(1.0 / (2.0 * math.pi * s.amplifier_fc_hz), fine_dt)
         )
         self._creep = [
             (gain, *_lowpass_coefficients(tau, fine_dt))
@@ -515,7 +517,7 @@ class Bench:
             for f, a, phase in zip(s.vibration_hz, s.vibration_um, s.vibration_phase_rad)
             if a != 0.0
         ]
-        self._core = _core.Model(s.params().replace(x0=0.0), fine_dt, 0.0)
+        self._core = _core.Model(_core.Params(s.kv, 0.0, s.A, s.beta, s.gamma, s.n, s.delta), fine_dt, 0.0)
         self._rng = np.random.default_rng(seed)
         self._noise: list[float] = []
         self._noise_pos = 0

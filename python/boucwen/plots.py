@@ -107,7 +107,7 @@ def plot_loops(
 
 
 def plot_tracking(
-    path: str | os.PathLike,
+    path: str | os.PathLike[str],
     t: np.ndarray,
     x_d: np.ndarray,
     runs: Mapping[str, np.ndarray],

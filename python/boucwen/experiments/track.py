@@ -54,9 +54,10 @@ import json
 import math
 import os
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable
 
 import numpy as np
 
@@ -65,24 +66,24 @@ from .._core import Compensator, Params
 from ..fit import FitResult, fit
 
 __all__ = [
-    "run",
-    "references",
-    "Reference",
-    "Method",
-    "METHODS",
-    "BENCHES",
-    "Identification",
-    "identify",
-    "closed_loop",
-    "tracking_metrics",
-    "check_targets",
-    "generated_plant",
     "ANCHORS",
+    "BENCHES",
+    "DEFAULT_OUT",
+    "METHODS",
+    "PI_ADAPTIVE_GAINS",
+    "PI_GAINS",
     "RANGE_UM",
     "U_LIMITS_V",
-    "PI_GAINS",
-    "PI_ADAPTIVE_GAINS",
-    "DEFAULT_OUT",
+    "Identification",
+    "Method",
+    "Reference",
+    "check_targets",
+    "closed_loop",
+    "generated_plant",
+    "identify",
+    "references",
+    "run",
+    "tracking_metrics",
 ]
 
 #: Default output directory of ``boucwen track``.
@@ -157,14 +158,16 @@ RANDOM_S, QUICK_RANDOM_S, RANDOM_ADAPTATION_S, RANDOM_BAND_HZ = 1.0, 0.3, 0.1, 1
 
 
 def _samples(duration_s: float, dt: float) -> int:
-    return int(round(duration_s / dt))
+    return round(duration_s / dt)
 
 
 def _raised_cosine_steps(levels: Sequence[float], hold: int, ramp: int) -> np.ndarray:
-    """Holds of ``hold`` samples; each level is reached by a raised cosine over ``ramp`` samples (from 0 first)."""
+    """Holds of ``hold`` samples; each starts with a raised cosine of ``ramp`` samples from the
+    previous level (from 0 for the first), so the first sample is 0 and level i is held from
+    sample i·hold + ramp on."""
     out = np.empty(hold * len(levels), dtype=np.float64)
     previous = 0.0
-    shape = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, ramp + 1) / ramp)
+    shape = 0.5 - 0.5 * np.cos(np.pi * np.arange(ramp) / ramp)
     for i, level in enumerate(levels):
         seg = out[i * hold : (i + 1) * hold]
         seg[:] = level
@@ -253,32 +256,45 @@ class Method:
     make: Callable[[Identification, float], Compensator] = field(repr=False)
 
 
-def _limits() -> dict[str, float]:
-    return {"u_min": U_LIMITS_V[0], "u_max": U_LIMITS_V[1]}
+def _compensator(
+    params: Params, dt: float, *, adapt: bool, gains: Mapping[str, float] | None = None, feedforward: bool = True
+) -> Compensator:
+    """A compensator within :data:`U_LIMITS_V` with PI gains ``{"kp": [-], "ki": [1/s]}`` (none by default)."""
+    g = gains or {}
+    return Compensator(
+        params,
+        dt,
+        u_min=U_LIMITS_V[0],
+        u_max=U_LIMITS_V[1],
+        adapt=adapt,
+        kp=g.get("kp", 0.0),
+        ki=g.get("ki", 0.0),
+        feedforward=feedforward,
+    )
 
 
 #: The methods compared (module docs, step 3), in table order.
 METHODS: tuple[Method, ...] = (
-    Method("linear", "linear open loop", lambda ident, dt: Compensator(ident.line, dt, adapt=False, **_limits())),
+    Method("linear", "linear open loop", lambda ident, dt: _compensator(ident.line, dt, adapt=False)),
     Method(
         "inverse_fixed",
         "inverse, traditional parameters (fixed)",
-        lambda ident, dt: Compensator(ident.traditional.params, dt, adapt=False, **_limits()),
+        lambda ident, dt: _compensator(ident.traditional.params, dt, adapt=False),
     ),
     Method(
         "inverse_adaptive",
         "adaptive inverse",
-        lambda ident, dt: Compensator(ident.traditional.params, dt, adapt=True, **_limits()),
+        lambda ident, dt: _compensator(ident.traditional.params, dt, adapt=True),
     ),
     Method(
         "pi",
         "PI feedback alone",
-        lambda ident, dt: Compensator(ident.line, dt, adapt=False, feedforward=False, **PI_GAINS, **_limits()),
+        lambda ident, dt: _compensator(ident.line, dt, adapt=False, gains=PI_GAINS, feedforward=False),
     ),
     Method(
         "pi_adaptive",
         "PI + adaptive inverse",
-        lambda ident, dt: Compensator(ident.traditional.params, dt, adapt=True, **PI_ADAPTIVE_GAINS, **_limits()),
+        lambda ident, dt: _compensator(ident.traditional.params, dt, adapt=True, gains=PI_ADAPTIVE_GAINS),
     ),
 )
 
@@ -511,7 +527,7 @@ def _format_table(
 
 
 def run(
-    out: str | os.PathLike = DEFAULT_OUT,
+    out: str | os.PathLike[str] = DEFAULT_OUT,
     *,
     quick: bool = False,
     seed: int = 0,
@@ -557,8 +573,7 @@ def run(
             "metrics": "max and RMS of |x - x_d| after the adaptation period, x = vibrometer reading; "
             "% of the reference's range",
             "references": {
-                r.name: {"label": r.label, "samples": int(r.x_d.size), "adaptation_samples": r.adaptation}
-                for r in refs
+                r.name: {"label": r.label, "samples": int(r.x_d.size), "adaptation_samples": r.adaptation} for r in refs
             },
             "methods": {m.name: m.label for m in METHODS},
         },
@@ -636,7 +651,8 @@ def _generated(
             f"worst max error {worst:.2f} % of range{note}"
         )
     summary = {}
-    say("| reference | median max error [um] (% of range) | worst [um] (% of range) | plants clipped | worst unclipped |")
+    header = "| reference | median max error [um] (% of range) | worst [um] (% of range) |"
+    say(header + " plants clipped | worst unclipped |")
     say("|---|---|---|---|---|")
     for r in refs:
         values = np.array([p["max_um"][r.name] for p in per_plant])
