@@ -383,7 +383,7 @@ def check_targets(table: Mapping[str, Mapping[str, Mapping[str, Mapping[str, flo
                     ratio >= factor,
                     f"{m[key]['linear']:.3f} -> {m[key]['inverse_adaptive']:.3f} um",
                 )
-        for key in sorted(k for k, r in refs.items() if k.startswith("sine_") and _freq(k) >= 10.0):
+        for key in sorted((k for k in refs if k.startswith("sine_") and _freq(k) >= 10.0), key=_freq):
             a, b = m[key]["inverse_adaptive"], m[key]["inverse_fixed"]
             add(
                 f"adaptive inverse beats the fixed inverse at {_freq(key):g} Hz",
@@ -394,7 +394,7 @@ def check_targets(table: Mapping[str, Mapping[str, Mapping[str, Mapping[str, flo
                 a < b,
                 f"{a:.3f} vs {b:.3f} um",
             )
-        for key in sorted(k for k in refs if k.startswith("sine_") and 1.0 <= _freq(k) <= 100.0):
+        for key in sorted((k for k in refs if k.startswith("sine_") and 1.0 <= _freq(k) <= 100.0), key=_freq):
             v = pct[key]["inverse_adaptive"]
             add(
                 f"adaptive inverse max error <= 1 % of range at {_freq(key):g} Hz",
@@ -405,7 +405,7 @@ def check_targets(table: Mapping[str, Mapping[str, Mapping[str, Mapping[str, flo
                 v <= 1.0,
                 f"{m[key]['inverse_adaptive']:.3f} um",
             )
-        for key in sorted(k for k in refs if k.startswith("sine_") and 1.0 <= _freq(k) <= 10.0):
+        for key in sorted((k for k in refs if k.startswith("sine_") and 1.0 <= _freq(k) <= 10.0), key=_freq):
             v = pct[key]["pi_adaptive"]
             add(
                 f"PI + adaptive inverse max error <= 0.5 % of range at {_freq(key):g} Hz",
