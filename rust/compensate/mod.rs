@@ -38,15 +38,17 @@ use crate::params::Params;
 pub enum AnyInverse {
     /// The base model's inverse.
     Base(Inverse),
-    /// The inverse through the effects.
-    Extended(ExtendedInverse),
+    /// The inverse through the effects (boxed: it carries the effects and their states).
+    Extended(Box<ExtendedInverse>),
 }
 
 impl AnyInverse {
     /// [`Inverse`] without effects, [`ExtendedInverse`] with them (an empty set counts as none).
     pub fn new(params: Params, effects: Option<EffectSet>, dt: f64, h0: f64, limits: VoltageLimits) -> Result<Self> {
         match effects {
-            Some(e) if !e.names().is_empty() => ExtendedInverse::new(params, e, dt, h0, limits).map(Self::Extended),
+            Some(e) if !e.names().is_empty() => {
+                ExtendedInverse::new(params, e, dt, h0, limits).map(|inv| Self::Extended(Box::new(inv)))
+            }
             _ => Inverse::new(params, dt, h0, limits).map(Self::Base),
         }
     }
