@@ -36,8 +36,11 @@
 //!    (converges for any continuous f; superlinear on smooth f).
 //!
 //! At most [`MAX_EVALUATIONS`] evaluations of Φ per sample, whatever happens; on the
-//! usual samples 1–3. If no root is found within the limits (or the budget), the
-//! evaluated u with the smallest |f| is returned, and [`InverseStatus`] says so.
+//! usual samples 1–3. Where the root lies beyond a limit, u is that limit and
+//! [`InverseStatus::clip`] says which (even where holding u would come marginally
+//! closer, as the δ step can make it: a clipped sample sits on its limit). Where no root
+//! is found at all (the budget spent, or a model whose x does not rise with u), the
+//! evaluated u with the smallest |f| is returned and `exact` is false.
 //!
 //! **Reversals.** Where x_d turns, the needed move of x may be smaller than the jump
 //! |δ·uₖ₋₁|·Δt at the kink (e.g. 3.75e-5 µm at 50 V with the paper's δ at 10 kHz,
