@@ -10,6 +10,9 @@ Every row uses the same data: the paper's input (1 Hz for 3 s, then 10, 100 and
 pure-Python rows).
 
 Rows:
+- ``Model.step``, ``Inverse.step`` and ``Compensator.step`` called from Python in a loop
+  (the paper record's displacement back to voltages; the compensator adapting, with PI,
+  in a closed loop around a ``Model`` plant whose step is included);
 - ``Identifier.push`` called from Python in a loop, ``push_many`` on arrays (each
   online method this build offers), and the NumPy reference identifier
   (:mod:`boucwen.reference`, O(N) per sample by design) on the same samples;
@@ -181,6 +184,42 @@ def main(argv: list[str] | None = None) -> int:
                 f"{per_ref / (t_many / n):,.0f}× `push_many`, {per_ref / (t_loop / n):,.0f}× `push`",
                 f"first {ref_samples} samples; recomputes the window, O(N) per sample",
             )
+
+    # ---------------------------------------------------------------- compensation
+    def inverse_loop() -> None:
+        step = boucwen.Inverse(params, DT, u_min=-30.0, u_max=120.0).step
+        for xk in x_clean.tolist():
+            step(xk)
+
+    def model_loop() -> None:
+        step = boucwen.Model(params, DT).step
+        for uk in u.tolist():
+            step(uk)
+
+    def compensator_loop() -> None:
+        start = params.replace(kv=0.2, A=-0.08)
+        step = boucwen.Compensator(start, DT, u_min=-30.0, u_max=120.0, ki=200.0).step
+        plant = boucwen.Model(params, DT).step
+        x_meas = None
+        for xk in x_clean.tolist():
+            x_meas = plant(step(xk, x_meas))
+
+    t_inv = median_time(inverse_loop, reps)
+    t_model = median_time(model_loop, reps)
+    t_comp = median_time(compensator_loop, reps)
+    table.add("`Model.step` from Python", ns(t_model, n), note="per call, the Python loop included")
+    table.add(
+        "`Inverse.step` from Python",
+        ns(t_inv, n),
+        f"{t_inv / t_model:.1f}× `Model.step`",
+        "per call, the Python loop included; the paper record's x back to u",
+    )
+    table.add(
+        "`Compensator.step` from Python (adaptive + PI)",
+        ns(t_comp, n),
+        f"{t_comp / t_model:.1f}× `Model.step`",
+        "per call; rpem push + inverse + PI, in a loop around a `Model.step` plant (included)",
+    )
 
     # ---------------------------------------------------------------- simulation
     t_sim = median_time(lambda: boucwen.simulate(params, u, DT), max(reps, 9))

@@ -1,6 +1,6 @@
 //! criterion benches of the per-sample paths: one warmed `push` per method and
 //! window length, `push_many` over a record, `simulate` on the paper's input, one
-//! `Model::step`. Run with `cargo bench --bench core`; every group reports its
+//! `Model::step`, one `Inverse::step` and one adaptive `Compensator::step` beside it. Run with `cargo bench --bench core`; every group reports its
 //! throughput in samples per second (criterion's "elem/s").
 
 use std::hint::black_box;
@@ -112,5 +112,68 @@ fn rpem_push(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, push, push_many, simulate, model_step, rpem_push);
+/// One warmed `Inverse::step` on the paper record's displacement (the voltages that
+/// produced it are found again), beside `Model::step`. Prints the integrator
+/// evaluations per sample of that record once (the solver's Newton/secant iterations).
+fn inverse_step(c: &mut Criterion) {
+    use boucwen::compensate::{invert, Inverse, VoltageLimits, MAX_EVALUATIONS};
+    let (_, x) = record();
+    let p = Params::paper_1hz();
+    let (_, summary) = invert(&p, &x, DT, 0.0, None, VoltageLimits::NONE).expect("finite");
+    eprintln!(
+        "inverse on the paper record: {:.2} integrator evaluations per sample on average, at most {} (bound {})",
+        summary.mean_evaluations, summary.max_evaluations, MAX_EVALUATIONS
+    );
+    let mut inv =
+        Inverse::new(p, DT, 0.0, VoltageLimits::new(Some(-30.0), Some(120.0)).expect("valid")).expect("valid");
+    let mut k = 0usize;
+    for _ in 0..12_000 {
+        inv.step(x[k]).expect("finite");
+        k = (k + 1) % x.len();
+    }
+    let mut group = c.benchmark_group("inverse_step");
+    group.throughput(Throughput::Elements(1));
+    group.bench_function("paper_1hz", |b| {
+        b.iter(|| {
+            let u = inv.step(black_box(x[k])).expect("finite");
+            k = (k + 1) % x.len();
+            u
+        })
+    });
+    group.finish();
+}
+
+/// One warmed step of the adaptive compensator (rpem identifier + inverse + PI) in a
+/// closed loop around a plant (the paper's model, one `Model::step` per iteration, which
+/// the figure includes), tracking the paper record's displacement, past 12 000 samples.
+fn compensator_step(c: &mut Criterion) {
+    use boucwen::compensate::{Compensator, CompensatorConfig, PidGains, VoltageLimits};
+    use boucwen::identify::{RpemConfig, RpemIdentifier};
+    let (_, x) = record();
+    let start = Params { kv: 0.2, a: -0.08, ..Params::paper_1hz() };
+    let id = RpemIdentifier::new(DT, start, 0.0, RpemConfig::for_tracking()).expect("valid config");
+    let config = CompensatorConfig { gains: PidGains::pi(0.0, 200.0), ..CompensatorConfig::default() };
+    let limits = VoltageLimits::new(Some(-30.0), Some(120.0)).expect("valid");
+    let mut comp = Compensator::new(id, DT, limits, config).expect("valid");
+    let mut plant = Model::new(Params::paper_1hz(), DT, 0.0).expect("valid");
+    let mut x_meas = None;
+    let mut k = 0usize;
+    for _ in 0..12_000 {
+        x_meas = Some(plant.step(comp.step(x[k], x_meas).expect("finite")).expect("finite"));
+        k = (k + 1) % x.len();
+    }
+    let mut group = c.benchmark_group("compensator_step");
+    group.throughput(Throughput::Elements(1));
+    group.bench_function("adaptive_pi_with_plant", |b| {
+        b.iter(|| {
+            let u = comp.step(black_box(x[k]), x_meas).expect("finite");
+            x_meas = Some(plant.step(u).expect("finite"));
+            k = (k + 1) % x.len();
+            u
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, push, push_many, simulate, model_step, rpem_push, inverse_step, compensator_step);
 criterion_main!(benches);

@@ -18,6 +18,8 @@
 //! - [`Error`]: every fallible call returns it; nothing here panics on user input.
 //! - [`bank`]: C channels (identifier + model each) stepped with one call per frame.
 //! - [`Snapshot`]: save a [`Model`] or an identifier to bytes and restore it bit for bit.
+//! - [`compensate`]: the inverse model ([`Inverse`]), PI/PID feedback and the adaptive
+//!   compensator ([`Compensator`]) that cancel the hysteresis in a control loop.
 //!
 //! The Python bindings live in `python/` behind the `python` feature; this crate's
 //! numerics never depend on them.
@@ -27,6 +29,7 @@
 extern crate alloc;
 
 pub mod bank;
+pub mod compensate;
 pub mod effects;
 pub mod error;
 pub mod format;
@@ -41,6 +44,7 @@ pub mod ffi;
 mod python;
 
 pub use bank::{Bank, ModelBank};
+pub use compensate::{invert, Compensator, ExtendedInverse, Inverse, VoltageLimits};
 pub use effects::{simulate_extended, EffectSet, ExtendedModel};
 pub use error::{Error, Result};
 pub use format::Snapshot;

@@ -28,7 +28,7 @@ pub struct Params {
     pub gamma: f64,
     /// Shape exponent n (dimensionless, > 0).
     pub n: f64,
-    /// Asymmetry δ [µm/(V·s)], weight of the u·sgn(u̇) term.
+    /// Asymmetry δ \[µm/(V·s)\], weight of the u·sgn(u̇) term.
     pub delta: f64,
 }
 

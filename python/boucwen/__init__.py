@@ -11,21 +11,38 @@ Precision Engineering 38 (2014) 921–927).
   :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
+- :class:`Inverse` and :func:`invert` give the voltage for a desired displacement,
+  :class:`Compensator` does so in a control loop with online identification and feedback;
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
-from ._core import Bank, EffectSet, Identifier, Model, Params, __version__, paper_input, simulate, simulate_extended
+from ._core import (
+    Bank,
+    Compensator,
+    EffectSet,
+    Identifier,
+    Inverse,
+    Model,
+    Params,
+    __version__,
+    invert,
+    paper_input,
+    simulate,
+    simulate_extended,
+)
 from .config import HorizonConfig, PaperConfig, RpemConfig
 from .diagnosis import Diagnosis, diagnose
 from .fit import FitResult, fit
 
 __all__ = [
     "Bank",
+    "Compensator",
     "Diagnosis",
     "EffectSet",
     "FitResult",
     "HorizonConfig",
     "Identifier",
+    "Inverse",
     "Model",
     "PaperConfig",
     "Params",
@@ -33,6 +50,7 @@ __all__ = [
     "__version__",
     "diagnose",
     "fit",
+    "invert",
     "paper_input",
     "simulate",
     "simulate_extended",

@@ -22,6 +22,8 @@ part is one new section (and one line in ``__all__``):
 - effects: ``_CreepParams`` … ``_EffectParams`` (type-only: the dicts ``EffectSet``
   takes and gives), ``EffectSet``, ``simulate_extended``
 - channels: ``Bank``
+- compensation: ``_Clip``, ``_InverseStatus``, ``_CompensatorStatus``,
+  ``_CompensatorGains`` (type-only), ``Inverse``, ``invert``, ``Compensator``
 """
 
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypedDict, final
@@ -34,13 +36,16 @@ if TYPE_CHECKING:  # type-only: the compiled core does not import the config mod
 
 __all__ = [
     "Bank",
+    "Compensator",
     "EffectSet",
     "Identifier",
+    "Inverse",
     "Model",
     "Params",
     "__version__",
     "_config_defaults",
     "_validate_config",
+    "invert",
     "paper_input",
     "simulate",
     "simulate_extended",
@@ -466,3 +471,236 @@ def simulate_extended(
 ) -> NDArray[np.float64]:
     """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen + creep) →
     resonance → + drift → delay. GIL released."""
+
+# ---------------------------------------------------------------- compensation
+
+_Clip = Literal["none", "low", "high"]
+"""Which voltage limit bound on a sample: none, ``u_min`` or ``u_max``."""
+
+class _InverseStatus(TypedDict):
+    """``Inverse.status``: what the last step did."""
+
+    clip: _Clip
+    """The limit that bound (the root lies beyond it; u sits on it)."""
+    evaluations: int
+    """Evaluations of the integrator in the step (at most 40; 0 for a hold)."""
+    residual_um: float
+    """Model displacement minus x_d after the step [µm]."""
+    exact: bool
+    """|residual| ≤ 1e-12·max(1, |x_d|) µm."""
+    samples: int
+    """Samples since construction or reset."""
+    clipped_samples: int
+    """Samples clipped since construction or reset."""
+
+@final
+class Inverse:
+    """The inverse of the asymmetric Bouc–Wen model, one sample at a time: ``step(x_d) -> u``.
+
+    Solves kv·u + x0 + Φ(h, u_prev → u) = x_d [µm] for u [V] with the model's own
+    integrator Φ, so ``simulate`` on the voltages returns x_d (to 1e-12·max(1, |x_d|)
+    µm) wherever the root lies within [``u_min``, ``u_max``] [V]; where a limit binds
+    the sample is clipped, ``status["clip"]`` says which, and h [µm] follows the
+    clipped u. Where x_d turns by less than |δ·u|·dt in a sample, no voltage reaches
+    it exactly and the residual (at most that step) is reported. Newton with a secant
+    slope, then Illinois inside a bracket: at most 40 evaluations of Φ per sample.
+
+    ``effects``: an :class:`EffectSet` whose ``input_lag`` (exact one-sample lead),
+    ``creep``, ``drift`` and ``delay`` (the reference is then read ``delay`` samples
+    ahead: ``step`` takes x_d of sample k + d) are inverted too; a ``resonance``
+    raises ``ValueError``. Pickles and copies with its state.
+    """
+
+    def __new__(
+        cls,
+        params: Params,
+        dt: float,
+        h0: float = 0.0,
+        u_min: float | None = None,
+        u_max: float | None = None,
+        *,
+        effects: EffectSet | None = None,
+    ) -> Inverse: ...
+    def step(self, x_d: float) -> float:
+        """Takes the desired displacement x_d [µm]; returns the voltage u [V]."""
+    def step_many(self, x_d: ArrayLike) -> NDArray[np.float64]:
+        """``step`` over an array with the GIL released; identical to a loop of ``step``.
+        A non-finite value anywhere raises ``ValueError`` before any sample is used."""
+    def set_params(self, params: Params) -> None:
+        """Replaces the parameters; h and the previous voltage are kept."""
+    @property
+    def params(self) -> Params:
+        """The model's parameters."""
+    @property
+    def effects(self) -> EffectSet | None:
+        """The effects inverted along with the base model (None: none)."""
+    @property
+    def h(self) -> float:
+        """Hysteresis state h [µm] after the last sample."""
+    @property
+    def dt(self) -> float:
+        """Sampling interval [s]."""
+    @property
+    def u_min(self) -> float | None:
+        """Lower voltage limit [V] (None: none)."""
+    @property
+    def u_max(self) -> float | None:
+        """Upper voltage limit [V] (None: none)."""
+    @property
+    def preview_samples(self) -> int:
+        """How many samples ahead ``step`` reads the reference (the inverted delay; 0 without)."""
+    @property
+    def status(self) -> _InverseStatus:
+        """What the last step did (a new dict at each read)."""
+    def reset(self) -> None:
+        """Forgets the past: h = h0, no previous sample, counters zero."""
+    def __reduce__(
+        self,
+    ) -> tuple[
+        object,
+        tuple[
+            Params,
+            float,
+            float,
+            float | None,
+            float | None,
+            EffectSet | None,
+            tuple[int, float | None, float, float, list[float]],
+            tuple[str, int, float, bool, int],
+        ],
+    ]: ...
+    @classmethod
+    def _restore(
+        cls,
+        params: Params,
+        dt: float,
+        h0: float,
+        u_min: float | None,
+        u_max: float | None,
+        effects: EffectSet | None,
+        state: tuple[int, float | None, float, float, list[float]],
+        status: tuple[str, int, float, bool, int],
+    ) -> Inverse:
+        """Rebuilds an inverse from the values written by ``__reduce__``."""
+    def __copy__(self) -> Inverse: ...
+    def __deepcopy__(self, _memo: dict[int, object], /) -> Inverse: ...
+
+def invert(
+    params: Params,
+    x_d: ArrayLike,
+    dt: float,
+    h0: float = 0.0,
+    u_prev: float | None = None,
+    *,
+    u_min: float | None = None,
+    u_max: float | None = None,
+    effects: EffectSet | None = None,
+) -> tuple[NDArray[np.float64], float]:
+    """The voltages u [V] that make the model produce x_d [µm]; returns ``(u, h_final)``.
+
+    ``simulate(params, u, dt, h0)`` returns x_d wherever the root lies within the
+    limits [V]. ``u_prev=v`` [V] starts the first interval at v, so a record can be
+    inverted in chunks (as ``simulate``). With ``effects`` the extended model is
+    inverted (a delay of d samples by reading x_d d samples ahead; ``u_prev`` is then
+    not accepted). Releases the GIL.
+    """
+
+class _CompensatorStatus(TypedDict):
+    """``Compensator.status``: what the last step did."""
+
+    clip: _Clip
+    evaluations: int
+    residual_um: float
+    exact: bool
+    clipped_samples: int
+    samples: int
+    """Calls since construction."""
+    prediction_um: float
+    """The identifier's prediction of the measured sample [µm] (NaN: none)."""
+    error_um: float
+    """x_d − x_meas of the previous sample [µm] (NaN: no measurement)."""
+    feedback_um: float
+    """Feedback correction v [µm]."""
+    command_um: float
+    """What the inverse was asked for, x_d + v (v alone without feedforward) [µm]."""
+    in_step: bool
+    """The identifier has seen every voltage (no measurement missing so far)."""
+    estimates_held: bool
+    """This sample's estimates were not admissible (x(u) not rising by at least
+    0.1·kv on both branches): the inverse kept the last admissible ones, with its
+    offset following the identifier's output."""
+    held_samples: int
+    """Samples whose estimates were held."""
+
+class _CompensatorGains(TypedDict):
+    """``Compensator.gains``."""
+
+    kp: float
+    """Proportional gain [-]."""
+    ki: float
+    """Integral gain [1/s]."""
+    kd: float
+    """Derivative gain [s]."""
+    derivative_filter_hz: float
+    """Corner of the derivative's first-order filter [Hz]."""
+    integral_limit_um: float | None
+    """Largest |integral term| [µm] (None: none)."""
+    feedforward: bool
+    """x_d is fed forward through the inverse."""
+
+@final
+class Compensator:
+    """Adaptive hysteresis compensator for a control loop: ``u = step(x_d, x_meas)``.
+
+    Each call takes the desired displacement x_d [µm] of this sample and the
+    measurement x_meas [µm] of the previous output (None on the first call, or when
+    none arrived) and returns the voltage u [V] to apply now. With a measurement, the
+    online identifier ("rpem", default configuration, started from ``params`` and
+    ``h0``) takes (u_prev, x_meas) and the inverse takes its estimates and h
+    (``adapt=True``); the feedback v = kp·e + ki·∫e dt + kd·ė [µm] acts on e = x_d,prev
+    − x_meas (kp [-], ki [1/s], kd [s]; the derivative through a first-order filter
+    at ``derivative_filter_hz`` [Hz]; |∫| ≤ ``integral_limit_um`` [µm]; no
+    integration toward a limit that bound). Then u = inverse(x_d + v), within
+    [``u_min``, ``u_max``] [V]; ``feedforward=False`` gives u = inverse(v).
+    Estimates under which x(u) would not rise on both branches are not used (see
+    ``status``). A non-finite value raises ``ValueError`` and changes nothing.
+    """
+
+    def __new__(
+        cls,
+        params: Params,
+        dt: float,
+        *,
+        h0: float = 0.0,
+        u_min: float | None = None,
+        u_max: float | None = None,
+        adapt: bool = True,
+        kp: float = 0.0,
+        ki: float = 0.0,
+        kd: float = 0.0,
+        derivative_filter_hz: float = 1000.0,
+        integral_limit_um: float | None = None,
+        feedforward: bool = True,
+    ) -> Compensator: ...
+    def step(self, x_d: float, x_meas: float | None = None) -> float:
+        """Takes x_d [µm] and the previous output's measurement [µm] (or None); returns u [V]."""
+    @property
+    def params(self) -> Params:
+        """The parameters the inverse uses now (the current estimates when adapting)."""
+    @property
+    def h(self) -> float:
+        """The inverse model's h [µm] after the last sample."""
+    @property
+    def dt(self) -> float:
+        """Sampling interval [s]."""
+    @property
+    def adapt(self) -> bool:
+        """Whether the estimates are updated online."""
+    @property
+    def gains(self) -> _CompensatorGains:
+        """The feedback configuration (a new dict at each read)."""
+    @property
+    def status(self) -> _CompensatorStatus:
+        """What the last step did (a new dict at each read)."""
+    def __copy__(self) -> Compensator: ...
+    def __deepcopy__(self, _memo: dict[int, object], /) -> Compensator: ...

@@ -12,6 +12,8 @@ Subcommands:
 * ``boucwen batch fit|diagnose SOURCE --out DIR [--scheduler ADDRESS] [--workers N]
   [--layout CSV]``: a fleet of records on Dask (:mod:`boucwen.batch`; exit code 1 when a
   record ended as an error or did not converge; needs ``pip install boucwen[fleet]``).
+* ``boucwen track [--out DIR] [--quick] [--plants N]``: closed-loop tracking with
+  hysteresis compensation on the simulated bench (:mod:`boucwen.experiments.track`).
 
 Exit codes: 0 success; 1 ``fit`` finished without converging (the result is still
 printed and written), or a ``batch`` record did; 2 error (a missing optional
@@ -252,10 +254,40 @@ def _add_batch(sub: _Subparsers) -> None:
     p.set_defaults(handler=_cmd_batch)
 
 
+# --------------------------------------------------------------------------- track
+
+
+def _cmd_track(args: argparse.Namespace) -> int:
+    from .experiments.track import run
+
+    run(args.out, quick=args.quick, seed=args.seed, plants=args.plants, figures=not args.no_figures)
+    return EXIT_OK
+
+
+def _add_track(sub: _Subparsers) -> None:
+    from .experiments.track import DEFAULT_OUT
+
+    p = sub.add_parser(
+        "track",
+        help="closed-loop tracking with hysteresis compensation on the simulated bench",
+        description="Tracks sines (1-200 Hz), a triangle, a staircase and band-limited random "
+        "motion (0-20 um) on the simulated bench with five methods (linear open loop, fixed "
+        "inverse, adaptive inverse, PI alone, PI + adaptive inverse), with the floor vibration "
+        "off and on, then the adaptive inverse on generated plants; writes results.json and "
+        "one figure per reference.",
+    )
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR", help=f"output directory (default {DEFAULT_OUT})")
+    p.add_argument("--quick", action="store_true", help="shorter references and 3 generated plants, for smoke tests")
+    p.add_argument("--plants", type=int, default=None, help="generated plants (default 20, 3 with --quick)")
+    p.add_argument("--seed", type=int, default=0, help="seed of fits, noise, random reference and plants (default 0)")
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.set_defaults(handler=_cmd_track)
+
+
 # --------------------------------------------------------------------------- main
 
 #: One registration function per subcommand, in help order.
-SUBCOMMANDS: list[Callable[[_Subparsers], None]] = [_add_fit, _add_reproduce, _add_diagnose, _add_batch]
+SUBCOMMANDS: list[Callable[[_Subparsers], None]] = [_add_fit, _add_reproduce, _add_diagnose, _add_batch, _add_track]
 
 
 def build_parser() -> argparse.ArgumentParser:

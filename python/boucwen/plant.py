@@ -70,6 +70,11 @@ component, stronger creep or a steady drift, each of a physical size, leave
 The Bouc–Wen core is integrated by :func:`boucwen.simulate`. The bench is a data
 source: its settings are known here only, the identification code sees nothing
 but the measured record.
+
+For closed-loop experiments, :class:`Bench` runs the same bench one sample at a
+time (``step(u) -> x``): the command of each sample is applied before its output is
+read, as :func:`measure` assumes, and stepping a record gives the record
+:func:`measure` returns (same seed).
 """
 
 from __future__ import annotations
@@ -88,6 +93,7 @@ from .record import Record
 __all__ = [
     "DEFAULT_DT",
     "PAPER_SEGMENTS",
+    "Bench",
     "BenchSettings",
     "floor_vibration",
     "measure",
@@ -443,3 +449,153 @@ def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSetti
         "vibration": vibration,
     }
     return Record(t=t, u=u_read, x=x, dt=dt, name="bench", meta=meta)
+
+
+# --------------------------------------------------------------------------- stepping
+
+
+def _lowpass_coefficients(tau: float, step: float) -> tuple[float, float, float]:
+    """(a, c1, c0) of :func:`_lowpass`'s step y ← a·y + c1·v_k + c0·v_k−1."""
+    a = math.exp(-step / tau)
+    b = tau / step * -math.expm1(-step / tau)
+    return a, 1.0 - b, b - a
+
+
+class Bench:
+    """The simulated bench one sample at a time: ``x = bench.step(u)``.
+
+    The same physics and the same numbers as :func:`measure`: the command u [V] of a
+    sample is taken as a straight line from the previous one, runs through the
+    amplifier lag, the creep, the Bouc–Wen core and the stroke map on the same fine
+    grid, and the vibrometer reads the displacement at the sample instant with the
+    floor vibration, the noise (drawn from ``numpy.random.default_rng(seed)`` in the
+    order :func:`measure` draws it), its resolution and range. Stepping a record
+    therefore returns what :func:`measure` returns for it with the same seed, to
+    rounding (a test checks 1e-12 µm).
+
+    For a control loop: the command is applied first and its output read after, so
+    ``step(u_k)`` returns x_k, which a controller sees at its next sample.
+
+    Args:
+        dt: sampling interval [s].
+        settings: the bench (e.g. ``BenchSettings(vibration_um=(0.0, 0.0))`` for a
+            bench without floor vibration).
+        seed: seed of the vibrometer noise (``None`` = fresh).
+
+    Attributes (of the last sample, for checking only; a controller sees ``x``):
+        t: time [s]; u_read: the command as read by the A/D [V]; u_applied: the
+        voltage on the stack [V]; x_true: the stack's displacement [µm]; vibration:
+        the floor vibration [µm]; samples: samples stepped so far.
+    """
+
+    def __init__(self, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings(), seed: int | None = 0):
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be finite and > 0 s, got {dt!r}")
+        from . import _core
+
+        self.dt = float(dt)
+        self.settings = settings
+        self.seed = seed
+        s = settings
+        self._m = s.oversample
+        fine_dt = self.dt / s.oversample
+        self._lag = (
+            None
+            if math.isinf(s.amplifier_fc_hz)
+            else _lowpass_coefficients(1.0 / (2.0 * math.pi * s.amplifier_fc_hz), fine_dt)
+        )
+        self._creep = [
+            (gain, *_lowpass_coefficients(tau, fine_dt))
+            for tau, gain in zip(s.creep_tau_s, s.creep_gain_um_per_v)
+            if gain != 0.0
+        ]
+        self._vibration = [
+            (2.0 * math.pi * f, a, phase)
+            for f, a, phase in zip(s.vibration_hz, s.vibration_um, s.vibration_phase_rad)
+            if a != 0.0
+        ]
+        self._core = _core.Model(_core.Params(s.kv, 0.0, s.A, s.beta, s.gamma, s.n, s.delta), fine_dt, 0.0)
+        self._rng = np.random.default_rng(seed)
+        self._noise: list[float] = []
+        self._noise_pos = 0
+        self._u_prev = 0.0
+        self._ua = 0.0
+        self._creep_states = [0.0] * len(self._creep)
+        self.samples = 0
+        self.t = 0.0
+        self.u_read = math.nan
+        self.u_applied = math.nan
+        self.x_true = math.nan
+        self.vibration = math.nan
+
+    def _next_noise(self) -> float:
+        if self._noise_pos == len(self._noise):
+            self._noise = self._rng.standard_normal(4096).tolist()
+            self._noise_pos = 0
+        z = self._noise[self._noise_pos]
+        self._noise_pos += 1
+        return z
+
+    def step(self, u: float) -> float:
+        """Applies the command u [V] for the next sample; returns the vibrometer reading x [µm].
+
+        Raises:
+            ValueError: u is not a finite number (the bench is left as it was).
+        """
+        u = float(u)
+        if not math.isfinite(u):
+            raise ValueError(f"u = {u} is not finite; the sample was rejected and the bench kept")
+        s = self.settings
+        core = self._core.step
+        creep = self._creep
+        states = self._creep_states
+        if self.samples == 0:
+            ua = u
+            for i in range(len(creep)):
+                states[i] = ua
+            y = core(ua)
+            c = 0.0
+            for i, (gain, _, _, _) in enumerate(creep):
+                c += gain * states[i]
+        else:
+            u0, m = self._u_prev, self._m
+            slope = u - u0
+            ua = self._ua
+            u_fine_prev = u0
+            for j in range(1, m + 1):
+                u_fine = u if j == m else slope * (j / m) + u0
+                ua_prev = ua
+                if self._lag is not None:
+                    a, c1, c0 = self._lag
+                    ua = a * ua + c1 * u_fine + c0 * u_fine_prev
+                else:
+                    ua = u_fine
+                for i, (_, a, c1, c0) in enumerate(creep):
+                    states[i] = a * states[i] + c1 * ua + c0 * ua_prev
+                y = core(ua)
+                u_fine_prev = u_fine
+            c = 0.0
+            for i, (gain, _, _, _) in enumerate(creep):
+                c += gain * states[i]
+        self._u_prev = u
+        self._ua = ua
+        x_true = s.x0 + y + s.stroke_quadratic_per_um * y * y + c
+        t = self.samples * self.dt
+        vibration = 0.0
+        for w, a, phase in self._vibration:
+            vibration += a * math.sin(w * t + phase)
+        x = x_true + vibration + s.noise_um * self._next_noise()
+        if s.resolution_um > 0:
+            x = s.resolution_um * round(x / s.resolution_um)
+        x = min(max(x, -s.range_um), s.range_um)
+        if s.adc_bits:
+            code = min(max(round((u - s.adc_min_v) / s.adc_lsb_v), 0), 2**s.adc_bits - 1)
+            self.u_read = s.adc_min_v + code * s.adc_lsb_v
+        else:
+            self.u_read = u
+        self.t = t
+        self.u_applied = ua
+        self.x_true = x_true
+        self.vibration = vibration
+        self.samples += 1
+        return x

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
     from .diagnosis.report import Diagnosis
 
-__all__ = ["plot_diagnosis", "plot_loops", "plot_switch"]
+__all__ = ["plot_diagnosis", "plot_loops", "plot_switch", "plot_tracking"]
 
 _MEASURED_STYLE: dict[str, Any] = {"color": "black", "linewidth": 1.4, "label": "measured"}
 
@@ -186,3 +186,59 @@ def plot_diagnosis(
             ax_s.axvline(line["freq_hz"], color="tab:green", linewidth=0.6, linestyle="--")
         fig.suptitle(left.summary(), fontsize=8)
     fig.savefig(path, dpi=110)
+
+
+def plot_tracking(
+    path: str | os.PathLike[str],
+    t: np.ndarray,
+    x_d: np.ndarray,
+    runs: Mapping[str, np.ndarray],
+    adaptation: int,
+    title: str,
+) -> None:
+    """Closed-loop tracking of one reference: (a) x_d and x over time, (b) the error
+    x − x_d, (c) x against x_d.
+
+    Args:
+        path: PNG file to write.
+        t: sample times [s].
+        x_d: desired displacement [µm].
+        runs: ``{method label: measured displacement x [µm]}``, each the length of ``x_d``.
+        adaptation: samples of the adaptation period (shaded; the metrics leave them out).
+        title: figure title.
+
+    Records longer than 16 000 samples are drawn decimated (every k-th sample); the
+    extremes of the error between drawn samples may then be missing from panel (b).
+    """
+    # Long records: every k-th sample is enough for the eye (at most about 8000 per line).
+    k = max(1, t.size // 8000)
+    t, x_d, adaptation = t[::k], x_d[::k], adaptation // k
+    runs = {label: x[::k] for label, x in runs.items()}
+    fig = _figure(12.0, 7.5)
+    grid = fig.add_gridspec(2, 2, width_ratios=(2.2, 1.0))
+    ax_x = fig.add_subplot(grid[0, 0])
+    ax_e = fig.add_subplot(grid[1, 0], sharex=ax_x)
+    ax_l = fig.add_subplot(grid[:, 1])
+    ax_x.plot(t, x_d, color="black", linewidth=1.6, label="desired x_d")
+    ax_l.plot(x_d, x_d, color="black", linewidth=1.0, linestyle=":", label="x = x_d")
+    for label, x in runs.items():
+        ax_x.plot(t, x, linewidth=0.9, label=label)
+        ax_e.plot(t, x - x_d, linewidth=0.9, label=label)
+        ax_l.plot(x_d[adaptation:], x[adaptation:], linewidth=0.9, label=label)
+    for ax in (ax_x, ax_e):
+        ax.axvspan(t[0], t[min(adaptation, t.size - 1)], color="grey", alpha=0.12, linewidth=0)
+        ax.grid(True, alpha=0.3)
+    ax_x.set_ylabel("displacement [µm]")
+    ax_x.set_title(f"(a) {title}")
+    ax_x.legend(loc="upper right", fontsize=7)
+    ax_e.set_ylabel("error x − x_d [µm]")
+    ax_e.set_xlabel("time t [s] (shaded: adaptation)")
+    ax_e.set_title("(b) tracking error")
+    settled = np.concatenate([np.abs(x - x_d)[adaptation:] for x in runs.values()]) if runs else np.zeros(1)
+    limit = float(np.max(settled)) if settled.size else 1.0
+    ax_e.set_ylim(-1.1 * limit - 1e-9, 1.1 * limit + 1e-9)
+    ax_l.set_xlabel("desired x_d [µm]")
+    ax_l.set_ylabel("measured x [µm]")
+    ax_l.set_title("(c) x against x_d, after adaptation")
+    ax_l.grid(True, alpha=0.3)
+    fig.savefig(path, dpi=100)

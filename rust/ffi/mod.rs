@@ -80,7 +80,7 @@ impl From<Error> for BwStatus {
 }
 
 /// The seven parameters of eqs. (3) and (5): kv \[µm/V\], x0 \[µm\], A \[µm/V\], β and γ
-/// [µm^(1−n)/V], n \[-\], δ [µm/(V·s)].
+/// [µm^(1−n)/V], n \[-\], δ \[µm/(V·s)\].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BwParams {

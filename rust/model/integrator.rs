@@ -76,7 +76,7 @@ pub struct Coefficients<S> {
     pub gamma: S,
     /// n \[-\].
     pub n: S,
-    /// δ [µm/(V·s)].
+    /// δ \[µm/(V·s)\].
     pub delta: S,
 }
 

@@ -2,6 +2,7 @@
 //! crate's other modules. Compiled with the `python` feature into `boucwen._core`.
 
 mod bank;
+mod compensate;
 mod config;
 mod effects;
 mod identifier;
@@ -70,6 +71,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<effects::PyEffectSet>()?;
     m.add_function(wrap_pyfunction!(effects::simulate_extended, m)?)?;
     m.add_function(wrap_pyfunction!(model::paper_input, m)?)?;
+    m.add_class::<compensate::PyInverse>()?;
+    m.add_function(wrap_pyfunction!(compensate::invert, m)?)?;
+    m.add_class::<compensate::PyCompensator>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

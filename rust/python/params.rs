@@ -14,7 +14,7 @@ use crate::Params;
 ///     dh/dt = A·u̇ − β·|u̇|·|h|^(n−1)·h − γ·u̇·|h|^n + δ·u·sgn(u̇)
 ///
 /// kv \[µm/V\], x0 \[µm\], A \[µm/V\], beta and gamma [µm^(1−n)/V], n \[-\] (> 0),
-/// delta [µm/(V·s)]. Immutable; all values finite.
+/// delta \[µm/(V·s)\]. Immutable; all values finite.
 #[pyclass(name = "Params", module = "boucwen", frozen, eq)]
 #[derive(Clone, Copy, PartialEq)]
 pub struct PyParams {
@@ -74,7 +74,7 @@ impl PyParams {
     fn n(&self) -> f64 {
         self.inner.n
     }
-    /// Asymmetry δ [µm/(V·s)].
+    /// Asymmetry δ \[µm/(V·s)\].
     #[getter]
     fn delta(&self) -> f64 {
         self.inner.delta

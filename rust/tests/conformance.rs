@@ -377,3 +377,35 @@ fn c_abi_push_does_not_allocate() {
         bw_model_free(model);
     }
 }
+
+/// `Inverse::step`, `ExtendedInverse::step` and the adaptive `Compensator::step` (in a
+/// closed loop around a model plant, clipping at the limits now and then) do not allocate.
+#[test]
+fn inverse_and_compensator_steps_do_not_allocate() {
+    use boucwen::compensate::{Compensator, CompensatorConfig, ExtendedInverse, Inverse, PidGains, VoltageLimits};
+    let (_, x) = record();
+    let limits = VoltageLimits::new(Some(-30.0), Some(90.0)).expect("valid");
+    let mut inv = Inverse::new(Params::paper_1hz(), DT, 0.0, limits).expect("valid");
+    let mut creep = Creep::log_spaced(0.01, 10.0, 4).expect("valid");
+    creep.gain_um_per_v = vec![0.002; 4];
+    let effects = EffectSet { creep: Some(creep), input_lag: Some(InputLag { fc_hz: 650.0 }), ..EffectSet::none() };
+    let mut ext = ExtendedInverse::new(Params::paper_1hz(), effects, DT, 0.0, limits).expect("valid");
+    let rpem = RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, RpemConfig::for_tracking()).expect("valid");
+    let config = CompensatorConfig { gains: PidGains::pi(0.1, 200.0), ..CompensatorConfig::default() };
+    let mut comp = Compensator::new(rpem, DT, limits, config).expect("valid");
+    let mut plant = Model::new(Params { kv: 0.2, ..Params::paper_1hz() }, DT, 0.0).expect("valid");
+    let (count, (checksum, clipped)) = allocations_during(|| {
+        let (mut sum, mut clipped, mut x_meas) = (0.0, 0u64, None);
+        for &target in &x {
+            sum += inv.step(target).expect("finite") + ext.step(target).expect("finite");
+            let u = comp.step(target, x_meas).expect("finite");
+            x_meas = Some(plant.step(u).expect("finite"));
+            clipped += u64::from(inv.status().clip != boucwen::compensate::Clip::None);
+        }
+        assert!(inv.step(f64::NAN).is_err() && comp.step(1.0, Some(f64::NAN)).is_err());
+        (sum, clipped)
+    });
+    assert!(checksum.is_finite());
+    assert!(clipped > 0, "the 90 V limit never bound");
+    assert_eq!(count, 0, "the compensation steps allocated {count} times over {} samples", x.len());
+}

@@ -107,6 +107,20 @@ impl RpemConfig {
         cfg
     }
 
+    /// The tuning for a compensator in closed loop (`crate::compensate::Compensator`):
+    /// there the prediction one sample ahead is what the inverse acts on, so the offset
+    /// x0 walks (0.05 µm per sample) to take up within a few samples what the model
+    /// cannot explain, the memory is ten periods of travel (2000 V) and R stays at
+    /// `noise_um2`. As a *model* this tuning is worse (see the default's docs).
+    pub fn for_tracking() -> Self {
+        RpemConfig {
+            offset_walk_um: 0.05,
+            memory_travel_v: 2000.0,
+            noise_memory_samples: f64::INFINITY,
+            ..Self::default()
+        }
+    }
+
     /// Checks every value; the error names the offending option.
     pub fn validate(&self) -> Result<()> {
         let bad = |name, value: f64, reason| Err(Error::InvalidConfig { name, value, reason });
