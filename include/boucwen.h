@@ -45,7 +45,7 @@ typedef struct BwPaper BwPaper;
 typedef struct BwRpem BwRpem;
 
 // The seven parameters of eqs. (3) and (5): kv \[µm/V\], x0 \[µm\], A \[µm/V\], β and γ
-// [µm^(1−n)/V], n \[-\], δ [µm/(V·s)].
+// [µm^(1−n)/V], n \[-\], δ \[µm/(V·s)\].
 typedef struct {
   double kv;
   double x0;
