@@ -6,8 +6,8 @@ The shortened run takes about a minute (marked ``slow``; CI runs it). Its three
 targets are asserted per method: every estimate in the region where the model is well
 posed, ≥ 95 % of pushes on the integrator's explicit path, and the period-ahead error
 ≤ 2 × the traditional model's on every repeat and frequency. The last one does not
-hold for rpem and the paper method (see the xfail reasons); those cases are strict
-xfails, so a change that makes them hold shows up. Over the full 30 repeats
+hold for the paper method (see the xfail reason); those cases are strict xfails, so a
+change that makes them hold shows up. Over the full 30 repeats
 (``python -m boucwen.experiments.long_run``) horizon misses it too, at 1 Hz on 2 to 8
 of the 30 repeats (worst 2.4-3.2 x); three repeats do not show that.
 """
@@ -106,10 +106,6 @@ def quick_run():
 
 
 CASES = [c.label for c in lr.quick_options()["cases"]]
-RPEM_REASON = (
-    "rpem: on the 2nd and 3rd repeats its 1 and 10 Hz period-ahead errors are 3.5-5 x the traditional's "
-    "(the first repeat is within 1.05 x): back at 1 Hz after 200 Hz its estimates do not return"
-)
 PAPER_REASON = (
     "paper method: kv, x0 (a local line through short windows; N = 50 gives kv from -21 to 22 µm/V) and A, delta "
     "(long windows) wander, and the period-ahead error at 1 Hz is 10-2000 x the traditional's"
@@ -117,8 +113,6 @@ PAPER_REASON = (
 
 
 def _xfail(label):
-    if label == "rpem":
-        return pytest.mark.xfail(strict=True, reason=RPEM_REASON)
     if label.startswith("paper"):
         return pytest.mark.xfail(strict=True, reason=PAPER_REASON)
     return ()
