@@ -38,6 +38,27 @@ pub use horizon::{HorizonConfig, HorizonIdentifier, HorizonStatus};
 pub use paper::{Decomposition, PaperConfig, PaperIdentifier, PaperStatus, SubFit};
 pub use rpem::{RpemConfig, RpemIdentifier, RpemStatus};
 
+/// Projects `p` onto the region where the model is well posed, the one both
+/// output-error methods keep their estimates in: n within `n_bounds`, and β + γ ≥
+/// `margin`, β − γ ≥ `margin` (h stays bounded for every input), each half-plane by the
+/// orthogonal projection in (β, γ).
+pub(crate) fn project_well_posed(mut p: Params, n_bounds: (f64, f64), margin: f64) -> Params {
+    p.n = p.n.clamp(n_bounds.0, n_bounds.1);
+    let sum = p.beta + p.gamma;
+    if sum < margin {
+        let shift = 0.5 * (margin - sum);
+        p.beta += shift;
+        p.gamma += shift;
+    }
+    let diff = p.beta - p.gamma;
+    if diff < margin {
+        let shift = 0.5 * (margin - diff);
+        p.beta += shift;
+        p.gamma -= shift;
+    }
+    p
+}
+
 /// The interface shared by every online method.
 pub trait OnlineIdentifier {
     /// What a push did: each method reports its own state (`Copy`, no allocation).

@@ -248,7 +248,7 @@ impl HorizonIdentifier {
                 *t += step[i] * cfg.scales[i];
             }
             if let Ok(raw) = Params::from_array(theta) {
-                let projected = project(raw, &cfg);
+                let projected = super::project_well_posed(raw, cfg.n_bounds, cfg.margin);
                 status.projected = projected != raw;
                 let after = projected.to_array();
                 for i in 0..7 {
@@ -279,24 +279,6 @@ impl HorizonIdentifier {
         self.pass = Pass::new(self.start, self.params, h_start);
         self.status = status;
     }
-}
-
-/// Projects `p` onto the region where the model is well posed.
-fn project(mut p: Params, cfg: &HorizonConfig) -> Params {
-    p.n = p.n.clamp(cfg.n_bounds.0, cfg.n_bounds.1);
-    let sum = p.beta + p.gamma;
-    if sum < cfg.margin {
-        let shift = 0.5 * (cfg.margin - sum);
-        p.beta += shift;
-        p.gamma += shift;
-    }
-    let diff = p.beta - p.gamma;
-    if diff < cfg.margin {
-        let shift = 0.5 * (cfg.margin - diff);
-        p.beta += shift;
-        p.gamma -= shift;
-    }
-    p
 }
 
 impl OnlineIdentifier for HorizonIdentifier {

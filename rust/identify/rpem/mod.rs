@@ -261,23 +261,9 @@ fn initial_covariance(active: &ParamVector, cfg: &RpemConfig) -> Covariance {
     Covariance::from_diagonal(&d)
 }
 
-/// Projects `p` into the admissible region.
-fn project_params(mut p: Params, cfg: &RpemConfig) -> Params {
-    p.n = p.n.clamp(cfg.n_bounds.0, cfg.n_bounds.1);
-    // β + γ ≥ margin and β − γ ≥ margin: two orthogonal half-planes in (β, γ).
-    let sum = p.beta + p.gamma;
-    if sum < cfg.margin {
-        let shift = 0.5 * (cfg.margin - sum);
-        p.beta += shift;
-        p.gamma += shift;
-    }
-    let diff = p.beta - p.gamma;
-    if diff < cfg.margin {
-        let shift = 0.5 * (cfg.margin - diff);
-        p.beta += shift;
-        p.gamma -= shift;
-    }
-    p
+/// Projects `p` into the admissible region (n within `n_bounds`, β ± γ ≥ `margin`).
+fn project_params(p: Params, cfg: &RpemConfig) -> Params {
+    super::project_well_posed(p, cfg.n_bounds, cfg.margin)
 }
 
 /// Creep gain from its logistic coordinate: g = gmax·σ(η) ∈ [0, gmax] \[µm/V\].
