@@ -52,3 +52,28 @@ def test_a_better_model_than_the_offline_fit_once_the_frequency_moves(bench):
     assert online["1"] <= 1.05 * traditional["1"], (online, traditional)
     for f in ("10", "100", "200"):
         assert online[f] < traditional[f], (f, online, traditional)
+
+
+def test_the_default_identifies_the_amplifier_lag_and_forecasts_with_it():
+    # The bench's amplifier has a 650 Hz corner; fast parts of the input reveal it.
+    _, u, segments = plant.paper_input(DT, ((1.0, 1.0), (100.0, 0.05), (200.0, 0.1)))
+    rec = plant.measure(u, DT, seed=2)
+    fit = boucwen.fit(rec.u[:10_000], rec.x[:10_000], DT)
+    ident = boucwen.Identifier(DT, fit.params, fit.h0)
+    assert ident.effects is not None
+    assert ident.effects.to_dict()["input_lag"]["fc_hz"] == pytest.approx(0.3 / DT)
+    base = boucwen.Identifier.horizon(DT, fit.params, fit.h0)
+    assert base.effects == boucwen.EffectSet()
+    k0 = u.size - evaluation.period_samples(200.0, DT)
+    ident.push_many(rec.u[:k0], rec.x[:k0])
+    base.push_many(rec.u[:k0], rec.x[:k0])
+    fc = ident.effects.to_dict()["input_lag"]["fc_hz"]
+    assert fc == pytest.approx(650.0, rel=0.1)
+    state = (ident.params, ident.h, ident.effects)
+    ahead = ident.forecast(rec.u[k0:])
+    assert (ident.params, ident.h, ident.effects) == state  # forecasting changes nothing
+    with_lag = float(np.max(np.abs(rec.x[k0:] - ahead)))
+    without = float(np.max(np.abs(rec.x[k0:] - base.forecast(rec.u[k0:]))))
+    assert with_lag < 0.5 * without, (with_lag, without)
+    with pytest.raises(ValueError, match="u"):
+        ident.forecast([1.0, float("nan")])

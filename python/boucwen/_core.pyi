@@ -257,11 +257,15 @@ class Identifier:
 
     One constructor per method, each with its own frozen config class:
 
-    - ``Identifier(dt, init)``: the recommended method, horizon (as ``Identifier.horizon``);
-    - ``Identifier.horizon(dt, init, h0=0.0, *, config=None)``: moving-horizon output-error
-      least squares over a window measured in input travel, one Levenberg–Marquardt step
-      per pass, the work spread evenly over the samples; ``config`` a
-      :class:`boucwen.HorizonConfig`;
+    - ``Identifier(dt, init, h0=0.0, *, config=None, effects=None)``: the recommended
+      model, horizon with an input lag identified along (the amplifier's bandwidth,
+      starting at fc = 0.3/dt; ``effects`` overrides it, ``EffectSet()`` for the base
+      model alone);
+    - ``Identifier.horizon(dt, init, h0=0.0, *, config=None, effects=None)``: moving-horizon
+      output-error least squares over a window measured in input travel, one
+      Levenberg–Marquardt step per pass, the work spread evenly over the samples;
+      ``config`` a :class:`boucwen.HorizonConfig`; ``effects`` an :class:`EffectSet`
+      with an ``input_lag`` whose fc is identified too (default none);
     - ``Identifier.rpem(dt, init, h0=0.0, *, config=None, effects=None)``: recursive
       prediction-error method on the model's output error, sensitivities ∂h/∂θ
       propagated through the integrator; ``config`` a :class:`boucwen.RpemConfig`;
@@ -284,6 +288,7 @@ class Identifier:
         h0: float = 0.0,
         *,
         config: HorizonConfig | None = None,
+        effects: EffectSet | None = None,
     ) -> Identifier: ...
     @staticmethod
     def horizon(
@@ -292,6 +297,7 @@ class Identifier:
         h0: float = 0.0,
         *,
         config: HorizonConfig | None = None,
+        effects: EffectSet | None = None,
     ) -> Identifier:
         """The moving-horizon output-error method ("horizon")."""
     @staticmethod
@@ -316,8 +322,12 @@ class Identifier:
         """The paper's method over a window of ``window`` samples."""
     @property
     def effects(self) -> EffectSet | None:
-        """Current effect estimates (fc [Hz], creep gains [µm/V]) of rpem (an empty
-        EffectSet without effects); None for the paper's method."""
+        """Current effect estimates (fc [Hz], creep gains [µm/V]) of rpem and horizon (an
+        empty EffectSet without effects); None for the paper's method."""
+    def forecast(self, u: ArrayLike) -> NDArray[np.float64]:
+        """Open-loop x̂ [µm] for the future voltages ``u`` [V]: the current estimates and
+        state (effects included) simulated on from the last sample pushed. The
+        identifier does not change; ``ValueError`` on a non-finite ``u``."""
     def push(self, u: float, x: float) -> float:
         """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:

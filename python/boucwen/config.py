@@ -43,6 +43,8 @@ class HorizonConfig:
     """Largest change of a parameter in one update, as a fraction of its scale."""
     n_bounds: tuple[float, float] = _HORIZON["n_bounds"]
     """n is held within these bounds [-]."""
+    fc_bounds_hz: tuple[float, float] = _HORIZON["fc_bounds_hz"]
+    """With an identified input lag, its corner frequency is held within these bounds [Hz]."""
     margin: float = _HORIZON["margin"]
     """β + γ and β − γ are held at or above this [µm^(1−n)/V]."""
     scales: tuple[float, ...] = tuple(_HORIZON["scales"])
@@ -50,6 +52,7 @@ class HorizonConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "n_bounds", tuple(self.n_bounds))
+        object.__setattr__(self, "fc_bounds_hz", tuple(self.fc_bounds_hz))
         object.__setattr__(self, "scales", tuple(self.scales))
         _core._validate_config("horizon", self)
 

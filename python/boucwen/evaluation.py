@@ -93,11 +93,9 @@ def period_ahead(
             if k0 > done:
                 one_step[done:k0] = ident.push_many(u[done:k0], x[done:k0])
                 done = k0
-            params, h = ident.params, ident.h
             if on_period is not None:
-                on_period(f, k0, params, h)
-            u_prev = float(u[k0 - 1]) if k0 > 0 else None
-            x_sim, _ = simulate(params, u[k0:k1], dt, h, u_prev)
+                on_period(f, k0, ident.params, ident.h)
+            x_sim = ident.forecast(u[k0:k1])
             if trace is not None:
                 trace[k0:k1] = x_sim
             errors.append(float(np.max(np.abs(x[k0:k1] - x_sim))))

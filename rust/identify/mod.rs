@@ -76,6 +76,12 @@ pub trait OnlineIdentifier {
     fn status(&self) -> Self::Status;
     /// Back to the state right after construction.
     fn reset(&mut self);
+    /// The model's open-loop displacement \[µm\] for the future voltages `u` \[V\],
+    /// written into `out`: the current estimates and model state, simulated on from
+    /// the last sample pushed (the interval from it to `u[0]` included), effects
+    /// identified with the parameters included. The state does not change. A
+    /// non-finite `u` or a length mismatch is rejected before anything is written.
+    fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()>;
 
     /// Pushes every sample of `u`, `x`, writing the predictions (as `push`) into
     /// `out`. If any sample is non-finite, or the lengths differ, the whole call is
@@ -194,4 +200,22 @@ impl OnlineIdentifier for AnyIdentifier {
             AnyIdentifier::Horizon(id) => id.reset(),
         }
     }
+    fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()> {
+        match self {
+            AnyIdentifier::Paper(id) => id.forecast_into(u, out),
+            AnyIdentifier::Rpem(id) => id.forecast_into(u, out),
+            AnyIdentifier::Horizon(id) => id.forecast_into(u, out),
+        }
+    }
+}
+
+/// Checks the arguments of [`OnlineIdentifier::forecast_into`].
+pub(crate) fn check_forecast(u: &[f64], out: &[f64]) -> Result<()> {
+    if out.len() != u.len() {
+        return Err(Error::LengthMismatch { what: "forecast output", expected: u.len(), found: out.len() });
+    }
+    for &v in u {
+        finite_sample("u", v)?;
+    }
+    Ok(())
 }

@@ -55,6 +55,7 @@ pub(crate) fn horizon_slots(c: &mut HorizonConfig) -> Vec<(&'static str, Slot<'_
         ("damping", Slot::Float(&mut c.damping)),
         ("max_step", Slot::Float(&mut c.max_step)),
         ("n_bounds", Slot::Pair(&mut c.n_bounds)),
+        ("fc_bounds_hz", Slot::Pair(&mut c.fc_bounds_hz)),
         ("margin", Slot::Float(&mut c.margin)),
         ("scales", Slot::Scales8(&mut c.scales)),
     ]

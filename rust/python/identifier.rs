@@ -9,6 +9,7 @@ use super::config::{horizon_config, horizon_slots, paper_config, paper_slots, rp
 use super::effects::PyEffectSet;
 use super::params::PyParams;
 use super::{samples, value_error};
+use crate::effects::EffectSet;
 use crate::identify::{
     AnyIdentifier, AnyStatus, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig,
     RpemIdentifier,
@@ -24,11 +25,15 @@ use crate::identify::{
 ///
 /// Constructors, one per method:
 ///
-/// - `Identifier(dt, init, h0=0.0, *, config=None)`: the recommended method,
-///   "horizon" (same as `Identifier.horizon`).
-/// - `Identifier.horizon(dt, init, h0=0.0, *, config=None)`: moving-horizon output-error
-///   least squares over a window measured in input travel, one Levenberg–Marquardt
-///   step per pass, the work spread evenly over the samples; `config` a `HorizonConfig`.
+/// - `Identifier(dt, init, h0=0.0, *, config=None, effects=None)`: the recommended
+///   model, "horizon" with an input lag identified along (the amplifier's bandwidth,
+///   starting at fc = 0.3/dt; `effects` overrides it, `EffectSet()` for the base model
+///   alone). The lag is read from `effects`; `forecast` simulates with it.
+/// - `Identifier.horizon(dt, init, h0=0.0, *, config=None, effects=None)`: moving-horizon
+///   output-error least squares over a window measured in input travel, one
+///   Levenberg–Marquardt step per pass, the work spread evenly over the samples;
+///   `config` a `HorizonConfig`; `effects` an `EffectSet` with an `input_lag` whose fc
+///   is identified too (default: none).
 /// - `Identifier.rpem(dt, init, h0=0.0, *, config=None, effects=None)`: recursive
 ///   prediction-error method on the model's output (simulation) error, sensitivities
 ///   ∂h/∂θ propagated through the integrator. `config` an `RpemConfig`; `effects` an
@@ -86,14 +91,38 @@ impl PyIdentifier {
         let id = RpemIdentifier::with_effects(dt, init.inner, &effects, h0, cfg).map_err(value_error)?;
         Ok(PyIdentifier { inner: AnyIdentifier::Rpem(id) })
     }
+
+    /// The horizon method with `effects`, or the recommended model (input lag from
+    /// fc = 0.3/dt) when None.
+    fn build_horizon(
+        dt: f64,
+        init: &PyParams,
+        h0: f64,
+        config: Option<&Bound<'_, PyAny>>,
+        effects: Option<EffectSet>,
+    ) -> PyResult<Self> {
+        check_config_class(config, "HorizonConfig")?;
+        let cfg = horizon_config(config)?;
+        let id = match effects {
+            Some(e) => HorizonIdentifier::with_effects(dt, init.inner, &e, h0, cfg),
+            None => HorizonIdentifier::recommended(dt, init.inner, h0, cfg),
+        };
+        Ok(PyIdentifier { inner: AnyIdentifier::Horizon(id.map_err(value_error)?) })
+    }
 }
 
 #[pymethods]
 impl PyIdentifier {
     #[new]
-    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None))]
-    fn new(dt: f64, init: &PyParams, h0: f64, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        Self::horizon(dt, init, h0, config)
+    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None, effects = None))]
+    fn new(
+        dt: f64,
+        init: &PyParams,
+        h0: f64,
+        config: Option<&Bound<'_, PyAny>>,
+        effects: Option<PyRef<'_, PyEffectSet>>,
+    ) -> PyResult<Self> {
+        Self::build_horizon(dt, init, h0, config, effects.map(|e| e.inner.clone()))
     }
 
     /// The output-error method ("rpem"); see the class docs.
@@ -111,12 +140,15 @@ impl PyIdentifier {
 
     /// The moving-horizon output-error method ("horizon"); see the class docs.
     #[staticmethod]
-    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None))]
-    fn horizon(dt: f64, init: &PyParams, h0: f64, config: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        check_config_class(config, "HorizonConfig")?;
-        let cfg = horizon_config(config)?;
-        let id = HorizonIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
-        Ok(PyIdentifier { inner: AnyIdentifier::Horizon(id) })
+    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None, effects = None))]
+    fn horizon(
+        dt: f64,
+        init: &PyParams,
+        h0: f64,
+        config: Option<&Bound<'_, PyAny>>,
+        effects: Option<PyRef<'_, PyEffectSet>>,
+    ) -> PyResult<Self> {
+        Self::build_horizon(dt, init, h0, config, Some(effects.map(|e| e.inner.clone()).unwrap_or_default()))
     }
 
     /// The paper's method over a window of `window` samples; see the class docs.
@@ -183,14 +215,26 @@ impl PyIdentifier {
 
     /// The effects identified along with the parameters, with their current
     /// estimates (input_lag fc \[Hz\], creep gains \[µm/V\]; the creep time constants
-    /// stay as given): an `EffectSet`, empty for "rpem" without effects, and None for
-    /// "paper", which identifies no effects.
+    /// stay as given): an `EffectSet`, empty for "rpem" and "horizon" without effects,
+    /// and None for "paper", which identifies no effects.
     #[getter]
     fn effects(&self) -> Option<PyEffectSet> {
         match &self.inner {
             AnyIdentifier::Rpem(id) => Some(PyEffectSet { inner: id.effects() }),
-            AnyIdentifier::Paper(_) | AnyIdentifier::Horizon(_) => None,
+            AnyIdentifier::Horizon(id) => Some(PyEffectSet { inner: id.effects() }),
+            AnyIdentifier::Paper(_) => None,
         }
+    }
+
+    /// The model's open-loop displacement x̂ \[µm\] for the future voltages `u` \[V\]:
+    /// the current estimates and model state (with the effects identified along)
+    /// simulated on from the last sample pushed, the interval from it to `u[0]`
+    /// included. Nothing changes in the identifier. ValueError on a non-finite `u`.
+    fn forecast<'py>(&self, py: Python<'py>, u: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let u = samples(u, "u")?;
+        let mut out = vec![0.0; u.len()];
+        self.inner.forecast_into(&u, &mut out).map_err(value_error)?;
+        Ok(PyArray1::from_vec(py, out))
     }
 
     /// The online method in use: "horizon", "rpem" or "paper".

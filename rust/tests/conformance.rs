@@ -103,6 +103,19 @@ where
     bad[57] = f64::NAN;
     assert!(id.push_many(&u[cut..cut + 100], &bad, &mut vec![0.0; 100]).is_err());
     assert!(id == before, "{what}: a rejected sample changed the state");
+    // forecast: the next push predicts what a forecast of that sample said (both use
+    // the estimates from before it); nothing changes; bad input is rejected.
+    let mut ahead = vec![0.0; 50];
+    id.forecast_into(&u[cut..cut + 50], &mut ahead).expect("finite");
+    assert!(id == before, "{what}: forecast changed the state");
+    assert!(id.forecast_into(&[f64::NAN], &mut [0.0]).is_err());
+    assert!(id.forecast_into(&u[cut..cut + 2], &mut [0.0]).is_err());
+    let mut probe = id.clone();
+    assert_eq!(
+        probe.push(u[cut], x[cut]).unwrap().to_bits(),
+        ahead[0].to_bits(),
+        "{what}: forecast of the next sample"
+    );
     // A snapshot taken mid-run continues bit for bit.
     // (the restored state may be laid out differently, e.g. a ring buffer's start, so
     // what is compared is what it does).
@@ -151,6 +164,7 @@ fn every_online_method_conforms() {
     conformance(|| RpemIdentifier::new(DT, p, 0.0, RpemConfig::default()).expect("valid"), "rpem");
     let small = HorizonConfig { max_window: 4000, ..HorizonConfig::default() };
     conformance(|| HorizonIdentifier::new(DT, p, 0.0, small).expect("valid"), "horizon");
+    conformance(|| HorizonIdentifier::recommended(DT, p, 0.0, small).expect("valid"), "horizon with input lag");
     let effects = EffectSet {
         input_lag: Some(InputLag { fc_hz: 800.0 }),
         creep: Some(Creep { tau_s: vec![0.01, 1.0], gain_um_per_v: vec![0.001; 2] }),

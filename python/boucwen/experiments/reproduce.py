@@ -63,7 +63,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from .. import evaluation, plant
-from .._core import Identifier, Params, simulate
+from .._core import EffectSet, Identifier, Params, simulate, simulate_extended
 from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 
@@ -157,7 +157,10 @@ class OnlineMethod:
 #: Every online method the experiment compares, in print order. Methods the
 #: installed library does not offer (Identifier raises ValueError) are skipped.
 ONLINE_METHODS: tuple[OnlineMethod, ...] = (
-    OnlineMethod("horizon", "horizon", {}, "moving-horizon output-error least squares (library default)"),
+    OnlineMethod(
+        "horizon", "horizon", {}, "moving-horizon output-error least squares, input lag identified (library default)"
+    ),
+    OnlineMethod("horizon_base", "horizon", {}, "moving-horizon output-error least squares, seven parameters only"),
     OnlineMethod("rpem", "rpem", {}, "recursive prediction-error (output-error) method"),
     OnlineMethod("paper", "paper", {}, "paper's method, kv/x0 from x - h_model"),
     OnlineMethod(
@@ -171,7 +174,10 @@ def _make_identifier(m: OnlineMethod, dt: float, window: int, init: Params, h0: 
         return Identifier.paper(dt, window, init, h0, config=PaperConfig(**dict(m.options)))
     if m.method == "rpem":
         return Identifier.rpem(dt, init, h0, config=RpemConfig(**dict(m.options)))
-    return Identifier.horizon(dt, init, h0, config=HorizonConfig(**dict(m.options)))
+    config = HorizonConfig(**dict(m.options))
+    if m.label == "horizon":
+        return Identifier(dt, init, h0, config=config)
+    return Identifier.horizon(dt, init, h0, config=config)
 
 
 def available_online_methods(
@@ -286,16 +292,20 @@ def _run_online(
     period-ahead predictions [µm]) and ``estimates`` (the parameters at the end of each
     frequency, Table 2)."""
     ident = _make_identifier(m, dt, window, init, h0)
-    freezes: list[tuple[int, Params]] = []
+    freezes: list[tuple[int, Params, EffectSet | None]] = []
     trace = np.empty_like(x)
     score, per_period, one_step = evaluation.period_ahead(
-        ident, u, x, dt, segments, on_period=lambda _f, k0, p, _h: freezes.append((k0, p)), trace=trace
+        ident, u, x, dt, segments, on_period=lambda _f, k0, p, _h: freezes.append((k0, p, ident.effects)), trace=trace
     )
     estimates = {}
+    effects: dict[str, EffectSet | None] = {}
     for i, (f, _, hi) in enumerate(segments):
-        after = next((p for k0, p in freezes if k0 == hi), None) if i + 1 < len(segments) else ident.params
-        estimates[_key(f)] = _params_dict(after if after is not None else ident.params)
+        last = (0, ident.params, ident.effects)
+        after = next((fr for fr in freezes if fr[0] == hi), last) if i + 1 < len(segments) else last
+        estimates[_key(f)] = _params_dict(after[1])
+        effects[_key(f)] = after[2]
     return {
+        "effects": effects,
         "period_ahead": score,
         "per_period": per_period,
         "one_step": one_step,
@@ -326,11 +336,13 @@ def fixed_parameter_prediction(
     estimates: Mapping[str, Mapping[str, float]],
     segments: Sequence[tuple[float, int, int]],
     h0: float,
+    effects: Mapping[str, EffectSet | None] | None = None,
 ) -> np.ndarray:
     """The model run with *fixed* parameters per frequency, as in the paper's Fig. 9.
 
     For each segment, the model with that segment's end-of-frequency estimates
-    (Table 2) is simulated from t = 0 (h[0] = ``h0``) to the end of the segment; the
+    (Table 2, with the effects identified along, e.g. the input lag, when given) is
+    simulated from t = 0 (h[0] = ``h0``) to the end of the segment; the
     returned array holds, on each segment, that simulation [µm]. A parameter set
     that cannot be simulated gives NaN on its segment.
     """
@@ -338,7 +350,8 @@ def fixed_parameter_prediction(
     for f, lo, hi in segments:
         try:
             p = Params.from_dict(dict(estimates[_key(f)]))
-            xs, _ = simulate(p, u[:hi], dt, h0)
+            e = effects.get(_key(f)) if effects is not None else None
+            xs = simulate_extended(p, e, u[:hi], dt, h0) if e else simulate(p, u[:hi], dt, h0)[0]
         except ValueError:
             continue
         out[lo:hi] = np.asarray(xs)[lo:hi]
@@ -497,12 +510,14 @@ def run(
     }
     table2: dict[str, dict[str, dict[str, float]]] = {}
     per_period: dict[str, dict[str, list[float]]] = {}
+    effects_at_end: dict[str, Mapping[str, EffectSet | None]] = {}
     for m in methods:
         step(f"online method {m.label!r}" + (f" (window {window} samples)" if m.method == "paper" else ""))
         r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments)
         key = f"online_{m.label}"
         one_step[key], traces[key] = r["one_step"], r["trace"]
         table1[key], table2[key], per_period[key] = r["period_ahead"], r["estimates"], r["per_period"]
+        effects_at_end[key] = r["effects"]
     skipped = [m.label for m in ONLINE_METHODS if m.label not in labels]
     if skipped:
         step(f"online methods not available in this build: {', '.join(skipped)}")
@@ -515,7 +530,10 @@ def run(
 
     step("fixed-parameter check: the model with each frequency's Table 2 estimates")
     fixed = {
-        f"online_{lab}": fixed_parameter_prediction(u, dt, table2[f"online_{lab}"], segments, trad.h0) for lab in labels
+        f"online_{lab}": fixed_parameter_prediction(
+            u, dt, table2[f"online_{lab}"], segments, trad.h0, effects_at_end[f"online_{lab}"]
+        )
+        for lab in labels
     }
     table1_fixed = table1_from_predictions(x, fixed, segments, dt)
     table1_fixed["online"] = table1_fixed[f"online_{default}"]

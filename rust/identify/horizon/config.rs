@@ -36,6 +36,9 @@ pub struct HorizonConfig {
     pub max_step: f64,
     /// n is held within these bounds. Default (0.25, 4.0).
     pub n_bounds: (f64, f64),
+    /// With an identified input lag, its corner frequency is held within these
+    /// bounds \[Hz\]. Default (10, 1e5).
+    pub fc_bounds_hz: (f64, f64),
     /// β + γ and β − γ are held at or above this [µm^(1−n)/V]. Default 1e-6.
     pub margin: f64,
     /// Scale of each parameter (kv, x0, A, β, γ, n, δ) and of the window's initial h
@@ -55,6 +58,7 @@ impl Default for HorizonConfig {
             damping: 1e-3,
             max_step: 0.5,
             n_bounds: (0.25, 4.0),
+            fc_bounds_hz: (10.0, 1e5),
             margin: 1e-6,
             scales: [0.2, 0.1, 0.07, 0.02, 0.02, 1.5, 0.007, 0.1],
         }
@@ -88,6 +92,10 @@ impl HorizonConfig {
         let (lo, hi) = self.n_bounds;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
             return bad("n_bounds", lo, "need 0 < n_min <= n_max, both finite");
+        }
+        let (lo, hi) = self.fc_bounds_hz;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
+            return bad("fc_bounds_hz", lo, "need 0 < fc_min <= fc_max, both finite");
         }
         if !(self.margin.is_finite() && self.margin >= 0.0) {
             return bad("margin", self.margin, "must be finite and >= 0");

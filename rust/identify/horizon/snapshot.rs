@@ -18,7 +18,11 @@ impl Snapshot for HorizonIdentifier {
             init,
             h0,
             params,
+            ln_fc,
+            ln_fc0,
+            lag: _, // follows from ln_fc
             h,
+            ua,
             u_prev,
             buffer,
             next,
@@ -37,12 +41,14 @@ impl Snapshot for HorizonIdentifier {
             damping: damping0,
             max_step,
             n_bounds,
+            fc_bounds_hz,
             margin,
             scales,
         } = config;
         let mut w = Writer::new(KIND_HORIZON);
         w.f64s(&[*memory_travel_v, *min_pass_fraction, *ridge, *damping0, *max_step, n_bounds.0, n_bounds.1, *margin]);
         w.f64s(scales);
+        w.f64s(&[fc_bounds_hz.0, fc_bounds_hz.1]);
         w.u64(*max_window as u64);
         w.u64(*samples_per_push as u64);
         w.f64(*dt);
@@ -51,21 +57,27 @@ impl Snapshot for HorizonIdentifier {
         write_params(&mut w, params);
         w.f64(*h);
         w.opt_f64(*u_prev);
+        w.opt_f64(*ln_fc0);
+        w.opt_f64(*ln_fc);
+        w.f64(*ua);
         w.u64(*next);
         w.u64(*start);
         let first = next.saturating_sub(buffer.len() as u64);
         for k in first..*next {
-            let Entry { u, x, travel, h, dh } = &buffer[(k % buffer.len() as u64) as usize];
-            w.f64s(&[*u, *x, *travel, *h]);
+            let Entry { u, x, travel, h, dh, ua, dua } = &buffer[(k % buffer.len() as u64) as usize];
+            w.f64s(&[*u, *x, *travel, *h, *ua, *dua]);
             w.f64s(dh);
         }
-        let Pass { start: p_start, cursor, params: p_params, h_start, h: p_h, jtj, jtr, sse, count } = pass;
+        let Pass { start: p_start, cursor, params: p_params, h_start, h: p_h, ua: p_ua, lag: _, jtj, jtr, sse, count } =
+            pass;
         w.u64(*p_start);
         w.u64(*cursor);
         write_params(&mut w, p_params);
         w.f64(*h_start);
         w.f64(p_h.re);
         w.f64s(p_h.du.as_slice());
+        w.f64(p_ua.re);
+        w.f64s(p_ua.du.as_slice());
         w.f64s(jtj.as_slice());
         w.f64s(jtr.as_slice());
         w.f64(*sse);
@@ -98,6 +110,7 @@ impl Snapshot for HorizonIdentifier {
         let at = r.offset();
         let [memory_travel_v, min_pass_fraction, ridge, damping0, max_step, n_lo, n_hi, margin] = r.f64s::<8>()?;
         let scales = r.f64s::<8>()?;
+        let [fc_lo, fc_hi] = r.f64s::<2>()?;
         let max_window = r.u64()?;
         let samples_per_push = r.u64()?;
         if max_window > HorizonConfig::MAX_WINDOW as u64 || samples_per_push > 64 {
@@ -112,6 +125,7 @@ impl Snapshot for HorizonIdentifier {
             damping: damping0,
             max_step,
             n_bounds: (n_lo, n_hi),
+            fc_bounds_hz: (fc_lo, fc_hi),
             margin,
             scales,
         };
@@ -126,6 +140,15 @@ impl Snapshot for HorizonIdentifier {
         id.h = r.finite()?;
         id.u_prev = r.opt_f64()?;
         let at = r.offset();
+        let (ln_fc0, ln_fc) = (r.opt_f64()?, r.opt_f64()?);
+        if ln_fc0.is_some() != ln_fc.is_some() || ln_fc.is_some_and(|l| !l.is_finite()) {
+            return Err(corrupt(at, "snapshot holds an invalid input lag"));
+        }
+        id.ln_fc0 = ln_fc0;
+        id.ln_fc = ln_fc;
+        id.lag = LagCoefficients::of(ln_fc.map_or(id.config.fc_bounds_hz.1, math::exp), dt);
+        id.ua = r.f64()?;
+        let at = r.offset();
         id.next = r.u64()?;
         id.start = r.u64()?;
         let cap = id.buffer.len() as u64;
@@ -134,10 +157,10 @@ impl Snapshot for HorizonIdentifier {
         }
         let first = id.next.saturating_sub(cap);
         for k in first..id.next {
-            let [u, x, travel, h] = r.f64s::<4>()?;
+            let [u, x, travel, h, ua, dua] = r.f64s::<6>()?;
             let dh = r.f64s::<ND>()?;
             let slot = (k % cap) as usize;
-            id.buffer[slot] = Entry { u, x, travel, h, dh };
+            id.buffer[slot] = Entry { u, x, travel, h, dh, ua, dua };
         }
         let at = r.offset();
         let p_start = r.u64()?;
@@ -149,8 +172,10 @@ impl Snapshot for HorizonIdentifier {
         let h_start = r.f64()?;
         let re = r.f64()?;
         let du = r.f64s::<ND>()?;
-        let jtj = r.f64s::<64>()?;
-        let jtr = r.f64s::<8>()?;
+        let ua_re = r.f64()?;
+        let ua_du = r.f64s::<ND>()?;
+        let jtj = r.f64s::<{ NZ * NZ }>()?;
+        let jtr = r.f64s::<NZ>()?;
         let sse = r.f64()?;
         let count = r.u64()?;
         id.pass = Pass {
@@ -159,6 +184,8 @@ impl Snapshot for HorizonIdentifier {
             params: p_params,
             h_start,
             h: Dual::new(re, SVector::from(du)),
+            ua: Dual::new(ua_re, SVector::from(ua_du)),
+            lag: id.lag,
             jtj: Normal::from_column_slice(&jtj),
             jtr: Vector::from(jtr),
             sse,

@@ -586,6 +586,12 @@ impl OnlineIdentifier for PaperIdentifier {
         self.h_model
     }
 
+    fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()> {
+        super::check_forecast(u, out)?;
+        let u_prev = self.raw[RAW_HISTORY - 1].map(|r| r.u);
+        crate::model::simulate_into(&self.params, u, self.dt, self.h_model, u_prev, out).map(|_| ())
+    }
+
     fn status(&self) -> PaperStatus {
         self.status
     }

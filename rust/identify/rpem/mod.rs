@@ -462,6 +462,19 @@ impl OnlineIdentifier for RpemIdentifier {
         self.chain.h
     }
 
+    fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()> {
+        super::check_forecast(u, out)?;
+        // The chain with its effects, stepped on a copy (the derivatives it carries
+        // along are not used).
+        let mut chain = self.chain;
+        let mut u_prev = self.u_prev;
+        for (o, &v) in out.iter_mut().zip(u) {
+            *o = chain.step(&self.est, &self.shape, u_prev, v, self.dt).0;
+            u_prev = Some(v);
+        }
+        Ok(())
+    }
+
     fn status(&self) -> RpemStatus {
         self.status
     }
