@@ -85,4 +85,4 @@ def test_two_plants_on_a_short_schedule(tmp_path):
     assert (tmp_path / "ratios.png").stat().st_size > 10_000
     table = pf.format_table(res)
     for m in pf.METHODS:
-        assert sum(line.startswith(m) for line in table.splitlines()) == len(FREQS)
+        assert sum(line.split()[:1] == [m] for line in table.splitlines()) == len(FREQS)
