@@ -28,7 +28,10 @@ class HorizonConfig:
     of ``HorizonConfig``. Units in the names: V."""
 
     memory_travel_v: float = _HORIZON["memory_travel_v"]
-    """Length of the window in input travel [V] (400 V: two periods of a 0–100 V sine)."""
+    """Length of the window in input travel [V] (300 V: 1.5 periods of a 0–100 V sine)."""
+    recent_factor: float = _HORIZON["recent_factor"]
+    """The window holds at most this × the samples of the newest half of the memory's
+    travel (slow samples leave within a period after the input speeds up; inf: no limit)."""
     max_window: int = _HORIZON["max_window"]
     """Most samples the window holds (allocated at construction)."""
     samples_per_push: int = _HORIZON["samples_per_push"]

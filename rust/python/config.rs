@@ -48,6 +48,7 @@ pub(crate) fn rpem_slots(c: &mut RpemConfig) -> Vec<(&'static str, Slot<'_>)> {
 pub(crate) fn horizon_slots(c: &mut HorizonConfig) -> Vec<(&'static str, Slot<'_>)> {
     vec![
         ("memory_travel_v", Slot::Float(&mut c.memory_travel_v)),
+        ("recent_factor", Slot::Float(&mut c.recent_factor)),
         ("max_window", Slot::Count(&mut c.max_window)),
         ("samples_per_push", Slot::Count(&mut c.samples_per_push)),
         ("min_pass_fraction", Slot::Float(&mut c.min_pass_fraction)),

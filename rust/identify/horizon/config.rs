@@ -13,6 +13,13 @@ pub struct HorizonConfig {
     /// period-ahead); while u holds the window keeps its samples (nothing is
     /// forgotten, no wind-up).
     pub memory_travel_v: f64,
+    /// The window also holds at most this × the samples over which u travelled the
+    /// newest half of `memory_travel_v`: when the input speeds up (a switch from 10 Hz
+    /// to 100 Hz), the slow samples, many per volt, leave the window within a period of
+    /// the new input instead of outweighing it for a whole memory. On a steady periodic
+    /// input the window is then about 0.75 × `memory_travel_v` long. Default 1.5
+    /// (∞: no such limit); at least 1.
+    pub recent_factor: f64,
     /// Most samples the window holds (the buffer is allocated once, at construction,
     /// 80 bytes a sample). Default 40 000 (two periods of 1 Hz at 20 kHz).
     pub max_window: usize,
@@ -51,6 +58,7 @@ impl Default for HorizonConfig {
     fn default() -> Self {
         HorizonConfig {
             memory_travel_v: 300.0,
+            recent_factor: 1.5,
             max_window: 40_000,
             samples_per_push: 16,
             min_pass_fraction: 0.5,
@@ -74,6 +82,9 @@ impl HorizonConfig {
         let bad = |name, value: f64, reason| Err(Error::InvalidConfig { name, value, reason });
         if !(self.memory_travel_v.is_finite() && self.memory_travel_v > 0.0) {
             return bad("memory_travel_v", self.memory_travel_v, "must be finite and > 0 V");
+        }
+        if self.recent_factor.is_nan() || self.recent_factor < 1.0 {
+            return bad("recent_factor", self.recent_factor, "must be >= 1 (inf: no limit)");
         }
         if !(16..=Self::MAX_WINDOW).contains(&self.max_window) {
             return bad("max_window", self.max_window as f64, "must be between 16 and 10 000 000 samples");

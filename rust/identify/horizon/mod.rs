@@ -4,12 +4,20 @@
 //!
 //! The window holds the newest samples over which the input has travelled
 //! `memory_travel_v` volts (one and a half periods of the paper's 0–100 V sine by
-//! default, at any frequency). Its cost is the output error of the model simulated open loop over the
-//! window from an initial state h_s, a free unknown like the seven parameters:
+//! default, at any frequency), and at most `recent_factor` × the samples of the newest
+//! half of that travel (so that after a switch to a faster input the slow samples, many
+//! per volt, leave within a period). Its cost is the output error of the model simulated
+//! open loop over the window from an initial state h_s, a free unknown like the seven
+//! parameters:
 //!
 //! ```text
-//! J(θ, h_s) = Σ_{k in window} (x_k − kv·u_k − x0 − h_k(θ, h_s))²,   θ = (kv, x0, A, β, γ, n, δ)
+//! J(θ, h_s) = Σ_{k in window} (x_k − kv·u_a,k − x0 − h_k(θ, h_s))²,   θ = (kv, x0, A, β, γ, n, δ)
 //! ```
+//!
+//! With an input lag ([`HorizonIdentifier::with_effects`], and by default in
+//! [`HorizonIdentifier::recommended`]) u_a is the command u through the first-order lag
+//! τ·u̇_a = u − u_a of [`crate::effects::input_lag`], and ln fc is a ninth unknown whose
+//! sensitivity is carried through the same integrator; without it u_a = u.
 //!
 //! Per sample:
 //! 1. **Predict** x̂ₖ = kv·uₖ + x0 + hₖ with the current estimates, h advanced by the
@@ -262,6 +270,8 @@ pub struct HorizonIdentifier {
     next: u64,
     /// Absolute index of the window's first sample.
     start: u64,
+    /// Absolute index of the first sample of the newest half of the memory's travel.
+    mid: u64,
     pass: Pass,
     /// Mean squared error of the last finished pass \[µm²\] (∞ before the first).
     last_mse: f64,
@@ -331,6 +341,7 @@ impl HorizonIdentifier {
             buffer,
             next: 0,
             start: 0,
+            mid: 0,
             pass: Pass::new(0, init, h0, 0.0, 0.0, lag),
             last_mse: f64::INFINITY,
             damping: config.damping,
@@ -528,12 +539,20 @@ impl OnlineIdentifier for HorizonIdentifier {
         self.buffer[slot] = Entry { u, x, travel, h: self.h, dh: [0.0; ND], ua: self.ua, dua: 0.0 };
         self.next += 1;
         let cap = self.buffer.len() as u64;
+        let half = 0.5 * self.config.memory_travel_v;
+        self.mid = self.mid.max(self.start);
+        while self.mid + 1 < self.next && travel - self.entry(self.mid + 1).travel >= half {
+            self.mid += 1;
+        }
+        let recent = self.config.recent_factor * (self.next - self.mid) as f64;
         while self.next - self.start > cap
             || (self.next - self.start > 16
-                && travel - self.entry(self.start + 1).travel >= self.config.memory_travel_v)
+                && (travel - self.entry(self.start + 1).travel >= self.config.memory_travel_v
+                    || (self.next - self.start) as f64 > recent))
         {
             self.start += 1;
         }
+        self.mid = self.mid.max(self.start);
         // 3. Run the pass on; end it when it has caught up and spans enough.
         self.status.updated = false;
         if self.pass.start < self.next.saturating_sub(cap) {
@@ -601,6 +620,7 @@ impl OnlineIdentifier for HorizonIdentifier {
         self.buffer.fill(Entry::default());
         self.next = 0;
         self.start = 0;
+        self.mid = 0;
         self.pass = Pass::new(0, self.init, self.h0, 0.0, 0.0, self.lag);
         self.last_mse = f64::INFINITY;
         self.damping = cfg.damping;

@@ -27,6 +27,7 @@ impl Snapshot for HorizonIdentifier {
             buffer,
             next,
             start,
+            mid,
             pass,
             last_mse,
             damping,
@@ -34,6 +35,7 @@ impl Snapshot for HorizonIdentifier {
         } = self;
         let HorizonConfig {
             memory_travel_v,
+            recent_factor,
             max_window,
             samples_per_push,
             min_pass_fraction,
@@ -48,7 +50,7 @@ impl Snapshot for HorizonIdentifier {
         let mut w = Writer::new(KIND_HORIZON);
         w.f64s(&[*memory_travel_v, *min_pass_fraction, *ridge, *damping0, *max_step, n_bounds.0, n_bounds.1, *margin]);
         w.f64s(scales);
-        w.f64s(&[fc_bounds_hz.0, fc_bounds_hz.1]);
+        w.f64s(&[fc_bounds_hz.0, fc_bounds_hz.1, *recent_factor]);
         w.u64(*max_window as u64);
         w.u64(*samples_per_push as u64);
         w.f64(*dt);
@@ -62,6 +64,7 @@ impl Snapshot for HorizonIdentifier {
         w.f64(*ua);
         w.u64(*next);
         w.u64(*start);
+        w.u64(*mid);
         let first = next.saturating_sub(buffer.len() as u64);
         for k in first..*next {
             let Entry { u, x, travel, h, dh, ua, dua } = &buffer[(k % buffer.len() as u64) as usize];
@@ -110,7 +113,7 @@ impl Snapshot for HorizonIdentifier {
         let at = r.offset();
         let [memory_travel_v, min_pass_fraction, ridge, damping0, max_step, n_lo, n_hi, margin] = r.f64s::<8>()?;
         let scales = r.f64s::<8>()?;
-        let [fc_lo, fc_hi] = r.f64s::<2>()?;
+        let [fc_lo, fc_hi, recent_factor] = r.f64s::<3>()?;
         let max_window = r.u64()?;
         let samples_per_push = r.u64()?;
         if max_window > HorizonConfig::MAX_WINDOW as u64 || samples_per_push > 64 {
@@ -118,6 +121,7 @@ impl Snapshot for HorizonIdentifier {
         }
         let config = HorizonConfig {
             memory_travel_v,
+            recent_factor,
             max_window: max_window as usize,
             samples_per_push: samples_per_push as usize,
             min_pass_fraction,
@@ -151,8 +155,9 @@ impl Snapshot for HorizonIdentifier {
         let at = r.offset();
         id.next = r.u64()?;
         id.start = r.u64()?;
+        id.mid = r.u64()?;
         let cap = id.buffer.len() as u64;
-        if id.start > id.next || id.next - id.start > cap {
+        if id.start > id.next || id.next - id.start > cap || id.mid < id.start || id.mid > id.next {
             return Err(corrupt(at, "snapshot holds an invalid window"));
         }
         let first = id.next.saturating_sub(cap);
