@@ -29,7 +29,7 @@ def test_scores_from_a_recorded_run_are_those_of_period_ahead():
     rec = plant.measure(u_cmd, DT, lr.bench(0.001), seed=4)
     init = boucwen.Params.paper_1hz()
     for case in lr.default_cases((50,)):
-        run = lr.record_run(case.make(DT, init, 0.0), rec.u, rec.x)
+        run = lr.record_run(case.make(DT, init, 0.0), rec.u, rec.x, lr.period_bounds(segments, DT))
         ours = lr.scores_from_record(run, rec.u, rec.x, DT, segments)
         score, per_period, one_step = evaluation.period_ahead(case.make(DT, init, 0.0), rec.u, rec.x, DT, segments)
         np.testing.assert_array_equal(run.predictions, one_step)

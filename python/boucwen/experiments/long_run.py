@@ -65,7 +65,7 @@ import math
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -91,6 +91,7 @@ __all__ = [
     "default_cases",
     "implicit_intervals",
     "main",
+    "period_bounds",
     "project",
     "quick_options",
     "random_input",
@@ -131,7 +132,9 @@ EXPLICIT_SHARE = 0.95
 
 @dataclass(frozen=True)
 class Case:
-    """One online method: ``method`` in ("horizon", "rpem", "paper"), ``window`` N for "paper"."""
+    """One online method: ``method`` in ("horizon" — the recommended model, input lag
+    identified along —, "horizon_base" — seven parameters only —, "rpem", "paper"),
+    ``window`` N for "paper"."""
 
     method: str
     window: int | None = None
@@ -146,6 +149,8 @@ class Case:
 
     def make(self, dt: float, init: Params, h0: float) -> Identifier:
         if self.method == "horizon":
+            return Identifier(dt, init, h0)
+        if self.method == "horizon_base":
             return Identifier.horizon(dt, init, h0)
         if self.method == "rpem":
             return Identifier.rpem(dt, init, h0)
@@ -160,8 +165,8 @@ BOUNDS_OFF: tuple[tuple[str, float], ...] = (("max_hysteresis_gain", math.inf), 
 
 
 def default_cases(windows: Sequence[int] = PAPER_WINDOWS) -> list[Case]:
-    """horizon, rpem and the paper method at each window."""
-    return [Case("horizon"), Case("rpem")] + [Case("paper", int(w)) for w in windows]
+    """horizon (with and without its input lag), rpem and the paper method at each window."""
+    return [Case("horizon"), Case("horizon_base"), Case("rpem")] + [Case("paper", int(w)) for w in windows]
 
 
 def bounds_off_cases(windows: Sequence[int] = PAPER_WINDOWS) -> list[Case]:
@@ -226,10 +231,16 @@ class Record:
     params: FloatArray
     h: FloatArray
     predictions: FloatArray
+    forecasts: dict[int, FloatArray] = field(default_factory=dict)
+    """``Identifier.forecast`` over each requested period, by its first sample k0 (the
+    model open loop from the state after sample k0 − 1, effects included)."""
 
 
-def record_run(ident: Identifier, u: FloatArray, x: FloatArray) -> Record:
-    """Pushes every sample and records the estimates and h after each push."""
+def record_run(
+    ident: Identifier, u: FloatArray, x: FloatArray, periods: Sequence[tuple[int, int]] = ()
+) -> Record:
+    """Pushes every sample and records the estimates and h after each push, and the
+    identifier's forecast over each period ``(k0, k1)`` of `periods` at its start."""
     n = u.size
     params = np.empty((n + 1, 7))
     h = np.empty(n + 1)
@@ -237,11 +248,24 @@ def record_run(ident: Identifier, u: FloatArray, x: FloatArray) -> Record:
     params[0] = ident.params.to_array()
     h[0] = ident.h
     push = ident.push
+    ends = dict(periods)
+    forecasts: dict[int, FloatArray] = {}
     for k, (a, b) in enumerate(zip(u.tolist(), x.tolist())):
+        if k in ends:
+            forecasts[k] = ident.forecast(u[k : ends[k]])
         pred[k] = push(a, b)
         params[k + 1] = ident.params.to_array()
         h[k + 1] = ident.h
-    return Record(params, h, pred)
+    return Record(params, h, pred, forecasts)
+
+
+def period_bounds(segments: Sequence[tuple[float, int, int]], dt: float) -> list[tuple[int, int]]:
+    """(k0, k1) of every period of every segment, as :func:`boucwen.evaluation.period_ahead` cuts them."""
+    out = []
+    for f, lo, hi in segments:
+        p = evaluation.period_samples(f, dt)
+        out += [(k0, min(hi, k0 + p)) for k0 in range(lo, hi, p)]
+    return out
 
 
 def implicit_intervals(params: FloatArray, h: FloatArray, u: FloatArray, dt: float) -> NDArray[np.bool_]:
@@ -293,9 +317,12 @@ def scores_from_record(
         errors: list[float] = []
         for k0 in starts:
             k1 = min(hi, k0 + p)
-            params = Params.from_array(rec.params[k0])
-            u_prev = float(u[k0 - 1]) if k0 > 0 else None
-            x_sim, _ = simulate(params, u[k0:k1], dt, float(rec.h[k0]), u_prev)
+            if k0 in rec.forecasts:
+                x_sim = rec.forecasts[k0]
+            else:
+                params = Params.from_array(rec.params[k0])
+                u_prev = float(u[k0 - 1]) if k0 > 0 else None
+                x_sim, _ = simulate(params, u[k0:k1], dt, float(rec.h[k0]), u_prev)
             errors.append(float(np.max(np.abs(x[k0:k1] - x_sim))))
         full = [e for k0, e in zip(starts, errors) if k0 + p <= hi]
         out.append((f, errors, full[-1] if full else errors[-1]))
@@ -340,7 +367,7 @@ def run_case(
     """One method over one record: region, period-ahead ratios to `traditional` (its
     score per segment), implicit-path share."""
     t0 = time.perf_counter()
-    rec = record_run(case.make(dt, start, h0), u, x)
+    rec = record_run(case.make(dt, start, h0), u, x, period_bounds(segments, dt))
     scores = scores_from_record(rec, u, x, dt, segments)
     implicit = implicit_intervals(rec.params[1:-1], rec.h[1:-1], u, dt)
     ratios: dict[str, list[float]] = {}
