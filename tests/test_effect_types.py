@@ -1,0 +1,96 @@
+"""Typed effects: the classes, their EffectSet/dict/JSON round trips, and the extended
+fit's unknowns, bounds, scales and starting values, pinned to their values."""
+
+import math
+
+import numpy as np
+import pytest
+
+import boucwen.lsq
+from boucwen import EffectSet, Params
+from boucwen.effects import Layout, candidate_starts, fit_extended_record
+from boucwen.record import validate_record
+
+P = Params.paper_1hz()
+DT = 1e-3
+INF = math.inf
+ALL = dict(
+    creep={"tau_s": [0.01, 0.5], "gain_um_per_v": [0.003, 0.004]},
+    input_lag={"fc_hz": 80.0},
+    resonance={"fn_hz": 150.0, "zeta": 0.1},
+    drift={"rate_um_per_s": 0.2},
+    delay={"samples": 2},
+)
+LABELS = [
+    *["kv", "x0", "A", "beta", "gamma", "n", "delta", "h0"],
+    *["creep.gain[0]", "creep.gain[1]", "input_lag.ln_fc", "resonance.ln_fn", "resonance.ln_zeta", "drift.rate"],
+]
+V0 = [0.19, 0.015, -0.072, 0.02, -0.019, 1.52, 0.0075, 0.1, 0.003, 0.004]
+V0 += [4.382026634673881, 5.0106352940962555, -2.3025850929940455, 0.2]
+LOWER = [-INF] * 5 + [0.2] + [-INF] * 4 + [-1.0986122886681098, -0.40546510810816444, -6.907755278982137, -INF]
+UPPER = [INF] * 5 + [6.0] + [INF] * 4 + [9.210340371976184, 6.1092475827643655, 0.0, INF]
+TYPICAL = [0.19, 13.7, 0.1522222222222222, 0.02, 0.019, 1.52, 0.0075, 0.13699999999999998]
+TYPICAL_EFFECTS = [4.382026634673881, 5.0106352940962555, 2.3025850929940455, 0.2]
+
+
+def _record():
+    t = np.arange(3001) * DT
+    u = 50 + 45 * np.sin(2 * np.pi * 2 * t)
+    return validate_record(u, 0.15 * u + 0.1 * np.sin(2 * np.pi * 2 * t), DT)
+
+
+def test_layout_of_every_effect_is_unchanged():
+    e = EffectSet(**ALL)
+    lay = Layout.of(e, DT, 3.0)
+    assert lay.labels() == LABELS
+    assert lay.pack(P, e, 0.1).tolist() == V0
+    lo, hi = lay.bounds()
+    assert lo.tolist() == LOWER and hi.tolist() == UPPER
+
+
+class _Stop(Exception):
+    pass
+
+
+@pytest.mark.parametrize("kv", [0.19, -0.19])
+def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
+    # The creep gains share the sign of kv: bounded at 0 for the optimiser, but not for
+    # the difference steps.
+    seen = {}
+
+    def solve(self, z0, lower, upper, *, x_scale, tol, max_nfev):
+        seen.update(z0=z0, lower=lower, upper=upper, x_scale=x_scale, step_upper=self.upper)
+        raise _Stop
+
+    monkeypatch.setattr(boucwen.lsq.OutputErrorProblem, "solve", solve)
+    with pytest.raises(_Stop):
+        fit_extended_record(_record(), P.replace(kv=kv), EffectSet(**ALL), 0.1)
+    gains = [0.003, 0.004] if kv > 0 else [-1e-09, -1e-09]
+    assert seen["z0"].tolist() == [kv, *V0[1:8], *gains, *V0[10:]]
+    sign_lo, sign_hi = ([0.0, 0.0], [INF, INF]) if kv > 0 else ([-INF, -INF], [0.0, 0.0])
+    assert seen["lower"].tolist() == [*LOWER[:8], *sign_lo, *LOWER[10:]]
+    assert seen["upper"].tolist() == [*UPPER[:8], *sign_hi, *UPPER[10:]]
+    assert seen["step_upper"].tolist() == UPPER
+    gain_scales = gains if kv > 0 else [0.0015222222222222221] * 2
+    assert seen["x_scale"].tolist() == [*TYPICAL, *gain_scales, *TYPICAL_EFFECTS]
+
+
+FCS = [0.6666666666666666, 1.6227646816795556, 3.950047818159824, 9.614997135382728, 23.404316648623773]
+FCS += [56.969547684347205, 138.67225487012703, 337.54865629816175, 821.643056683572, 2000.0, 5000.0]
+FNS = [20.0, 30.7370470890596, 47.23830318775338, 72.59829747446248, 111.57286440290555, 171.47101935066854]
+FNS += [263.5256398095273, 405.0]
+STARTS = {
+    "creep": [{"tau_s": [0.01, 0.09654893846056294, 0.9321697517861574, 9.0], "gain_um_per_v": [0.0] * 4}],
+    "input_lag": [{"fc_hz": f} for f in FCS],
+    "resonance": [*({"fn_hz": f, "zeta": z} for f in FNS for z in (0.03, 0.15, 0.5)), {"fn_hz": 441.0, "zeta": 0.7}],
+    "drift": [{"rate_um_per_s": 0.0}],
+    "delay": [{"samples": k} for k in (1, 2, 3, 4)],
+}
+
+
+@pytest.mark.parametrize("name", list(STARTS))
+def test_candidate_starts_are_unchanged(name):
+    others = EffectSet(**{k: v for k, v in ALL.items() if k != name})
+    starts = candidate_starts(name, _record(), P, others, 0.0, max_delay=4)
+    assert [s.to_dict()[name] for s in starts] == STARTS[name]
+    assert all(s.to_dict() == {**others.to_dict(), name: s.to_dict()[name]} for s in starts)
