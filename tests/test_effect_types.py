@@ -23,17 +23,12 @@ from boucwen.effects import (
     to_json,
 )
 from boucwen.record import validate_record
+from conftest import EVERY_EFFECT
 
 P = Params.paper_1hz()
 DT = 1e-3
 INF = math.inf
-ALL = dict(
-    creep={"tau_s": [0.01, 0.5], "gain_um_per_v": [0.003, 0.004]},
-    input_lag={"fc_hz": 80.0},
-    resonance={"fn_hz": 150.0, "zeta": 0.1},
-    drift={"rate_um_per_s": 0.2},
-    delay={"samples": 2},
-)
+ALL = EVERY_EFFECT
 LABELS = [
     *["kv", "x0", "A", "beta", "gamma", "n", "delta", "h0"],
     *["creep.gain[0]", "creep.gain[1]", "input_lag.ln_fc", "resonance.ln_fn", "resonance.ln_zeta", "drift.rate"],
