@@ -6,6 +6,15 @@ from typing import Any
 
 import boucwen
 
+#: One of each effect, as ``EffectSet`` keyword arguments.
+EVERY_EFFECT: dict[str, Any] = dict(
+    creep={"tau_s": [0.01, 0.5], "gain_um_per_v": [0.003, 0.004]},
+    input_lag={"fc_hz": 80.0},
+    resonance={"fn_hz": 150.0, "zeta": 0.1},
+    drift={"rate_um_per_s": 0.2},
+    delay={"samples": 2},
+)
+
 
 def make_identifier(
     method: str, dt: float, window: Any, init: Any, h0: float = 0.0, **options: Any

@@ -9,6 +9,7 @@ import pytest
 from boucwen import EffectSet, Params, simulate, simulate_extended
 from boucwen.effects import Layout, best_delay, creep_time_constants, fit_extended
 from boucwen.record import validate_record
+from conftest import EVERY_EFFECT
 
 P = Params.paper_1hz()
 DT = 1e-3
@@ -20,13 +21,7 @@ def _u(n=3000, seed=0):
     return 50 + 45 * np.sin(2 * np.pi * 2 * t) * np.cos(2 * np.pi * 0.3 * t) + rng.normal(0, 0.01, n)
 
 
-ALL = dict(
-    creep={"tau_s": [0.01, 0.5], "gain_um_per_v": [0.003, 0.004]},
-    input_lag={"fc_hz": 80.0},
-    resonance={"fn_hz": 150.0, "zeta": 0.1},
-    drift={"rate_um_per_s": 0.2},
-    delay={"samples": 2},
-)
+ALL = EVERY_EFFECT
 
 
 def test_round_trips_and_vocabulary():

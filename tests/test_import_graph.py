@@ -134,3 +134,16 @@ def test_find_cycle_on_small_graphs(graph, acyclic):
 def test_no_import_cycles_inside_boucwen():
     cycle = find_cycle(import_graph())
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+def test_the_effects_do_not_reach_the_diagnosis():
+    # The diagnosis builds on the effects, never the other way round.
+    graph = import_graph()
+    effects = {name for name in graph if name == "boucwen.effects" or name.startswith("boucwen.effects.")}
+    assert "boucwen.effects.fit" in effects
+    reached, todo = set(), list(effects)
+    while todo:
+        for nxt in graph[todo.pop()] - reached:
+            reached.add(nxt)
+            todo.append(nxt)
+    assert not {name for name in reached if name.startswith("boucwen.diagnosis")}

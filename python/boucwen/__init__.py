@@ -11,6 +11,8 @@ Precision Engineering 38 (2014) 921–927).
   :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
+  each effect is a typed object (:class:`Creep`, :class:`InputLag`, :class:`Resonance`,
+  :class:`Drift`, :class:`Delay`; :func:`effect_set` and :func:`effects_of` convert);
 - :class:`Inverse` and :func:`invert` give the voltage for a desired displacement,
   :class:`Compensator` does so in a control loop with online identification and feedback;
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
@@ -32,23 +34,31 @@ from ._core import (
 )
 from .config import HorizonConfig, PaperConfig, RpemConfig
 from .diagnosis import Diagnosis, diagnose
+from .effects import Creep, Delay, Drift, InputLag, Resonance, effect_set, effects_of
 from .fit import FitResult, fit
 
 __all__ = [
     "Bank",
     "Compensator",
+    "Creep",
+    "Delay",
     "Diagnosis",
+    "Drift",
     "EffectSet",
     "FitResult",
     "HorizonConfig",
     "Identifier",
+    "InputLag",
     "Inverse",
     "Model",
     "PaperConfig",
     "Params",
+    "Resonance",
     "RpemConfig",
     "__version__",
     "diagnose",
+    "effect_set",
+    "effects_of",
     "fit",
     "invert",
     "paper_input",

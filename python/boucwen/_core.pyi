@@ -455,7 +455,8 @@ class EffectSet:
 
     creep={"tau_s": [s…], "gain_um_per_v": [µm/V…]}, input_lag={"fc_hz": Hz},
     resonance={"fn_hz": Hz, "zeta": -}, drift={"rate_um_per_s": µm/s},
-    delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError."""
+    delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError.
+    Typed: boucwen.effect_set(InputLag(650.0), …) and boucwen.effects_of(s)."""
 
     vocabulary: ClassVar[list[str]]
     def __new__(

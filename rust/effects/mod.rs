@@ -95,34 +95,33 @@ impl EffectSet {
     /// Names of the effects present, in vocabulary order.
     pub fn names(&self) -> Vec<&'static str> {
         let present = [
-            self.creep.is_some(),
-            self.input_lag.is_some(),
-            self.resonance.is_some(),
-            self.drift.is_some(),
-            self.delay.is_some(),
+            name_if(&self.creep),
+            name_if(&self.input_lag),
+            name_if(&self.resonance),
+            name_if(&self.drift),
+            name_if(&self.delay),
         ];
-        Self::NAMES.iter().zip(present).filter(|(_, p)| *p).map(|(n, _)| *n).collect()
+        present.into_iter().flatten().collect()
     }
 
     /// Validates every effect present.
     pub fn validate(&self) -> Result<()> {
-        if let Some(e) = &self.creep {
-            e.validate()?;
-        }
-        if let Some(e) = &self.input_lag {
-            e.validate()?;
-        }
-        if let Some(e) = &self.resonance {
-            e.validate()?;
-        }
-        if let Some(e) = &self.drift {
-            e.validate()?;
-        }
-        if let Some(e) = &self.delay {
-            e.validate()?;
-        }
-        Ok(())
+        validate_if(&self.creep)?;
+        validate_if(&self.input_lag)?;
+        validate_if(&self.resonance)?;
+        validate_if(&self.drift)?;
+        validate_if(&self.delay)
     }
+}
+
+/// The effect's name if it is present.
+fn name_if<E: Effect>(effect: &Option<E>) -> Option<&'static str> {
+    effect.as_ref().map(|_| E::NAME)
+}
+
+/// Validates the effect if it is present.
+fn validate_if<E: Effect>(effect: &Option<E>) -> Result<()> {
+    effect.as_ref().map_or(Ok(()), Effect::validate)
 }
 
 /// The base model with its effects, one sample at a time: `step(u) -> x`.
@@ -363,5 +362,14 @@ mod tests {
             ..EffectSet::none()
         };
         assert_eq!(e.names(), vec!["creep", "delay"]);
+        let all = EffectSet {
+            creep: Creep::log_spaced(0.1, 1.0, 2).ok(),
+            input_lag: Some(InputLag { fc_hz: 100.0 }),
+            resonance: Some(Resonance { fn_hz: 100.0, zeta: 0.1 }),
+            drift: Some(Drift { rate_um_per_s: 0.0 }),
+            delay: Some(Delay { samples: 1 }),
+        };
+        assert_eq!(all.names(), EffectSet::NAMES.to_vec());
+        assert!(all.validate().is_ok());
     }
 }

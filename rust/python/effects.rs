@@ -21,7 +21,10 @@ use crate::effects::{Creep, Delay, Drift, EffectSet, InputLag, Resonance};
 /// - ``drift={"rate_um_per_s": r}``: x += r·t, t \[s\] from the first sample;
 /// - ``delay={"samples": d}``: the sensor reads x[k − d], d ≥ 0 whole samples.
 ///
-/// Immutable, comparable, picklable; ``to_dict``/``from_dict`` round-trip.
+/// Immutable, comparable, picklable; ``to_dict``/``from_dict`` round-trip. The typed
+/// form (``InputLag(fc_hz=650.0)``, …) is in :mod:`boucwen.effects`:
+/// ``boucwen.effect_set(*effects)`` builds an ``EffectSet``, ``boucwen.effects_of(s)``
+/// gives its effects back.
 #[pyclass(name = "EffectSet", module = "boucwen", frozen, eq)]
 #[derive(Clone, PartialEq)]
 pub struct PyEffectSet {

@@ -1,0 +1,68 @@
+"""Effects: small physical models around the base model, as typed objects, and their fit.
+
+Each effect is one frozen dataclass in its own module, its parameters as fields with
+their units, declaring what the extended fit needs (:class:`Effect`): which
+parameters are unknowns and in which coordinates, their bounds, typical sizes and
+sign constraints, and the starting values tried when the effect is added:
+
+============================  =====================  ===========================
+class                         name                   parameters
+============================  =====================  ===========================
+:class:`Creep`                ``creep``              ``tau_s`` [s], ``gain_um_per_v`` [µm/V]
+:class:`InputLag`             ``input_lag``          ``fc_hz`` [Hz]
+:class:`Resonance`            ``resonance``          ``fn_hz`` [Hz], ``zeta`` [-]
+:class:`Drift`                ``drift``              ``rate_um_per_s`` [µm/s]
+:class:`Delay`                ``delay``              ``samples`` [samples]
+============================  =====================  ===========================
+
+The simulation is the Rust core's (:class:`boucwen.EffectSet`,
+:func:`boucwen.simulate_extended`). :func:`effect_set` and :func:`effects_of` convert
+between typed effects and an :class:`boucwen.EffectSet`, :func:`to_json` and
+:func:`from_json` between an :class:`boucwen.EffectSet` and JSON::
+
+    s = effect_set(InputLag(fc_hz=650.0), Creep(tau_s=(0.05, 2.0), gain_um_per_v=(0.002, 0.001)))
+    effects_of(from_json(to_json(s)))  # (Creep(...), InputLag(fc_hz=650.0))
+
+:func:`fit_extended` fits the base model and the effects' unknowns by output error
+(:mod:`boucwen.effects.fit`); its :class:`Layout` asks each effect present for its
+unknowns. Adding an effect: one module here declaring its class, listed in
+:data:`EFFECTS` (:mod:`boucwen.effects.registry`), and its simulation stage in the Rust
+core.
+"""
+
+from .base import Context, Effect, Start, simulate_chain
+from .creep import Creep, creep_time_constants
+from .delay import Delay, best_delay
+from .drift import Drift
+from .fit import ExtendedFit, Layout, candidate_starts, fit_extended, fit_extended_record
+from .input_lag import InputLag
+from .registry import EFFECTS, VOCABULARY, effect_class, effect_set, effects_of, from_json, to_json
+from .resonance import FN_MAX_NYQUIST_FRACTION, ZETA_BOUNDS, Resonance
+
+__all__ = [
+    "EFFECTS",
+    "FN_MAX_NYQUIST_FRACTION",
+    "VOCABULARY",
+    "ZETA_BOUNDS",
+    "Context",
+    "Creep",
+    "Delay",
+    "Drift",
+    "Effect",
+    "ExtendedFit",
+    "InputLag",
+    "Layout",
+    "Resonance",
+    "Start",
+    "best_delay",
+    "candidate_starts",
+    "creep_time_constants",
+    "effect_class",
+    "effect_set",
+    "effects_of",
+    "fit_extended",
+    "fit_extended_record",
+    "from_json",
+    "simulate_chain",
+    "to_json",
+]

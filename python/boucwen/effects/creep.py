@@ -1,0 +1,73 @@
+"""``creep``: slow relaxation of the stack after a change of the voltage."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from .base import Context, Effect, Start
+
+__all__ = ["Creep", "creep_time_constants"]
+
+
+def creep_time_constants(dt: float, duration_s: float, max_count: int = 5) -> list[float]:
+    """Log-spaced creep time constants τ_i [s] for a record of ``duration_s`` [s].
+
+    From 10·dt (faster elements look like part of kv) to three times the record's
+    length (the creep that is still running at the end of the record), about one per
+    decade, between 2 and ``max_count``.
+    """
+    lo = 10.0 * dt
+    hi = max(3.0 * duration_s, 2.0 * lo)
+    count = int(min(max_count, max(2, round(math.log10(hi / lo)) + 1)))
+    return [float(v) for v in np.geomspace(lo, hi, count)]
+
+
+@dataclass(frozen=True)
+class Creep(Effect):
+    """Creep as a sum of first-order elements with fixed time constants:
+
+        τ_i·ċ_i = g_i·u_a − c_i,     x += Σ_i c_i
+
+    u_a: voltage on the stack [V]; c_i [µm]. With log-spaced τ_i the step response
+    grows roughly linearly in log(t). Each element starts in equilibrium with the
+    first voltage.
+
+    A fit holds the τ_i fixed (see :func:`creep_time_constants`) and fits the gains,
+    on which the output depends linearly; they share the sign of kv (creep continues
+    the motion a voltage step started).
+
+    Attributes:
+        tau_s: time constants τ_i [s] (finite, > 0; 1 to 16 of them).
+        gain_um_per_v: static gains g_i [µm/V] (finite; one per time constant).
+    """
+
+    name: ClassVar[str] = "creep"
+    tau_s: tuple[float, ...]
+    gain_um_per_v: tuple[float, ...]
+
+    def unknowns(self) -> tuple[str, ...]:
+        return tuple(f"gain[{i}]" for i in range(len(self.tau_s)))
+
+    def pack(self) -> tuple[float, ...]:
+        return self.gain_um_per_v
+
+    def unpack(self, values: Sequence[float]) -> Creep:
+        return replace(self, gain_um_per_v=tuple(float(g) for g in values))
+
+    def sign_bounds(self, kv: float) -> tuple[tuple[float, float], ...]:
+        same_sign = (0.0, math.inf) if kv >= 0 else (-math.inf, 0.0)
+        return tuple(same_sign for _ in self.tau_s)
+
+    def typical(self, context: Context, span_u: float, span_x: float) -> tuple[float, ...]:
+        return tuple(0.01 * span_x / span_u for _ in self.tau_s)
+
+    @classmethod
+    def starts(cls, at: Start) -> list[Creep]:
+        record = at.record
+        taus = at.creep_tau_s if at.creep_tau_s is not None else creep_time_constants(record.dt, record.duration_s)
+        return [cls(tau_s=tuple(taus), gain_um_per_v=(0.0,) * len(taus))]

@@ -1,0 +1,274 @@
+"""Fitting the base model together with its effects by output error.
+
+:func:`fit_extended` minimises Σ (x_k − x̂_k)² over a record, where x̂ is *simulated*
+from u alone with :func:`boucwen.simulate_extended`, by ``scipy.optimize.least_squares``
+— the same approach as :func:`boucwen.fit` for the base model (whose result is the
+usual starting point here).
+
+Unknowns, in this order (see :class:`Layout`): the base model's kv [µm/V], x0 [µm], A,
+β, γ, n, δ (units of :class:`boucwen.Params`) and the initial hysteresis state h0
+[µm]; then, for each effect present in signal-chain order, the unknowns its class
+declares (:meth:`~boucwen.effects.Effect.unknowns`: the creep gains, ln fc, ln fn and
+ln ζ, the drift rate; the creep time constants and the delay are held fixed), with
+their bounds, typical sizes and sign constraints.
+
+Residual, Jacobian (forward differences in threads) and optimiser are those of
+:mod:`boucwen.lsq`, shared with :func:`boucwen.fit`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._core import EffectSet, Params, simulate_extended
+from ..checks import FloatArray
+from ..fit import N_BOUNDS
+from ..lsq import OutputErrorProblem, jacobian_threads
+from ..metrics import max_abs, rms
+from ..record import Record, validate_record
+from .base import Context, Effect, Start, simulate_chain, with_effect
+from .registry import effect_class, effect_set, effects_of
+
+__all__ = ["ExtendedFit", "Layout", "candidate_starts", "fit_extended", "fit_extended_record"]
+
+#: The base model's unknowns: the seven parameters and h0.
+_BASE = (*Params.names, "h0")
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Which unknowns a fit has: the base model's, then those each effect present
+    declares, in signal-chain order.
+
+    Attributes:
+        effects: the effects present (signal-chain order); their parameters that are
+            not unknowns (creep τ_i, delay) stay as they are here.
+        dt: sampling interval [s].
+        duration_s: record length [s].
+    """
+
+    effects: tuple[Effect, ...]
+    dt: float
+    duration_s: float
+
+    @classmethod
+    def of(cls, effects: EffectSet, dt: float, duration_s: float) -> Layout:
+        return cls(effects=effects_of(effects), dt=float(dt), duration_s=float(duration_s))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Effect names present (vocabulary order)."""
+        return tuple(e.name for e in self.effects)
+
+    @property
+    def context(self) -> Context:
+        return Context(dt=self.dt, duration_s=self.duration_s)
+
+    def labels(self) -> list[str]:
+        """Name of every unknown, in vector order."""
+        return [*_BASE, *(f"{e.name}.{u}" for e in self.effects for u in e.unknowns())]
+
+    def pack(self, params: Params, effects: EffectSet, h0: float) -> FloatArray:
+        """(params, effects, h0) → vector of unknowns."""
+        present = effects_of(effects)
+        if tuple(e.name for e in present) != self.names:
+            raise ValueError(f"the layout is for the effects {list(self.names)}, got {effects.names}")
+        v = [*list(params.to_array()), float(h0)]
+        for e in present:
+            v += e.pack()
+        return np.asarray(v, dtype=np.float64)
+
+    def unpack(self, v: FloatArray) -> tuple[Params, EffectSet, float]:
+        """Vector of unknowns → (params, effects, h0); ValueError if invalid."""
+        params = Params.from_array(v[:7])
+        h0 = float(v[7])
+        i = len(_BASE)
+        fitted = []
+        for e in self.effects:
+            k = len(e.unknowns())
+            fitted.append(e.unpack(v[i : i + k].tolist()))
+            i += k
+        return params, effect_set(*fitted), h0
+
+    def bounds(self) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper bounds of the unknowns (the difference steps respect them)."""
+        base = [(-np.inf, np.inf)] * len(_BASE)
+        base[5] = N_BOUNDS
+        return _columns(base, [b for e in self.effects for b in e.bounds(self.context)])
+
+    def sign_bounds(self, kv: float) -> tuple[FloatArray, FloatArray]:
+        """Further bounds that only the optimiser sees, for a base model with ``kv``."""
+        base = [(-np.inf, np.inf)] * len(_BASE)
+        return _columns(base, [b for e in self.effects for b in e.sign_bounds(kv)])
+
+    def typical(self, span_u: float, span_x: float) -> FloatArray:
+        """Least typical size of each unknown for a record whose voltage spans
+        ``span_u`` [V] and displacement ``span_x`` [µm]."""
+        base = {
+            "kv": span_x / span_u,
+            "x0": span_x,
+            "A": span_x / span_u,
+            "beta": 1e-3,
+            "gamma": 1e-3,
+            "n": 1.0,
+            "delta": 1e-3,
+            "h0": 0.01 * span_x,
+        }
+        floors = [base[name] for name in _BASE]
+        floors += [f for e in self.effects for f in e.typical(self.context, span_u, span_x)]
+        return np.asarray(floors, dtype=np.float64)
+
+
+def _columns(base: list[tuple[float, float]], effects: list[tuple[float, float]]) -> tuple[FloatArray, FloatArray]:
+    lo, hi = zip(*base, *effects)
+    return np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class ExtendedFit:
+    """Result of :func:`fit_extended`.
+
+    Attributes:
+        params: base :class:`boucwen.Params`.
+        effects: the :class:`boucwen.EffectSet` with fitted parameters.
+        h0: initial hysteresis state [µm].
+        rms_um, max_um: output error over the fitted samples [µm].
+        nfev: number of record simulations.
+        success: the optimiser reported convergence.
+    """
+
+    params: Params
+    effects: EffectSet
+    h0: float
+    rms_um: float
+    max_um: float
+    nfev: int
+    success: bool
+
+    def simulate(self, u: ArrayLike, dt: float) -> FloatArray:
+        """x [µm] of the fitted model for the voltage ``u`` [V]."""
+        return simulate_extended(self.params, self.effects, u, dt, self.h0)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready parameters: ``{"base": {...}, "h0_um": ..., <effect>: {...}}``."""
+        out: dict[str, Any] = {"base": self.params.to_dict(), "h0_um": self.h0}
+        out.update(self.effects.to_dict())
+        return out
+
+
+class _Chain:
+    """Vector of unknowns → x [µm] of the extended model over one record (or None)."""
+
+    def __init__(self, layout: Layout, u: FloatArray, dt: float):
+        self.layout, self.u, self.dt = layout, u, dt
+
+    def __call__(self, v: FloatArray) -> FloatArray | None:
+        try:
+            p, e, h0 = self.layout.unpack(v)
+        except (ValueError, OverflowError):
+            return None
+        return simulate_chain(p, e, self.u, self.dt, h0)
+
+
+def _typical(layout: Layout, v0: FloatArray, u: FloatArray, x: FloatArray) -> FloatArray:
+    """Typical size of each unknown (sets the difference steps and the scaling)."""
+    span_u = max(float(np.ptp(u)), 1e-12)
+    span_x = max(float(np.ptp(x)), 1e-12)
+    return np.maximum(np.abs(v0), layout.typical(span_u, span_x))
+
+
+def fit_extended(
+    u: Any,
+    x: Any,
+    dt: float,
+    params: Params,
+    effects: EffectSet,
+    h0: float = 0.0,
+    *,
+    max_nfev: int = 40,
+    tol: float = 1e-8,
+    workers: int | None = None,
+) -> ExtendedFit:
+    """Fits the base parameters, h0 and the effects' parameters by output error.
+
+    Args:
+        u: voltage [V] (1-D, finite); x: measured displacement [µm], same length.
+        dt: sampling interval [s].
+        params, effects, h0: starting point; ``effects`` also fixes which effects are
+            present, the creep time constants and the delay (see the module docs).
+        max_nfev: iteration limit of ``least_squares``.
+        tol: ``xtol``/``ftol``/``gtol`` of ``least_squares``.
+        workers: threads for the Jacobian columns (default: the number of CPUs).
+
+    Returns:
+        An :class:`ExtendedFit` (errors over the given record).
+
+    Raises:
+        ValueError: invalid data or a starting point that cannot be simulated.
+    """
+    record = validate_record(u, x, dt)
+    return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, workers=workers)
+
+
+def fit_extended_record(
+    record: Record,
+    params: Params,
+    effects: EffectSet,
+    h0: float = 0.0,
+    *,
+    max_nfev: int = 40,
+    tol: float = 1e-8,
+    workers: int | None = None,
+) -> ExtendedFit:
+    """:func:`fit_extended` on a checked :class:`~boucwen.record.Record`."""
+    u, x, dt = record.u, record.x, record.dt
+    layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
+    v0 = layout.pack(params, effects, h0)
+    # The Jacobian steps backwards only at the layout's own bounds (fc, fn below
+    # Nyquist); the sign bounds (creep gains share the sign of kv) need no such care,
+    # since any sign can be simulated.
+    lo, step_upper = layout.bounds()
+    sign_lo, sign_hi = layout.sign_bounds(params.kv)
+    lo, hi = np.maximum(lo, sign_lo), np.minimum(step_upper, sign_hi)
+    margin = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    v0 = np.clip(v0, lo + margin, hi - margin)
+    typ = _typical(layout, v0, u, x)
+    with jacobian_threads(workers) as pool:
+        prob = OutputErrorProblem(_Chain(layout, u, dt), x, typical=typ, upper=step_upper, pool=pool)
+        if prob.simulate(v0) is None:
+            raise ValueError("the starting point of fit_extended cannot be simulated")
+        res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev)
+        p, e, h = layout.unpack(res.x)
+        xs = simulate_chain(p, e, u, dt, h)
+    if xs is None:  # pragma: no cover - the optimiser never accepts a failing point
+        raise ValueError("the fitted parameters cannot be simulated")
+    err = x - xs
+    return ExtendedFit(
+        params=p,
+        effects=e,
+        h0=h,
+        rms_um=rms(err),
+        max_um=max_abs(err),
+        nfev=prob.simulations,
+        success=bool(res.success),
+    )
+
+
+def candidate_starts(
+    name: str,
+    record: Record,
+    params: Params,
+    effects: EffectSet,
+    h0: float,
+    *,
+    max_delay: int = 8,
+    creep_tau_s: Sequence[float] | None = None,
+) -> list[EffectSet]:
+    """Starting effect sets that add ``name`` to ``effects`` (a few for the nonlinear ones)."""
+    at = Start(record, params, effects, h0, max_delay, None if creep_tau_s is None else tuple(creep_tau_s))
+    return [with_effect(effects, start) for start in effect_class(name).starts(at)]

@@ -1,0 +1,67 @@
+"""``resonance``: second-order mechanical dynamics between the stack and the sensor."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from .base import Context, Effect, Start
+
+__all__ = ["FN_MAX_NYQUIST_FRACTION", "ZETA_BOUNDS", "Resonance"]
+
+#: Bounds on the damping ratio ζ [-] during a fit. Above 1 the second-order element
+#: has two real poles and no peak: that is a lag, not a resonance, and the diagnosis
+#: must not call it one.
+ZETA_BOUNDS = (1e-3, 1.0)
+#: fn is kept below this fraction of the sampling rate (Nyquist = 0.5).
+FN_MAX_NYQUIST_FRACTION = 0.45
+
+
+@dataclass(frozen=True)
+class Resonance(Effect):
+    """A second-order low-pass of unit static gain from the stack's displacement y [µm]
+    to what the sensor sees, z [µm]:
+
+        z̈ + 2ζω·ż + ω²·z = ω²·y,     ω = 2π·fn
+
+    A fit varies ln fn and ln ζ (which keep them positive), fn from two cycles per
+    record length to :data:`FN_MAX_NYQUIST_FRACTION` of the sampling rate, ζ within
+    :data:`ZETA_BOUNDS`.
+
+    Attributes:
+        fn_hz: natural frequency fn [Hz] (finite, > 0; below the Nyquist frequency
+            1/(2·dt) of the record it is simulated on).
+        zeta: damping ratio ζ [-] (finite, > 0).
+    """
+
+    name: ClassVar[str] = "resonance"
+    fn_hz: float
+    zeta: float
+
+    def unknowns(self) -> tuple[str, ...]:
+        return ("ln_fn", "ln_zeta")
+
+    def pack(self) -> tuple[float, ...]:
+        return (math.log(self.fn_hz), math.log(self.zeta))
+
+    def unpack(self, values: Sequence[float]) -> Resonance:
+        return replace(self, fn_hz=math.exp(values[0]), zeta=math.exp(values[1]))
+
+    def bounds(self, context: Context) -> tuple[tuple[float, float], ...]:
+        fn = (math.log(2.0 / context.duration_s), math.log(FN_MAX_NYQUIST_FRACTION / context.dt))
+        return (fn, (math.log(ZETA_BOUNDS[0]), math.log(ZETA_BOUNDS[1])))
+
+    def typical(self, context: Context, span_u: float, span_x: float) -> tuple[float, ...]:
+        return (1.0, 1.0)
+
+    @classmethod
+    def starts(cls, at: Start) -> list[Resonance]:
+        dt, duration = at.record.dt, at.record.duration_s
+        fns = np.geomspace(max(5.0 / duration, 0.02 / dt), FN_MAX_NYQUIST_FRACTION * 0.9 / dt, 8)
+        pairs = [(float(f), z) for f in fns for z in (0.03, 0.15, 0.5)]
+        pairs.append((FN_MAX_NYQUIST_FRACTION * 0.98 / dt, 0.7))  # the mildest resonance
+        return [cls(fn_hz=f, zeta=z) for f, z in pairs]

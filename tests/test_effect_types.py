@@ -1,0 +1,220 @@
+"""Typed effects: the classes, their EffectSet/dict/JSON round trips, and the extended
+fit's unknowns, bounds, scales and starting values, pinned to their values."""
+
+import dataclasses
+import json
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+import boucwen
+import boucwen.lsq
+from boucwen import Creep, Delay, Drift, EffectSet, InputLag, Params, Resonance, effect_set, effects_of
+from boucwen.effects import (
+    EFFECTS,
+    VOCABULARY,
+    Context,
+    Layout,
+    candidate_starts,
+    fit_extended_record,
+    from_json,
+    to_json,
+)
+from boucwen.record import validate_record
+from conftest import EVERY_EFFECT
+
+P = Params.paper_1hz()
+DT = 1e-3
+INF = math.inf
+ALL = EVERY_EFFECT
+LABELS = [
+    *["kv", "x0", "A", "beta", "gamma", "n", "delta", "h0"],
+    *["creep.gain[0]", "creep.gain[1]", "input_lag.ln_fc", "resonance.ln_fn", "resonance.ln_zeta", "drift.rate"],
+]
+V0 = [0.19, 0.015, -0.072, 0.02, -0.019, 1.52, 0.0075, 0.1, 0.003, 0.004]
+V0 += [4.382026634673881, 5.0106352940962555, -2.3025850929940455, 0.2]
+LOWER = [-INF] * 5 + [0.2] + [-INF] * 4 + [-1.0986122886681098, -0.40546510810816444, -6.907755278982137, -INF]
+UPPER = [INF] * 5 + [6.0] + [INF] * 4 + [9.210340371976184, 6.1092475827643655, 0.0, INF]
+TYPICAL = [0.19, 13.7, 0.1522222222222222, 0.02, 0.019, 1.52, 0.0075, 0.13699999999999998]
+TYPICAL_EFFECTS = [4.382026634673881, 5.0106352940962555, 2.3025850929940455, 0.2]
+
+
+def _record():
+    t = np.arange(3001) * DT
+    u = 50 + 45 * np.sin(2 * np.pi * 2 * t)
+    return validate_record(u, 0.15 * u + 0.1 * np.sin(2 * np.pi * 2 * t), DT)
+
+
+def test_layout_of_every_effect_is_unchanged():
+    e = EffectSet(**ALL)
+    lay = Layout.of(e, DT, 3.0)
+    assert lay.labels() == LABELS
+    assert lay.pack(P, e, 0.1).tolist() == V0
+    lo, hi = lay.bounds()
+    assert lo.tolist() == LOWER and hi.tolist() == UPPER
+
+
+class _Stop(Exception):
+    pass
+
+
+@pytest.mark.parametrize("kv", [0.19, -0.19])
+def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
+    # The creep gains share the sign of kv: bounded at 0 for the optimiser, but not for
+    # the difference steps.
+    seen = {}
+
+    def solve(self, z0, lower, upper, *, x_scale, tol, max_nfev):
+        seen.update(z0=z0, lower=lower, upper=upper, x_scale=x_scale, step_upper=self.upper)
+        raise _Stop
+
+    monkeypatch.setattr(boucwen.lsq.OutputErrorProblem, "solve", solve)
+    with pytest.raises(_Stop):
+        fit_extended_record(_record(), P.replace(kv=kv), EffectSet(**ALL), 0.1)
+    gains = [0.003, 0.004] if kv > 0 else [-1e-09, -1e-09]
+    assert seen["z0"].tolist() == [kv, *V0[1:8], *gains, *V0[10:]]
+    sign_lo, sign_hi = ([0.0, 0.0], [INF, INF]) if kv > 0 else ([-INF, -INF], [0.0, 0.0])
+    assert seen["lower"].tolist() == [*LOWER[:8], *sign_lo, *LOWER[10:]]
+    assert seen["upper"].tolist() == [*UPPER[:8], *sign_hi, *UPPER[10:]]
+    assert seen["step_upper"].tolist() == UPPER
+    gain_scales = gains if kv > 0 else [0.0015222222222222221] * 2
+    assert seen["x_scale"].tolist() == [*TYPICAL, *gain_scales, *TYPICAL_EFFECTS]
+
+
+FCS = [0.6666666666666666, 1.6227646816795556, 3.950047818159824, 9.614997135382728, 23.404316648623773]
+FCS += [56.969547684347205, 138.67225487012703, 337.54865629816175, 821.643056683572, 2000.0, 5000.0]
+FNS = [20.0, 30.7370470890596, 47.23830318775338, 72.59829747446248, 111.57286440290555, 171.47101935066854]
+FNS += [263.5256398095273, 405.0]
+STARTS = {
+    "creep": [{"tau_s": [0.01, 0.09654893846056294, 0.9321697517861574, 9.0], "gain_um_per_v": [0.0] * 4}],
+    "input_lag": [{"fc_hz": f} for f in FCS],
+    "resonance": [*({"fn_hz": f, "zeta": z} for f in FNS for z in (0.03, 0.15, 0.5)), {"fn_hz": 441.0, "zeta": 0.7}],
+    "drift": [{"rate_um_per_s": 0.0}],
+    "delay": [{"samples": k} for k in (1, 2, 3, 4)],
+}
+
+
+@pytest.mark.parametrize("name", list(STARTS))
+def test_candidate_starts_are_unchanged(name):
+    others = EffectSet(**{k: v for k, v in ALL.items() if k != name})
+    starts = candidate_starts(name, _record(), P, others, 0.0, max_delay=4)
+    assert [s.to_dict()[name] for s in starts] == STARTS[name]
+    assert all(s.to_dict() == {**others.to_dict(), name: s.to_dict()[name]} for s in starts)
+
+
+TYPED = (
+    Creep(tau_s=(0.01, 0.5), gain_um_per_v=(0.003, 0.004)),
+    InputLag(fc_hz=80.0),
+    Resonance(fn_hz=150.0, zeta=0.1),
+    Drift(rate_um_per_s=0.2),
+    Delay(samples=2),
+)
+
+
+def test_the_registry_is_the_core_vocabulary_in_chain_order():
+    assert tuple(EffectSet.vocabulary) == VOCABULARY
+    assert tuple(type(e) for e in TYPED) == EFFECTS
+    assert all(getattr(boucwen, cls.__name__) is cls for cls in EFFECTS)
+
+
+def test_typed_effects_round_trip_through_effect_set_dict_and_json():
+    s = effect_set(*reversed(TYPED))
+    assert s == EffectSet(**ALL)
+    assert effects_of(s) == TYPED
+    text = to_json(s)
+    assert json.loads(text) == ALL
+    assert from_json(text) == s
+    assert effects_of(from_json(to_json(effect_set(*TYPED)))) == TYPED
+    assert effects_of(EffectSet()) == () and from_json(to_json(EffectSet())) == EffectSet()
+    for e in TYPED:
+        assert type(e).from_dict(e.to_dict()) == e
+        assert e.to_dict() == ALL[e.name]
+
+
+def test_typed_effects_are_frozen_hashable_picklable_and_print_as_code():
+    for e in TYPED:
+        assert pickle.loads(pickle.dumps(e)) == e
+        assert eval(repr(e), {type(e).__name__: type(e)}) == e
+    assert len(set(TYPED + TYPED)) == len(TYPED)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        TYPED[1].fc_hz = 1.0  # type: ignore[misc]
+
+
+def test_parameters_are_stored_as_the_core_holds_them():
+    c = Creep(tau_s=np.array([0.1, 1.0]), gain_um_per_v=[1, 2])
+    assert c.tau_s == (0.1, 1.0) and c.gain_um_per_v == (1.0, 2.0)
+    assert all(type(v) is float for v in c.tau_s + c.gain_um_per_v)
+    assert type(InputLag(650).fc_hz) is float and InputLag(650) == InputLag(650.0)
+    assert type(Delay(np.int64(3)).samples) is int
+
+
+@pytest.mark.parametrize(
+    "build, exc, words",
+    [
+        (lambda: InputLag(0.0), ValueError, "input_lag.fc_hz"),
+        (lambda: InputLag(math.nan), ValueError, "input_lag.fc_hz"),
+        (lambda: InputLag("fast"), TypeError, "input_lag.fc_hz must be a number"),
+        (lambda: InputLag(True), TypeError, "input_lag.fc_hz must be a number"),
+        (lambda: Resonance(fn_hz=100.0, zeta=-0.1), ValueError, "resonance.zeta"),
+        (lambda: Resonance(fn_hz=-5.0, zeta=0.1), ValueError, "resonance.fn_hz"),
+        (lambda: Drift(math.inf), ValueError, "drift.rate_um_per_s"),
+        (lambda: Delay(-1), ValueError, "delay.samples"),
+        (lambda: Delay(1.5), TypeError, "delay.samples must be an integer"),
+        (lambda: Creep(tau_s=(1.0, 2.0), gain_um_per_v=(0.1,)), ValueError, "creep.gain_um_per_v"),
+        (lambda: Creep(tau_s=(0.0,), gain_um_per_v=(0.1,)), ValueError, "creep.tau_s"),
+        (lambda: InputLag.from_dict({"fc": 1.0}), ValueError, "input_lag: unknown parameter 'fc'"),
+        (lambda: Resonance.from_dict({"fn_hz": 1.0}), ValueError, "resonance: missing parameter 'zeta'"),
+        (lambda: Drift.from_dict(0.1), TypeError, "drift must be a dict"),
+        (lambda: effect_set(InputLag(1.0), InputLag(2.0)), ValueError, "'input_lag' given more than once"),
+        (lambda: effect_set({"fc_hz": 1.0}), TypeError, "effect_set takes effects"),
+    ],
+)
+def test_invalid_typed_effects_name_the_culprit(build, exc, words):
+    with pytest.raises(exc, match=words.replace(".", r"\.")):
+        build()
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ('{"hum": {}}', "unknown effect 'hum'"),
+        ('{"drift": {"rate": 1.0}}', "drift: unknown parameter 'rate'"),
+        ('{"resonance": {"fn_hz": 100.0}}', "resonance: missing parameter 'zeta'"),
+        ('{"drift": {"rate_um_per_s": "fast"}}', "drift.rate_um_per_s must be a number"),
+        ('{"input_lag": {"fc_hz": -1.0}}', "input_lag.fc_hz"),
+        ('{"delay": {"samples": 1.5}}', "delay.samples must be an integer"),
+        ('{"drift": 3}', "drift must be a dict"),
+        ("[1, 2]", "expected a JSON object"),
+        ("{", "not valid JSON"),
+    ],
+)
+def test_bad_json_is_a_value_error_naming_the_culprit(text, words):
+    with pytest.raises(ValueError, match=words.replace(".", r"\.")):
+        from_json(text)
+
+
+def test_layout_of_typed_effects_is_the_layout_of_their_set():
+    typed = Layout(effects=TYPED, dt=DT, duration_s=3.0)
+    of_set = Layout.of(EffectSet(**ALL), DT, 3.0)
+    assert typed == of_set and typed.names == VOCABULARY
+    assert typed.labels() == LABELS
+    v = typed.pack(P, effect_set(*TYPED), 0.1)
+    assert v.tolist() == V0
+    p, e, h0 = typed.unpack(v)
+    assert p == P and h0 == 0.1
+    np.testing.assert_allclose(typed.pack(p, e, h0), v, rtol=1e-15)
+    creep, *_, delay = effects_of(e)
+    assert creep == TYPED[0] and delay == TYPED[-1]  # fitted exactly, and fixed
+    with pytest.raises(ValueError, match="layout is for the effects"):
+        typed.pack(P, EffectSet(), 0.1)
+
+
+def test_every_effect_declares_one_of_each_per_unknown():
+    ctx = Context(dt=DT, duration_s=3.0)
+    for e in TYPED:
+        n = len(e.unknowns())
+        assert len(e.pack()) == n and len(e.bounds(ctx)) == n
+        assert len(e.sign_bounds(1.0)) == n and len(e.typical(ctx, 100.0, 15.0)) == n
+        assert type(e.unpack(e.pack())) is type(e)
