@@ -104,9 +104,15 @@ def test_limits_clip_report_and_h_follows_the_clipped_voltage(p, u_true, lo, wid
     free = clip == "none"
     exact = np.array(exact)
     assert np.max(np.abs(x - x_d)[free & exact], initial=0.0) <= ROUND_TRIP_UM
-    # Where no limit binds and the root is missed, x_d sat inside the step |δ·u|·dt at a kink.
+    # Where no limit binds and the root is missed, x_d sat inside the step |δ·u|·dt at a
+    # kink, or inside a jump of x(u) itself: where the integrator's number of sub-steps
+    # changes (stiff intervals, n < 1 near h = 0) x(u) jumps by the difference of two
+    # discretisations, and the solver has narrowed the sign change of x(u) − x_d onto it.
     kink = 2 * abs(p.delta) * np.max(np.abs(u)) * DT + ROUND_TRIP_UM
-    assert np.max(np.abs(x - x_d)[free & ~exact], initial=0.0) <= kink
+    for k in np.flatnonzero(free & ~exact & (np.abs(x - x_d) > kink)):
+        below, _ = simulate(p, u[: k + 1] - np.eye(k + 1)[k] * 1e-6 * max(1.0, abs(u[k])), DT)
+        above, _ = simulate(p, u[: k + 1] + np.eye(k + 1)[k] * 1e-6 * max(1.0, abs(u[k])), DT)
+        assert (below[k] - x_d[k]) * (above[k] - x_d[k]) < 0, (k, x[k] - x_d[k])
 
 
 def test_reversal_of_a_slow_sine_costs_at_most_the_step_at_the_kink():
