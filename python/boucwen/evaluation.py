@@ -63,8 +63,10 @@ def period_ahead(
     """Runs `ident` over the record and scores its model period-ahead.
 
     At the start k₀ of every whole period (and of every segment) the identifier's
-    estimates and h (after sample k₀ − 1) are frozen and the model is simulated open
-    loop over the period from h, with the interval from u[k₀−1] to u[k₀] included.
+    estimates and state (after sample k₀ − 1) are frozen and its model is simulated open
+    loop over the period (``ident.forecast``: from h, with the interval from u[k₀−1] to
+    u[k₀] included, and with the effects the identifier identifies, e.g. the default
+    method's input lag).
 
     Args:
         ident: a fresh online identifier (it is pushed every sample of the record).
