@@ -8,8 +8,9 @@ posed, ≥ 95 % of pushes on the integrator's explicit path, and the period-ahea
 ≤ 2 × the traditional model's on every repeat and frequency. The last one does not
 hold for the paper method (see the xfail reason); those cases are strict xfails, so a
 change that makes them hold shows up. Over the full 30 repeats
-(``python -m boucwen.experiments.long_run``) horizon misses it too, at 1 Hz on 2 to 8
-of the 30 repeats (worst 2.4-3.2 x); three repeats do not show that.
+(``python -m boucwen.experiments.long_run``) both horizon forms hold all three; rpem
+misses the 2 x at 1 and 10 Hz on 4 of the 30 repeats (transient episodes after the
+200 Hz parts, worst 9.7 x, median 1.14 x); three repeats do not show that.
 """
 
 import math
