@@ -35,6 +35,12 @@ typedef enum {
 // Opaque bank of channels (identifier + model each).
 typedef struct BwBank BwBank;
 
+// Opaque horizon identifier.
+typedef struct BwHorizon BwHorizon;
+
+// Opaque inverse of the model (feedforward compensation).
+typedef struct BwInverse BwInverse;
+
 // Opaque per-sample model.
 typedef struct BwModel BwModel;
 
@@ -123,6 +129,54 @@ typedef struct {
   uint32_t shape_fit;
   uint32_t return_fit;
 } BwPaperStatus;
+
+// Tuning of the horizon method (see `HorizonConfig` in the Rust docs for each value's
+// meaning, units and default); fill it with `bw_horizon_config_default` first.
+typedef struct {
+  double memory_travel_v;
+  double recent_factor;
+  size_t max_window;
+  size_t samples_per_push;
+  double min_pass_fraction;
+  double ridge;
+  double damping;
+  double max_step;
+  double n_min;
+  double n_max;
+  double fc_min_hz;
+  double fc_max_hz;
+  double margin;
+  // Scales of kv, x0, A, β, γ, n, δ (their units) and of the window's initial h \[µm\].
+  double scales[8];
+} BwHorizonConfig;
+
+// What the last push of a horizon identifier did (see `HorizonStatus` in the Rust docs).
+typedef struct {
+  uint64_t samples;
+  bool updated;
+  uint64_t updates;
+  uint64_t window_samples;
+  // Input travel over the window \[V\].
+  double window_travel_v;
+  // RMS output error over the last pass \[µm\].
+  double rms_um;
+  double damping;
+  bool step_limited;
+  bool projected;
+} BwHorizonStatus;
+
+// What the last step of an inverse did: `clip` 0 = within the limits, 1 = on the
+// lower, 2 = on the upper limit.
+typedef struct {
+  uint32_t clip;
+  // Integrator evaluations in the step (at most 40).
+  uint32_t evaluations;
+  // Model displacement minus x_d after the step \[µm\].
+  double residual_um;
+  bool exact;
+  uint64_t samples;
+  uint64_t clipped_samples;
+} BwInverseStatus;
 
 #ifdef __cplusplus
 extern "C" {
@@ -248,6 +302,87 @@ BwStatus bw_paper_snapshot(const BwPaper *id, uint8_t *buf, size_t capacity, siz
 
 // A paper identifier rebuilt from snapshot bytes into `*out`.
 BwStatus bw_paper_restore(const uint8_t *buf, size_t len, BwPaper **out);
+
+// The horizon method's defaults.
+BwStatus bw_horizon_config_default(BwHorizonConfig *out);
+
+// A horizon identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
+// `config` or null for the defaults) into `*out`. `lag_fc_hz` > 0: an input lag
+// (amplifier bandwidth) is identified along, starting at that corner frequency \[Hz\]
+// (the recommended model starts at 0.3/dt, as `Identifier(dt, init)` in Python);
+// 0: the seven-parameter model alone. The window is allocated here, once.
+BwStatus bw_horizon_new(double dt,
+                        const BwParams *init,
+                        double h0,
+                        double lag_fc_hz,
+                        const BwHorizonConfig *config,
+                        BwHorizon **out);
+
+// Releases a horizon identifier (null is ignored).
+void bw_horizon_free(BwHorizon *id);
+
+// One sample (see `bw_rpem_push`). No allocation.
+BwStatus bw_horizon_push(BwHorizon *id, double u, double x, double *x_hat);
+
+// `len` samples at once (see `bw_rpem_push_many`).
+BwStatus bw_horizon_push_many(BwHorizon *id,
+                              const double *u,
+                              const double *x,
+                              size_t len,
+                              double *out);
+
+// The current estimates.
+BwStatus bw_horizon_params(const BwHorizon *id, BwParams *out);
+
+// The identified input lag's corner frequency \[Hz\] (0 without the lag).
+BwStatus bw_horizon_lag_fc(const BwHorizon *id, double *fc_hz);
+
+// What the last push did.
+BwStatus bw_horizon_status(const BwHorizon *id, BwHorizonStatus *out);
+
+// The model's h \[µm\] after the last sample.
+BwStatus bw_horizon_h(const BwHorizon *id, double *h);
+
+// The identified model (lag included) run open loop over the future voltages `u`
+// \[V\] from the last sample pushed, into `out` \[µm\]; the identifier does not change.
+BwStatus bw_horizon_forecast(const BwHorizon *id, const double *u, size_t len, double *out);
+
+// Back to the state right after construction.
+BwStatus bw_horizon_reset(BwHorizon *id);
+
+// The identifier's snapshot bytes (see `bw_model_snapshot`).
+BwStatus bw_horizon_snapshot(const BwHorizon *id, uint8_t *buf, size_t capacity, size_t *len);
+
+// A horizon identifier rebuilt from snapshot bytes into `*out`; it continues bit for bit.
+BwStatus bw_horizon_restore(const uint8_t *buf, size_t len, BwHorizon **out);
+
+// The inverse of the model with parameters `params`, `dt` \[s\], h `h0` \[µm\] and
+// voltage limits \[V\] (±INFINITY for none) into `*out`.
+BwStatus bw_inverse_new(const BwParams *params,
+                        double dt,
+                        double h0,
+                        double u_min,
+                        double u_max,
+                        BwInverse **out);
+
+// Releases an inverse (null is ignored).
+void bw_inverse_free(BwInverse *inv);
+
+// The voltage \[V\] to `*u` that makes the model reach the desired displacement `x_d`
+// \[µm\] at this sample. No allocation; at most 40 integrator evaluations.
+BwStatus bw_inverse_step(BwInverse *inv, double x_d, double *u);
+
+// New parameters from now on (e.g. an identifier's current estimates); h is kept.
+BwStatus bw_inverse_set_params(BwInverse *inv, const BwParams *params);
+
+// What the last step did.
+BwStatus bw_inverse_status(const BwInverse *inv, BwInverseStatus *out);
+
+// The model's h \[µm\] after the last step.
+BwStatus bw_inverse_h(const BwInverse *inv, double *h);
+
+// Back to the state right after construction.
+BwStatus bw_inverse_reset(BwInverse *inv);
 
 // A bank of `channels` rpem channels (identifier + model each), all starting from
 // `init`, h `h0` \[µm\], tuning `config` (null: defaults), into `*out`.

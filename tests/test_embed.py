@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import boucwen
-from boucwen import Bank, Identifier, Model, Params
+from boucwen import Bank, Identifier, Inverse, Model, Params
 
 ROOT = Path(__file__).resolve().parent.parent
 DT = 1e-4
@@ -127,8 +127,9 @@ def test_c_example_matches_python_to_the_last_bit(c_example, tmp_path):
     record.write_text("".join(f"{a!r} {b!r}\n" for a, b in zip(u.tolist(), x.tolist())))
     run = subprocess.run([str(c_example), str(record)], capture_output=True, text=True, check=True)
     lines = run.stdout.splitlines()
-    table = np.array([[float(v) for v in line.split()] for line in lines[:-1]])
-    estimates = [float(v) for v in lines[-1].split()]
+    table = np.array([[float(v) for v in line.split()] for line in lines[:-2]])
+    estimates = [float(v) for v in lines[-2].split()]
+    horizon_estimates = [float(v) for v in lines[-1].split()]
 
     model = Model(PAPER, DT)
     np.testing.assert_array_equal(table[:, 0], [model.step(float(v)) for v in u])
@@ -142,3 +143,9 @@ def test_c_example_matches_python_to_the_last_bit(c_example, tmp_path):
     bx = x[:, None] + 0.01 * np.arange(3)[None, :]
     np.testing.assert_array_equal(table[:, 3:6], bank.push_many(bu, bx))
     np.testing.assert_array_equal(estimates, rpem.params.to_array())
+    horizon = Identifier(DT, PAPER)  # the recommended model, lag from fc = 0.3/dt
+    np.testing.assert_array_equal(table[:, 6], horizon.push_many(u, x))
+    fc = horizon.effects.to_dict()["input_lag"]["fc_hz"]
+    np.testing.assert_array_equal(horizon_estimates, [*horizon.params.to_array(), fc])
+    inverse = Inverse(PAPER, DT)
+    np.testing.assert_array_equal(table[:, 7], [inverse.step(float(v)) for v in x])

@@ -56,7 +56,7 @@ def test_a_better_model_than_the_offline_fit_once_the_frequency_moves(bench):
 
 def test_the_default_identifies_the_amplifier_lag_and_forecasts_with_it():
     # The bench's amplifier has a 650 Hz corner; fast parts of the input reveal it.
-    _, u, segments = plant.paper_input(DT, ((1.0, 1.0), (100.0, 0.05), (200.0, 0.1)))
+    _, u, _ = plant.paper_input(DT, ((1.0, 1.0), (100.0, 0.05), (200.0, 0.1)))
     rec = plant.measure(u, DT, seed=2)
     fit = boucwen.fit(rec.u[:10_000], rec.x[:10_000], DT)
     ident = boucwen.Identifier(DT, fit.params, fit.h0)

@@ -1,4 +1,4 @@
-/* boucwen from C: the model, both online methods and a bank of channels on one record.
+/* boucwen from C: the model, the online methods, the inverse and a bank of channels on one record.
  *
  * Build (from the repository root):
  *   cargo build --release --features ffi
@@ -8,7 +8,9 @@
  * record.txt: one sample per line, "u x" (u [V], measured x [um]), 10 kHz.
  * Prints one line per sample, every value with %.17g (exact round trip):
  *   model(u)  rpem(u, x)  paper(u, x)  bank channel 0..2 (channel c sees u*(1 - 0.1c), x + 0.01c)
- * then the final rpem estimates. Exit code 1 on any error, with the message on stderr. */
+ *   horizon(u, x) (the recommended model: input lag identified from fc = 0.3/dt)  inverse(x)
+ *   (the voltage that makes the paper's model reach x)
+ * then the final rpem estimates, then the horizon's estimates and identified fc [Hz]. Exit code 1 on any error, with the message on stderr. */
 #include <stdio.h>
 #include <stdlib.h>
 
@@ -52,33 +54,44 @@ int main(int argc, char **argv) {
   BwRpem *rpem = NULL;
   BwPaper *paper = NULL;
   BwBank *bank = NULL;
+  BwHorizon *horizon = NULL;
+  BwInverse *inverse = NULL;
   BwPaperConfig paper_cfg;
   if (check(bw_params_paper_1hz(&p), "params") || check(bw_model_new(&p, dt, 0.0, &model), "model") ||
       check(bw_rpem_new(dt, &p, 0.0, NULL, &rpem), "rpem") ||
       check(bw_paper_config_default(200, &paper_cfg), "paper config") ||
       check(bw_paper_new(dt, &p, 0.0, &paper_cfg, &paper), "paper") ||
-      check(bw_bank_new_rpem(CHANNELS, dt, &p, 0.0, NULL, &bank), "bank"))
+      check(bw_bank_new_rpem(CHANNELS, dt, &p, 0.0, NULL, &bank), "bank") ||
+      check(bw_horizon_new(dt, &p, 0.0, 0.3 / dt, NULL, &horizon), "horizon") ||
+      check(bw_inverse_new(&p, dt, 0.0, -1.0 / 0.0, 1.0 / 0.0, &inverse), "inverse"))
     return 1;
 
   for (size_t k = 0; k < len; k++) {
-    double xm, xr, xp, bu[CHANNELS], bx[CHANNELS], bout[CHANNELS];
+    double xm, xr, xp, xh, ui, bu[CHANNELS], bx[CHANNELS], bout[CHANNELS];
     for (int c = 0; c < CHANNELS; c++) {
       bu[c] = u[k] * (1.0 - 0.1 * c);
       bx[c] = x[k] + 0.01 * c;
     }
     if (check(bw_model_step(model, u[k], &xm), "model step") || check(bw_rpem_push(rpem, u[k], x[k], &xr), "rpem push") ||
-        check(bw_paper_push(paper, u[k], x[k], &xp), "paper push") || check(bw_bank_push(bank, bu, bx, bout), "bank push"))
+        check(bw_paper_push(paper, u[k], x[k], &xp), "paper push") || check(bw_bank_push(bank, bu, bx, bout), "bank push") ||
+        check(bw_horizon_push(horizon, u[k], x[k], &xh), "horizon push") || check(bw_inverse_step(inverse, x[k], &ui), "inverse step"))
       return 1;
-    printf("%.17g %.17g %.17g %.17g %.17g %.17g\n", xm, xr, xp, bout[0], bout[1], bout[2]);
+    printf("%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", xm, xr, xp, bout[0], bout[1], bout[2], xh, ui);
   }
   BwParams est;
   if (check(bw_rpem_params(rpem, &est), "rpem params")) return 1;
   printf("%.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", est.kv, est.x0, est.a, est.beta, est.gamma, est.n, est.delta);
+  double fc;
+  if (check(bw_horizon_params(horizon, &est), "horizon params") || check(bw_horizon_lag_fc(horizon, &fc), "horizon fc"))
+    return 1;
+  printf("%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", est.kv, est.x0, est.a, est.beta, est.gamma, est.n, est.delta, fc);
 
   /* A rejected sample leaves the identifier as it was. */
   double dummy;
   if (bw_rpem_push(rpem, 0.0 / 0.0, 1.0, &dummy) != BW_NON_FINITE_SAMPLE) return 1;
 
+  bw_inverse_free(inverse);
+  bw_horizon_free(horizon);
   bw_bank_free(bank);
   bw_paper_free(paper);
   bw_rpem_free(rpem);

@@ -1,6 +1,6 @@
-//! The C ABI (feature `ffi`): the per-sample [`Model`], both online methods (`rpem`,
-//! `paper`), [`simulate`](crate::simulate) and the channel [`Bank`], behind opaque
-//! handles. The header `include/boucwen.h` is generated from this file by cbindgen
+//! The C ABI (feature `ffi`): the per-sample [`Model`], the online methods (`horizon`,
+//! the recommended one, `rpem`, `paper`), the [`Inverse`] of the model,
+//! [`simulate`](crate::simulate) and the channel [`Bank`], behind opaque handles. The header `include/boucwen.h` is generated from this file by cbindgen
 //! (`cbindgen.toml`; the test `rust/tests/ffi_header.rs` fails when it is stale).
 //!
 //! Conventions, for every function:
@@ -33,11 +33,13 @@ use core::ffi::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use crate::bank::Bank;
+use crate::compensate::{Clip, Inverse, InverseStatus, VoltageLimits};
+use crate::effects::{EffectSet, InputLag};
 use crate::error::Error;
 use crate::format::Snapshot;
 use crate::identify::{
-    AnyIdentifier, Decomposition, OnlineIdentifier, PaperConfig, PaperIdentifier, PaperStatus, RpemConfig,
-    RpemIdentifier, RpemStatus, SubFit,
+    AnyIdentifier, Decomposition, HorizonConfig, HorizonIdentifier, HorizonStatus, OnlineIdentifier, PaperConfig,
+    PaperIdentifier, PaperStatus, RpemConfig, RpemIdentifier, RpemStatus, SubFit,
 };
 use crate::model::Model;
 use crate::params::Params;
@@ -285,6 +287,133 @@ impl From<RpemStatus> for BwRpemStatus {
     }
 }
 
+/// Tuning of the horizon method (see `HorizonConfig` in the Rust docs for each value's
+/// meaning, units and default); fill it with `bw_horizon_config_default` first.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwHorizonConfig {
+    pub memory_travel_v: f64,
+    pub recent_factor: f64,
+    pub max_window: usize,
+    pub samples_per_push: usize,
+    pub min_pass_fraction: f64,
+    pub ridge: f64,
+    pub damping: f64,
+    pub max_step: f64,
+    pub n_min: f64,
+    pub n_max: f64,
+    pub fc_min_hz: f64,
+    pub fc_max_hz: f64,
+    pub margin: f64,
+    /// Scales of kv, x0, A, β, γ, n, δ (their units) and of the window's initial h \[µm\].
+    pub scales: [f64; 8],
+}
+
+impl From<HorizonConfig> for BwHorizonConfig {
+    fn from(c: HorizonConfig) -> Self {
+        BwHorizonConfig {
+            memory_travel_v: c.memory_travel_v,
+            recent_factor: c.recent_factor,
+            max_window: c.max_window,
+            samples_per_push: c.samples_per_push,
+            min_pass_fraction: c.min_pass_fraction,
+            ridge: c.ridge,
+            damping: c.damping,
+            max_step: c.max_step,
+            n_min: c.n_bounds.0,
+            n_max: c.n_bounds.1,
+            fc_min_hz: c.fc_bounds_hz.0,
+            fc_max_hz: c.fc_bounds_hz.1,
+            margin: c.margin,
+            scales: c.scales,
+        }
+    }
+}
+
+impl BwHorizonConfig {
+    fn to_config(self) -> HorizonConfig {
+        HorizonConfig {
+            memory_travel_v: self.memory_travel_v,
+            recent_factor: self.recent_factor,
+            max_window: self.max_window,
+            samples_per_push: self.samples_per_push,
+            min_pass_fraction: self.min_pass_fraction,
+            ridge: self.ridge,
+            damping: self.damping,
+            max_step: self.max_step,
+            n_bounds: (self.n_min, self.n_max),
+            fc_bounds_hz: (self.fc_min_hz, self.fc_max_hz),
+            margin: self.margin,
+            scales: self.scales,
+        }
+    }
+}
+
+/// What the last push of a horizon identifier did (see `HorizonStatus` in the Rust docs).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwHorizonStatus {
+    pub samples: u64,
+    pub updated: bool,
+    pub updates: u64,
+    pub window_samples: u64,
+    /// Input travel over the window \[V\].
+    pub window_travel_v: f64,
+    /// RMS output error over the last pass \[µm\].
+    pub rms_um: f64,
+    pub damping: f64,
+    pub step_limited: bool,
+    pub projected: bool,
+}
+
+impl From<HorizonStatus> for BwHorizonStatus {
+    fn from(s: HorizonStatus) -> Self {
+        BwHorizonStatus {
+            samples: s.samples,
+            updated: s.updated,
+            updates: s.updates,
+            window_samples: s.window_samples,
+            window_travel_v: s.window_travel_v,
+            rms_um: s.rms_um,
+            damping: s.damping,
+            step_limited: s.step_limited,
+            projected: s.projected,
+        }
+    }
+}
+
+/// What the last step of an inverse did: `clip` 0 = within the limits, 1 = on the
+/// lower, 2 = on the upper limit.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwInverseStatus {
+    pub clip: u32,
+    /// Integrator evaluations in the step (at most 40).
+    pub evaluations: u32,
+    /// Model displacement minus x_d after the step \[µm\].
+    pub residual_um: f64,
+    pub exact: bool,
+    pub samples: u64,
+    pub clipped_samples: u64,
+}
+
+impl From<InverseStatus> for BwInverseStatus {
+    fn from(s: InverseStatus) -> Self {
+        BwInverseStatus {
+            clip: match s.clip {
+                Clip::None => 0,
+                Clip::Low => 1,
+                Clip::High => 2,
+            },
+            evaluations: s.evaluations,
+            residual_um: s.residual_um,
+            exact: s.exact,
+            samples: s.samples,
+            clipped_samples: s.clipped_samples,
+        }
+    }
+}
+
 /// What the last push of a paper identifier did; each sub-fit 0 = held, 1 = reduced, 2 = ran.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -326,6 +455,10 @@ pub struct BwModel(Model);
 pub struct BwRpem(RpemIdentifier);
 /// Opaque paper identifier.
 pub struct BwPaper(PaperIdentifier);
+/// Opaque horizon identifier.
+pub struct BwHorizon(HorizonIdentifier);
+/// Opaque inverse of the model (feedforward compensation).
+pub struct BwInverse(Inverse);
 /// Opaque bank of channels (identifier + model each).
 pub struct BwBank(Bank<AnyIdentifier>);
 
@@ -728,6 +861,201 @@ pub unsafe extern "C" fn bw_paper_snapshot(
 #[no_mangle]
 pub unsafe extern "C" fn bw_paper_restore(buf: *const u8, len: usize, out: *mut *mut BwPaper) -> BwStatus {
     guard(|| boxed(out, BwPaper(PaperIdentifier::from_bytes(bytes(buf, len)?)?)))
+}
+
+// -- horizon ----------------------------------------------------------------------
+
+/// The horizon method's defaults.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_config_default(out: *mut BwHorizonConfig) -> BwStatus {
+    guard(|| put(out, HorizonConfig::default().into()))
+}
+
+/// A horizon identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
+/// `config` or null for the defaults) into `*out`. `lag_fc_hz` > 0: an input lag
+/// (amplifier bandwidth) is identified along, starting at that corner frequency \[Hz\]
+/// (the recommended model starts at 0.3/dt, as `Identifier(dt, init)` in Python);
+/// 0: the seven-parameter model alone. The window is allocated here, once.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_new(
+    dt: f64,
+    init: *const BwParams,
+    h0: f64,
+    lag_fc_hz: f64,
+    config: *const BwHorizonConfig,
+    out: *mut *mut BwHorizon,
+) -> BwStatus {
+    guard(|| {
+        let p = get(init)?.to_params()?;
+        let cfg = if config.is_null() { HorizonConfig::default() } else { (*config).to_config() };
+        let effects = if lag_fc_hz == 0.0 {
+            EffectSet::none()
+        } else {
+            EffectSet { input_lag: Some(InputLag { fc_hz: lag_fc_hz }), ..EffectSet::none() }
+        };
+        boxed(out, BwHorizon(HorizonIdentifier::with_effects(dt, p, &effects, h0, cfg)?))
+    })
+}
+
+/// Releases a horizon identifier (null is ignored).
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_free(id: *mut BwHorizon) {
+    release(id)
+}
+
+/// One sample (see `bw_rpem_push`). No allocation.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_push(id: *mut BwHorizon, u: f64, x: f64, x_hat: *mut f64) -> BwStatus {
+    guard(|| {
+        let id = get_mut(id)?;
+        if x_hat.is_null() {
+            return Err(BwStatus::BW_NULL_POINTER);
+        }
+        put(x_hat, id.0.push(u, x)?)
+    })
+}
+
+/// `len` samples at once (see `bw_rpem_push_many`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_push_many(
+    id: *mut BwHorizon,
+    u: *const f64,
+    x: *const f64,
+    len: usize,
+    out: *mut f64,
+) -> BwStatus {
+    guard(|| Ok(get_mut(id)?.0.push_many(slice(u, len)?, slice(x, len)?, slice_mut(out, len)?)?))
+}
+
+/// The current estimates.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_params(id: *const BwHorizon, out: *mut BwParams) -> BwStatus {
+    guard(|| put(out, get(id)?.0.params().into()))
+}
+
+/// The identified input lag's corner frequency \[Hz\] (0 without the lag).
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_lag_fc(id: *const BwHorizon, fc_hz: *mut f64) -> BwStatus {
+    guard(|| put(fc_hz, get(id)?.0.effects().input_lag.map_or(0.0, |l| l.fc_hz)))
+}
+
+/// What the last push did.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_status(id: *const BwHorizon, out: *mut BwHorizonStatus) -> BwStatus {
+    guard(|| put(out, get(id)?.0.status().into()))
+}
+
+/// The model's h \[µm\] after the last sample.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_h(id: *const BwHorizon, h: *mut f64) -> BwStatus {
+    guard(|| put(h, get(id)?.0.h()))
+}
+
+/// The identified model (lag included) run open loop over the future voltages `u`
+/// \[V\] from the last sample pushed, into `out` \[µm\]; the identifier does not change.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_forecast(
+    id: *const BwHorizon,
+    u: *const f64,
+    len: usize,
+    out: *mut f64,
+) -> BwStatus {
+    guard(|| Ok(get(id)?.0.forecast_into(slice(u, len)?, slice_mut(out, len)?)?))
+}
+
+/// Back to the state right after construction.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_reset(id: *mut BwHorizon) -> BwStatus {
+    guard(|| {
+        get_mut(id)?.0.reset();
+        Ok(())
+    })
+}
+
+/// The identifier's snapshot bytes (see `bw_model_snapshot`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_snapshot(
+    id: *const BwHorizon,
+    buf: *mut u8,
+    capacity: usize,
+    len: *mut usize,
+) -> BwStatus {
+    guard(|| write_snapshot(&get(id)?.0.to_bytes(), buf, capacity, len))
+}
+
+/// A horizon identifier rebuilt from snapshot bytes into `*out`; it continues bit for bit.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_restore(buf: *const u8, len: usize, out: *mut *mut BwHorizon) -> BwStatus {
+    guard(|| boxed(out, BwHorizon(HorizonIdentifier::from_bytes(bytes(buf, len)?)?)))
+}
+
+// -- inverse ----------------------------------------------------------------------
+
+/// The inverse of the model with parameters `params`, `dt` \[s\], h `h0` \[µm\] and
+/// voltage limits \[V\] (±INFINITY for none) into `*out`.
+#[no_mangle]
+pub unsafe extern "C" fn bw_inverse_new(
+    params: *const BwParams,
+    dt: f64,
+    h0: f64,
+    u_min: f64,
+    u_max: f64,
+    out: *mut *mut BwInverse,
+) -> BwStatus {
+    guard(|| {
+        let p = get(params)?.to_params()?;
+        let limits = VoltageLimits::new(Some(u_min), Some(u_max))?;
+        boxed(out, BwInverse(Inverse::new(p, dt, h0, limits)?))
+    })
+}
+
+/// Releases an inverse (null is ignored).
+#[no_mangle]
+pub unsafe extern "C" fn bw_inverse_free(inv: *mut BwInverse) {
+    release(inv)
+}
+
+/// The voltage \[V\] to `*u` that makes the model reach the desired displacement `x_d`
+/// \[µm\] at this sample. No allocation; at most 40 integrator evaluations.
+#[no_mangle]
+pub unsafe extern "C" fn bw_inverse_step(inv: *mut BwInverse, x_d: f64, u: *mut f64) -> BwStatus {
+    guard(|| {
+        let inv = get_mut(inv)?;
+        if u.is_null() {
+            return Err(BwStatus::BW_NULL_POINTER);
+        }
+        put(u, inv.0.step(x_d)?)
+    })
+}
+
+/// New parameters from now on (e.g. an identifier's current estimates); h is kept.
+#[no_mangle]
+pub unsafe extern "C" fn bw_inverse_set_params(inv: *mut BwInverse, params: *const BwParams) -> BwStatus {
+    guard(|| {
+        let p = get(params)?.to_params()?;
+        Ok(get_mut(inv)?.0.set_params(p)?)
+    })
+}
+
+/// What the last step did.
+#[no_mangle]
+pub unsafe extern "C" fn bw_inverse_status(inv: *const BwInverse, out: *mut BwInverseStatus) -> BwStatus {
+    guard(|| put(out, get(inv)?.0.status().into()))
+}
+
+/// The model's h \[µm\] after the last step.
+#[no_mangle]
+pub unsafe extern "C" fn bw_inverse_h(inv: *const BwInverse, h: *mut f64) -> BwStatus {
+    guard(|| put(h, get(inv)?.0.h()))
+}
+
+/// Back to the state right after construction.
+#[no_mangle]
+pub unsafe extern "C" fn bw_inverse_reset(inv: *mut BwInverse) -> BwStatus {
+    guard(|| {
+        get_mut(inv)?.0.reset();
+        Ok(())
+    })
 }
 
 // -- bank -------------------------------------------------------------------------

@@ -379,16 +379,26 @@ fn c_abi_push_does_not_allocate() {
         assert_eq!(bw_rpem_new(DT, &p, 0.0, std::ptr::null(), &mut id), BwStatus::BW_OK);
         let mut model: *mut BwModel = std::ptr::null_mut();
         assert_eq!(bw_model_new(&p, DT, 0.0, &mut model), BwStatus::BW_OK);
+        let mut horizon: *mut BwHorizon = std::ptr::null_mut();
+        assert_eq!(bw_horizon_new(DT, &p, 0.0, 0.3 / DT, std::ptr::null(), &mut horizon), BwStatus::BW_OK);
+        let mut inverse: *mut BwInverse = std::ptr::null_mut();
+        let inf = f64::INFINITY;
+        assert_eq!(bw_inverse_new(&p, DT, 0.0, -inf, inf, &mut inverse), BwStatus::BW_OK);
         let mut y = 0.0;
         let (n, ()) = allocations_during(|| {
             for k in 0..5_000 {
                 assert_eq!(bw_rpem_push(id, u[k], x[k], &mut y), BwStatus::BW_OK);
                 assert_eq!(bw_model_step(model, u[k], &mut y), BwStatus::BW_OK);
+                assert_eq!(bw_horizon_push(horizon, u[k], x[k], &mut y), BwStatus::BW_OK);
+                assert_eq!(bw_inverse_step(inverse, x[k], &mut y), BwStatus::BW_OK);
             }
+            assert_eq!(bw_horizon_push(horizon, f64::NAN, 0.0, &mut y), BwStatus::BW_NON_FINITE_SAMPLE);
         });
         assert_eq!(n, 0, "C-ABI pushes allocated {n} times");
         bw_rpem_free(id);
         bw_model_free(model);
+        bw_horizon_free(horizon);
+        bw_inverse_free(inverse);
     }
 }
 

@@ -236,9 +236,7 @@ class Record:
     model open loop from the state after sample k0 − 1, effects included)."""
 
 
-def record_run(
-    ident: Identifier, u: FloatArray, x: FloatArray, periods: Sequence[tuple[int, int]] = ()
-) -> Record:
+def record_run(ident: Identifier, u: FloatArray, x: FloatArray, periods: Sequence[tuple[int, int]] = ()) -> Record:
     """Pushes every sample and records the estimates and h after each push, and the
     identifier's forecast over each period ``(k0, k1)`` of `periods` at its start."""
     n = u.size
