@@ -137,6 +137,32 @@ pub fn sin(x: f64) -> f64 {
     }
 }
 
+/// Cosine (x in radians).
+#[inline(always)]
+pub fn cos(x: f64) -> f64 {
+    #[cfg(feature = "std")]
+    {
+        x.cos()
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        libm::cos(x)
+    }
+}
+
+/// The largest integer not above x.
+#[inline(always)]
+pub fn floor(x: f64) -> f64 {
+    #[cfg(feature = "std")]
+    {
+        x.floor()
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        libm::floor(x)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,13 +6,28 @@ from typing import Any
 
 import boucwen
 
-#: One of each effect, as ``EffectSet`` keyword arguments.
+#: One of each of the first five effects of the vocabulary (whose fit layout and starts
+#: the tests pin), as ``EffectSet`` keyword arguments.
 EVERY_EFFECT: dict[str, Any] = dict(
     creep={"tau_s": [0.01, 0.5], "gain_um_per_v": [0.003, 0.004]},
     input_lag={"fc_hz": 80.0},
     resonance={"fn_hz": 150.0, "zeta": 0.1},
     drift={"rate_um_per_s": 0.2},
     delay={"samples": 2},
+)
+
+#: One of each effect of the vocabulary, in signal-chain order (simulable at dt = 1 ms).
+WHOLE_VOCABULARY: dict[str, Any] = dict(
+    creep=EVERY_EFFECT["creep"],
+    input_lag=EVERY_EFFECT["input_lag"],
+    gain_drift={"rate_per_s": 0.01},
+    electrostriction={"epsilon_per_um": 0.004},
+    resonance=EVERY_EFFECT["resonance"],
+    resonance2={"fn_hz": 300.0, "zeta": 0.2},
+    drift=EVERY_EFFECT["drift"],
+    delay=EVERY_EFFECT["delay"],
+    pickup={"line_hz": 50.0, "sin_um": [0.1, 0.0], "cos_um": [0.02, 0.01]},
+    saturation={"min_um": -1.0, "max_um": 30.0},
 )
 
 

@@ -11,7 +11,22 @@ import pytest
 
 import boucwen
 import boucwen.lsq
-from boucwen import Creep, Delay, Drift, EffectSet, InputLag, Params, Resonance, effect_set, effects_of
+from boucwen import (
+    Creep,
+    Delay,
+    Drift,
+    EffectSet,
+    Electrostriction,
+    GainDrift,
+    InputLag,
+    Params,
+    Pickup,
+    Resonance,
+    Resonance2,
+    Saturation,
+    effect_set,
+    effects_of,
+)
 from boucwen.effects import (
     EFFECTS,
     VOCABULARY,
@@ -23,12 +38,14 @@ from boucwen.effects import (
     to_json,
 )
 from boucwen.record import validate_record
-from conftest import EVERY_EFFECT
+from conftest import EVERY_EFFECT, WHOLE_VOCABULARY
 
 P = Params.paper_1hz()
 DT = 1e-3
 INF = math.inf
-ALL = EVERY_EFFECT
+#: The effects whose layout and starts are pinned; ALL: the whole vocabulary.
+PINNED = EVERY_EFFECT
+ALL = WHOLE_VOCABULARY
 LABELS = [
     *["kv", "x0", "A", "beta", "gamma", "n", "delta", "h0"],
     *["creep.gain[0]", "creep.gain[1]", "input_lag.ln_fc", "resonance.ln_fn", "resonance.ln_zeta", "drift.rate"],
@@ -48,7 +65,7 @@ def _record():
 
 
 def test_layout_of_every_effect_is_unchanged():
-    e = EffectSet(**ALL)
+    e = EffectSet(**PINNED)
     lay = Layout.of(e, DT, 3.0)
     assert lay.labels() == LABELS
     assert lay.pack(P, e, 0.1).tolist() == V0
@@ -72,7 +89,7 @@ def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
 
     monkeypatch.setattr(boucwen.lsq.OutputErrorProblem, "solve", solve)
     with pytest.raises(_Stop):
-        fit_extended_record(_record(), P.replace(kv=kv), EffectSet(**ALL), 0.1)
+        fit_extended_record(_record(), P.replace(kv=kv), EffectSet(**PINNED), 0.1)
     gains = [0.003, 0.004] if kv > 0 else [-1e-09, -1e-09]
     assert seen["z0"].tolist() == [kv, *V0[1:8], *gains, *V0[10:]]
     sign_lo, sign_hi = ([0.0, 0.0], [INF, INF]) if kv > 0 else ([-INF, -INF], [0.0, 0.0])
@@ -98,7 +115,7 @@ STARTS = {
 
 @pytest.mark.parametrize("name", list(STARTS))
 def test_candidate_starts_are_unchanged(name):
-    others = EffectSet(**{k: v for k, v in ALL.items() if k != name})
+    others = EffectSet(**{k: v for k, v in PINNED.items() if k != name})
     starts = candidate_starts(name, _record(), P, others, 0.0, max_delay=4)
     assert [s.to_dict()[name] for s in starts] == STARTS[name]
     assert all(s.to_dict() == {**others.to_dict(), name: s.to_dict()[name]} for s in starts)
@@ -107,10 +124,17 @@ def test_candidate_starts_are_unchanged(name):
 TYPED = (
     Creep(tau_s=(0.01, 0.5), gain_um_per_v=(0.003, 0.004)),
     InputLag(fc_hz=80.0),
+    GainDrift(rate_per_s=0.01),
+    Electrostriction(epsilon_per_um=0.004),
     Resonance(fn_hz=150.0, zeta=0.1),
+    Resonance2(fn_hz=300.0, zeta=0.2),
     Drift(rate_um_per_s=0.2),
     Delay(samples=2),
+    Pickup(line_hz=50.0, sin_um=(0.1, 0.0), cos_um=(0.02, 0.01)),
+    Saturation(min_um=-1.0, max_um=30.0),
 )
+#: The typed effects of PINNED.
+TYPED_PINNED = tuple(e for e in TYPED if e.name in PINNED)
 
 
 def test_the_registry_is_the_core_vocabulary_in_chain_order():
@@ -164,6 +188,17 @@ def test_parameters_are_stored_as_the_core_holds_them():
         (lambda: Delay(1.5), TypeError, "delay.samples must be an integer"),
         (lambda: Creep(tau_s=(1.0, 2.0), gain_um_per_v=(0.1,)), ValueError, "creep.gain_um_per_v"),
         (lambda: Creep(tau_s=(0.0,), gain_um_per_v=(0.1,)), ValueError, "creep.tau_s"),
+        (lambda: GainDrift(math.nan), ValueError, "gain_drift.rate_per_s"),
+        (lambda: Electrostriction(math.inf), ValueError, "electrostriction.epsilon_per_um"),
+        (lambda: Resonance2(fn_hz=100.0, zeta=0.0), ValueError, "resonance2.zeta"),
+        (lambda: Resonance2(fn_hz=0.0, zeta=0.1), ValueError, "resonance2.fn_hz"),
+        (lambda: Pickup(line_hz=-50.0, sin_um=(0.0,), cos_um=(0.0,)), ValueError, "pickup.line_hz"),
+        (lambda: Pickup(line_hz=50.0, sin_um=(), cos_um=()), ValueError, "pickup.sin_um"),
+        (lambda: Pickup(line_hz=50.0, sin_um=(0.1,), cos_um=(0.1, 0.2)), ValueError, "pickup.cos_um"),
+        (lambda: Pickup(line_hz=50.0, sin_um=(math.nan,), cos_um=(0.0,)), ValueError, "pickup.sin_um"),
+        (lambda: Saturation(min_um=math.nan, max_um=1.0), ValueError, "saturation.min_um"),
+        (lambda: Saturation(min_um=2.0, max_um=1.0), ValueError, "saturation.max_um"),
+        (lambda: Saturation.from_dict({"min_um": 0.0}), ValueError, "saturation: missing parameter 'max_um'"),
         (lambda: InputLag.from_dict({"fc": 1.0}), ValueError, "input_lag: unknown parameter 'fc'"),
         (lambda: Resonance.from_dict({"fn_hz": 1.0}), ValueError, "resonance: missing parameter 'zeta'"),
         (lambda: Drift.from_dict(0.1), TypeError, "drift must be a dict"),
@@ -196,17 +231,25 @@ def test_bad_json_is_a_value_error_naming_the_culprit(text, words):
 
 
 def test_layout_of_typed_effects_is_the_layout_of_their_set():
-    typed = Layout(effects=TYPED, dt=DT, duration_s=3.0)
-    of_set = Layout.of(EffectSet(**ALL), DT, 3.0)
-    assert typed == of_set and typed.names == VOCABULARY
+    typed = Layout(effects=TYPED_PINNED, dt=DT, duration_s=3.0)
+    of_set = Layout.of(EffectSet(**PINNED), DT, 3.0)
+    assert typed == of_set and typed.names == tuple(PINNED)
+    whole = Layout(effects=TYPED, dt=DT, duration_s=3.0)
+    assert whole == Layout.of(EffectSet(**ALL), DT, 3.0) and whole.names == VOCABULARY
+    assert whole.labels() == [
+        *LABELS[:11],
+        *["gain_drift.rate", "electrostriction.epsilon", *LABELS[11:13], "resonance2.ln_fn", "resonance2.ln_zeta"],
+        *[LABELS[13], "pickup.sin[1]", "pickup.sin[2]", "pickup.cos[1]", "pickup.cos[2]"],
+        *["saturation.min", "saturation.max"],
+    ]
     assert typed.labels() == LABELS
-    v = typed.pack(P, effect_set(*TYPED), 0.1)
+    v = typed.pack(P, effect_set(*TYPED_PINNED), 0.1)
     assert v.tolist() == V0
     p, e, h0 = typed.unpack(v)
     assert p == P and h0 == 0.1
     np.testing.assert_allclose(typed.pack(p, e, h0), v, rtol=1e-15)
     creep, *_, delay = effects_of(e)
-    assert creep == TYPED[0] and delay == TYPED[-1]  # fitted exactly, and fixed
+    assert creep == TYPED[0] and delay == TYPED_PINNED[-1]  # fitted exactly, and fixed
     with pytest.raises(ValueError, match="layout is for the effects"):
         typed.pack(P, EffectSet(), 0.1)
 
@@ -218,3 +261,25 @@ def test_every_effect_declares_one_of_each_per_unknown():
         assert len(e.pack()) == n and len(e.bounds(ctx)) == n
         assert len(e.sign_bounds(1.0)) == n and len(e.typical(ctx, 100.0, 15.0)) == n
         assert type(e.unpack(e.pack())) is type(e)
+
+
+def test_starts_of_the_new_effects():
+    rec = _record()
+    n = len(rec)
+    others = EffectSet(**PINNED)
+
+    def starts(name):
+        return [s.to_dict()[name] for s in candidate_starts(name, rec, P, others, 0.0, max_delay=4)]
+
+    assert starts("gain_drift") == [{"rate_per_s": 0.0}]
+    assert starts("electrostriction") == [{"epsilon_per_um": 0.0}]
+    assert starts("resonance2") == STARTS["resonance"]
+    assert starts("saturation") == [{"min_um": float(rec.x.min()), "max_um": float(rec.x.max())}]
+    # 50 and 60 Hz, three harmonics each below the 500 Hz Nyquist frequency, the
+    # amplitudes fitted to the residual of the current model.
+    lines = starts("pickup")
+    assert [(p["line_hz"], len(p["sin_um"]), len(p["cos_um"])) for p in lines] == [(50.0, 3, 3), (60.0, 3, 3)]
+    coarse = validate_record(rec.u[::8], rec.x[::8], 8 * DT)  # Nyquist 62.5 Hz: one harmonic each
+    got = [s.to_dict()["pickup"] for s in candidate_starts("pickup", coarse, P, EffectSet(), 0.0)]
+    assert [(p["line_hz"], len(p["sin_um"])) for p in got] == [(50.0, 1), (60.0, 1)]
+    assert n == 3001

@@ -9,7 +9,7 @@ import pytest
 from boucwen import EffectSet, Params, simulate, simulate_extended
 from boucwen.effects import Layout, best_delay, creep_time_constants, fit_extended
 from boucwen.record import validate_record
-from conftest import EVERY_EFFECT
+from conftest import EVERY_EFFECT, WHOLE_VOCABULARY
 
 P = Params.paper_1hz()
 DT = 1e-3
@@ -27,7 +27,13 @@ ALL = EVERY_EFFECT
 def test_round_trips_and_vocabulary():
     e = EffectSet(**ALL)
     assert e.names == ["creep", "input_lag", "resonance", "drift", "delay"]
-    assert EffectSet.vocabulary == e.names
+    assert EffectSet.vocabulary == [
+        *["creep", "input_lag", "gain_drift", "electrostriction", "resonance", "resonance2"],
+        *["drift", "delay", "pickup", "saturation"],
+    ]
+    whole = EffectSet(**WHOLE_VOCABULARY)
+    assert whole.names == EffectSet.vocabulary
+    assert EffectSet.from_dict(whole.to_dict()) == whole and pickle.loads(pickle.dumps(whole)) == whole
     assert EffectSet.from_dict(e.to_dict()) == e
     assert pickle.loads(pickle.dumps(e)) == e
     assert eval(repr(e), {"EffectSet": EffectSet}) == e

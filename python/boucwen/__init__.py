@@ -11,8 +11,10 @@ Precision Engineering 38 (2014) 921–927).
   :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
-  each effect is a typed object (:class:`Creep`, :class:`InputLag`, :class:`Resonance`,
-  :class:`Drift`, :class:`Delay`; :func:`effect_set` and :func:`effects_of` convert);
+  each effect is a typed object (:class:`Creep`, :class:`InputLag`, :class:`GainDrift`,
+  :class:`Electrostriction`, :class:`Resonance`, :class:`Resonance2`, :class:`Drift`,
+  :class:`Delay`, :class:`Pickup`, :class:`Saturation`; :func:`effect_set` and
+  :func:`effects_of` convert);
 - :class:`Inverse` and :func:`invert` give the voltage for a desired displacement,
   :class:`Compensator` does so in a control loop with online identification and feedback;
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
@@ -34,7 +36,20 @@ from ._core import (
 )
 from .config import HorizonConfig, PaperConfig, RpemConfig
 from .diagnosis import Diagnosis, diagnose
-from .effects import Creep, Delay, Drift, InputLag, Resonance, effect_set, effects_of
+from .effects import (
+    Creep,
+    Delay,
+    Drift,
+    Electrostriction,
+    GainDrift,
+    InputLag,
+    Pickup,
+    Resonance,
+    Resonance2,
+    Saturation,
+    effect_set,
+    effects_of,
+)
 from .fit import FitResult, fit
 
 __all__ = [
@@ -45,7 +60,9 @@ __all__ = [
     "Diagnosis",
     "Drift",
     "EffectSet",
+    "Electrostriction",
     "FitResult",
+    "GainDrift",
     "HorizonConfig",
     "Identifier",
     "InputLag",
@@ -53,8 +70,11 @@ __all__ = [
     "Model",
     "PaperConfig",
     "Params",
+    "Pickup",
     "Resonance",
+    "Resonance2",
     "RpemConfig",
+    "Saturation",
     "__version__",
     "diagnose",
     "effect_set",

@@ -376,6 +376,29 @@ class _ResonanceParams(TypedDict):
     fn_hz: float
     zeta: float
 
+class _GainDriftParams(TypedDict):
+    """``gain_drift``: kv(t) = kv·(1 + r·t), relative rate r [1/s]."""
+
+    rate_per_s: float
+
+class _ElectrostrictionParams(TypedDict):
+    """``electrostriction``: s = kv·u_a + h becomes s + ε·s², ε [1/µm]."""
+
+    epsilon_per_um: float
+
+class _PickupParams(TypedDict):
+    """``pickup``: line frequency [Hz], sine and cosine amplitudes of harmonics 1 … K [µm]."""
+
+    line_hz: float
+    sin_um: list[float]
+    cos_um: list[float]
+
+class _SaturationParams(TypedDict):
+    """``saturation``: the sensor's range [µm]."""
+
+    min_um: float
+    max_um: float
+
 class _DriftParams(TypedDict):
     """``drift``: a trend of the output [µm/s]."""
 
@@ -391,9 +414,14 @@ class _EffectParams(TypedDict, total=False):
 
     creep: _CreepParams
     input_lag: _InputLagParams
+    gain_drift: _GainDriftParams
+    electrostriction: _ElectrostrictionParams
     resonance: _ResonanceParams
+    resonance2: _ResonanceParams
     drift: _DriftParams
     delay: _DelayParams
+    pickup: _PickupParams
+    saturation: _SaturationParams
 
 @final
 class Bank:
@@ -454,8 +482,11 @@ class EffectSet:
     """Which effects surround the base model, with their parameters (see boucwen.effects).
 
     creep={"tau_s": [s…], "gain_um_per_v": [µm/V…]}, input_lag={"fc_hz": Hz},
-    resonance={"fn_hz": Hz, "zeta": -}, drift={"rate_um_per_s": µm/s},
-    delay={"samples": int ≥ 0}; None = absent. Invalid values raise ValueError.
+    gain_drift={"rate_per_s": 1/s}, electrostriction={"epsilon_per_um": 1/µm},
+    resonance={"fn_hz": Hz, "zeta": -}, resonance2={"fn_hz": Hz, "zeta": -},
+    drift={"rate_um_per_s": µm/s}, delay={"samples": int ≥ 0},
+    pickup={"line_hz": Hz, "sin_um": [µm…], "cos_um": [µm…]},
+    saturation={"min_um": µm, "max_um": µm}; None = absent. Invalid values raise ValueError.
     Typed: boucwen.effect_set(InputLag(650.0), …) and boucwen.effects_of(s)."""
 
     vocabulary: ClassVar[list[str]]
@@ -464,9 +495,14 @@ class EffectSet:
         *,
         creep: _CreepParams | None = None,
         input_lag: _InputLagParams | None = None,
+        gain_drift: _GainDriftParams | None = None,
+        electrostriction: _ElectrostrictionParams | None = None,
         resonance: _ResonanceParams | None = None,
+        resonance2: _ResonanceParams | None = None,
         drift: _DriftParams | None = None,
         delay: _DelayParams | None = None,
+        pickup: _PickupParams | None = None,
+        saturation: _SaturationParams | None = None,
     ) -> EffectSet: ...
     @property
     def names(self) -> list[str]:
@@ -480,8 +516,9 @@ class EffectSet:
 def simulate_extended(
     params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float = 0.0
 ) -> NDArray[np.float64]:
-    """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen + creep) →
-    resonance → + drift → delay. GIL released."""
+    """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen with gain_drift
+    and electrostriction, + creep) → resonance → resonance2 → + drift → delay → + pickup
+    → saturation. GIL released."""
 
 # ---------------------------------------------------------------- compensation
 
@@ -517,9 +554,11 @@ class Inverse:
     slope, then Illinois inside a bracket: at most 40 evaluations of Φ per sample.
 
     ``effects``: an :class:`EffectSet` whose ``input_lag`` (exact one-sample lead),
-    ``creep``, ``drift`` and ``delay`` (the reference is then read ``delay`` samples
-    ahead: ``step`` takes x_d of sample k + d) are inverted too; a ``resonance``
-    raises ``ValueError``. Pickles and copies with its state.
+    ``creep``, ``gain_drift`` (kv(t)), ``electrostriction`` (the quadratic stroke),
+    ``drift`` and ``delay`` (the reference is then read ``delay`` samples ahead:
+    ``step`` takes x_d of sample k + d) are inverted too; ``pickup`` and
+    ``saturation`` (in the reading only) are ignored; a ``resonance`` or
+    ``resonance2`` raises ``ValueError``. Pickles and copies with its state.
     """
 
     def __new__(

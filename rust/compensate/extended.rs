@@ -3,8 +3,11 @@
 //! The chain of [`crate::effects::ExtendedModel`], per sample interval:
 //!
 //! ```text
-//! u ─► input_lag ─► u_a ─► kv·u_a + x0 + h(u_a) + creep(u_a) = y ─► + drift·t ─► delay d ─► x
+//! u ─► input_lag ─► u_a ─► x0 + Q(kv(t)·u_a + h(u_a)) + creep(u_a) = y ─► + drift·t ─► delay d ─► x
 //! ```
+//!
+//! with Q(s) = s + ε·s² (electrostriction; Q(s) = s without it) and kv(t) = kv·(1 + r·t)
+//! (gain_drift; kv without it).
 //!
 //! Which effects are inverted, and how:
 //!
@@ -22,20 +25,32 @@
 //!   Σ gᵢ·(1 − spreadᵢ) joins kv in the equation and the rest of its state joins the
 //!   offset; the root is found with the same solver and integrator as the base
 //!   inverse ([`crate::compensate::inverse`]).
+//! - **gain_drift**: kv(t_k) takes the place of kv in the sample's equation.
+//! - **electrostriction**: the target of s = kv(t)·u_a + h is Q⁻¹ of the rest,
+//!   s = 2q/(1 + √(1 + 4ε·q)), the root on the rising branch of Q (where q lies below
+//!   Q's extreme, the extreme). Creep's immediate share depends on u_a too, so with
+//!   creep the equation in s is solved again with the creep's share at the u_a found,
+//!   until u_a settles (the share is a small fraction of kv: two or three passes). On the
+//!   first sample the equation is a quadratic in s and is solved at once.
 //! - **drift**: subtracted from the target, y_k = x_d − rate·t_k.
 //! - **delay** of d samples: x_k+d = y_k, so the inverse needs the reference d samples
 //!   ahead (preview): [`ExtendedInverse::step`] takes x_d,k+d, and [`invert_extended`]
 //!   shifts the record (the last value is held at the end; the first d outputs of
 //!   the delayed model cannot be influenced).
-//! - **resonance** is not inverted (its inverse, a second-order lead, is not part of
-//!   this crate): an effect set with a resonance is rejected.
+//! - **resonance** and **resonance2** are not inverted (their inverse, a second-order
+//!   lead, is not part of this crate): an effect set with either is rejected.
+//! - **pickup** and **saturation** are in the sensor's reading, not in the stack's
+//!   motion: the inverse aims at the displacement before them and ignores them (the
+//!   reading of the commanded motion still carries the pickup and the clip).
 //!
 //! With no effects the result equals [`super::Inverse`]'s.
 
+use super::inverse::Solution;
 use super::inverse::{first_sample_voltage, solve, tolerance, Clip, IntervalEquation, InverseStatus, VoltageLimits};
-use crate::effects::{first_order_coefficient, first_order_step, EffectSet};
+use crate::effects::electrostriction::quadratic_root;
+use crate::effects::{first_order_coefficient, first_order_step, stack_output, EffectSet, Electrostriction};
 use crate::error::{finite_sample, positive_dt, Error, Result};
-use crate::model::{advance_h, output};
+use crate::model::advance_h;
 use crate::params::Params;
 use alloc::vec;
 use alloc::vec::Vec;
@@ -102,11 +117,12 @@ impl ExtendedInverse {
         positive_dt(dt)?;
         finite_sample("h0", h0)?;
         limits.validate()?;
-        if effects.resonance.is_some() {
+        if effects.resonance.is_some() || effects.resonance2.is_some() {
             return Err(Error::InvalidConfig {
                 name: "effects",
                 value: f64::NAN,
-                reason: "a resonance is not inverted (input_lag, creep, drift and delay are)",
+                reason:
+                    "a resonance is not inverted (input_lag, creep, gain_drift, electrostriction, drift and delay are)",
             });
         }
         let lag = effects.input_lag.map(|l| AffineStep::new(l.tau_s(), dt));
@@ -144,12 +160,21 @@ impl ExtendedInverse {
         let target = x_d_ahead - self.effects.drift.map_or(0.0, |d| d.at(t));
         let tol = tolerance(x_d_ahead);
         let gains: &[f64] = self.effects.creep.as_ref().map_or(&[], |c| &c.gain_um_per_v);
+        let kv = self.effects.gain_drift.map_or(p.kv, |g| p.kv * g.factor(t));
+        let electro = self.effects.electrostriction;
         let s = &mut self.state;
         let (u, clip, evaluations) = match s.u_prev {
             None => {
                 // As ExtendedModel's first sample: u_a = u, cᵢ = gᵢ·u, h = h0.
-                let gain = p.kv + gains.iter().sum::<f64>();
-                let (u, clip) = first_sample_voltage(gain, p.x0 + s.h - target, &self.limits);
+                let (u, clip) = match electro {
+                    None => first_sample_voltage(kv + gains.iter().sum::<f64>(), p.x0 + s.h - target, &self.limits),
+                    Some(e) => {
+                        // x0 + s + ε·s² + G·(s − h)/kv = target with s = kv·u + h.
+                        let ratio = gains.iter().sum::<f64>() / kv;
+                        let sv = quadratic_root(e.epsilon_per_um, 1.0 + ratio, p.x0 - ratio * s.h - target);
+                        first_sample_voltage(kv, s.h - sv, &self.limits)
+                    }
+                };
                 s.ua_prev = u;
                 for (c, g) in s.creep.iter_mut().zip(gains) {
                     *c = g * u;
@@ -162,16 +187,29 @@ impl ExtendedInverse {
                     Some(l) => (l.w1, l.w0 * u_prev + l.decay * s.ua_prev),
                     None => (1.0, 0.0),
                 };
-                let mut linear = p.kv;
-                let mut offset = p.x0 - target;
-                for ((c, g), step) in s.creep.iter().zip(gains).zip(&self.creep_steps) {
-                    linear += g * step.w1;
-                    offset += step.decay * c + g * step.w0 * s.ua_prev;
-                }
-                let eq = IntervalEquation { p, h: s.h, w_prev: s.ua_prev, dt: self.dt, linear, offset };
                 let w_lo = lag_scale * self.limits.min_v + lag_rest;
                 let w_hi = lag_scale * self.limits.max_v + lag_rest;
-                let sol = solve(&eq, w_lo, w_hi, tol);
+                let sol = match electro {
+                    None => {
+                        let mut linear = kv;
+                        let mut offset = p.x0 - target;
+                        for ((c, g), step) in s.creep.iter().zip(gains).zip(&self.creep_steps) {
+                            linear += g * step.w1;
+                            offset += step.decay * c + g * step.w0 * s.ua_prev;
+                        }
+                        let eq = IntervalEquation { p, h: s.h, w_prev: s.ua_prev, dt: self.dt, linear, offset };
+                        solve(&eq, w_lo, w_hi, tol)
+                    }
+                    Some(e) => {
+                        let (mut creep_linear, mut creep_rest) = (0.0, 0.0);
+                        for ((c, g), step) in s.creep.iter().zip(gains).zip(&self.creep_steps) {
+                            creep_linear += g * step.w1;
+                            creep_rest += step.decay * c + g * step.w0 * s.ua_prev;
+                        }
+                        let stroke = Stroke { kv, electro: e, rest: p.x0 + creep_rest - target, creep_linear };
+                        stroke.solve(p, s.h, s.ua_prev, self.dt, (w_lo, w_hi), tol)
+                    }
+                };
                 // A hold of a settled lag (u_a = u) is the command held: exact, no rounding.
                 let settled_hold = sol.w == s.ua_prev && s.ua_prev == u_prev;
                 let wanted = if settled_hold { u_prev } else { (sol.w - lag_rest) / lag_scale };
@@ -192,7 +230,7 @@ impl ExtendedInverse {
         };
         s.u_prev = Some(u);
         s.samples += 1;
-        let y = output(p, s.ua_prev, s.h) + s.creep.iter().sum::<f64>();
+        let y = stack_output(p, &self.effects, s.ua_prev, s.h, t) + s.creep.iter().sum::<f64>();
         let residual = y - target;
         self.status = InverseStatus {
             clip,
@@ -289,6 +327,41 @@ impl ExtendedInverse {
     }
 }
 
+/// Passes of [`Stroke::solve`] at most.
+const MAX_STROKE_PASSES: u32 = 8;
+
+/// The sample's equation with electrostriction: x0 + Q(kv·w + h(w)) + creep(w) = target,
+/// creep(w) = `creep_linear`·w + the rest; `rest` = x0 + creep's rest − target.
+struct Stroke {
+    kv: f64,
+    electro: Electrostriction,
+    rest: f64,
+    creep_linear: f64,
+}
+
+impl Stroke {
+    /// Solves for w within `range`: the base equation kv·w + h(w) = Q⁻¹(−rest −
+    /// creep_linear·w), w held at the last pass's value until it settles.
+    fn solve(&self, p: &Params, h: f64, w_prev: f64, dt: f64, range: (f64, f64), tol: f64) -> Solution {
+        let mut w = w_prev;
+        let mut evaluations = 0;
+        let mut passes = 0;
+        loop {
+            let target_s = self.electro.invert(-self.rest - self.creep_linear * w);
+            let eq = IntervalEquation { p, h, w_prev, dt, linear: self.kv, offset: -target_s };
+            let mut sol = solve(&eq, range.0, range.1, tol);
+            evaluations += sol.evaluations;
+            passes += 1;
+            let settled = self.creep_linear == 0.0 || (sol.w - w).abs() <= 1e-13 * w.abs().max(1.0);
+            if settled || passes >= MAX_STROKE_PASSES {
+                sol.evaluations = evaluations;
+                return sol;
+            }
+            w = sol.w;
+        }
+    }
+}
+
 /// Inverts a whole record through the extended model: the commands u \[V\] for the
 /// desired sensor readings `x_d` \[µm\] sampled every `dt` \[s\], from h = `h0` \[µm\].
 /// With a delay of d samples the reference is read d samples ahead (the last value
@@ -317,7 +390,10 @@ pub fn invert_extended(
 mod tests {
     use super::*;
     use crate::compensate::inverse::invert;
-    use crate::effects::{simulate_extended, Creep, Delay, Drift, InputLag, Resonance};
+    use crate::effects::{
+        simulate_extended, Creep, Delay, Drift, Electrostriction, GainDrift, InputLag, Pickup, Resonance, Resonance2,
+        Saturation,
+    };
     use crate::model::paper_input;
 
     fn lag_creep_delay() -> EffectSet {
@@ -395,5 +471,52 @@ mod tests {
         let before = inv.clone();
         assert!(inv.step(f64::NAN).is_err());
         assert_eq!(inv, before);
+    }
+
+    #[test]
+    fn round_trip_through_gain_drift_and_electrostriction_with_the_rest() {
+        let dt = 1e-4;
+        let p = Params::paper_1hz();
+        let effects = EffectSet {
+            gain_drift: Some(GainDrift { rate_per_s: 0.02 }),
+            electrostriction: Some(Electrostriction { epsilon_per_um: 0.004 }),
+            ..lag_creep_delay()
+        };
+        let u_true = paper_input(dt, 0.02);
+        let x_d = simulate_extended(&p, &effects, &u_true, dt, 0.0).unwrap();
+        let (u, _) = invert_extended(&p, &effects, &x_d, dt, 0.0, VoltageLimits::NONE).unwrap();
+        let x = simulate_extended(&p, &effects, &u, dt, 0.0).unwrap();
+        let d = 2;
+        let worst = (d..x.len() - d).map(|k| (x[k] - x_d[k]).abs()).fold(0.0, f64::max);
+        eprintln!("gain drift + electrostriction round trip {worst:.2e} µm");
+        assert!(worst <= 1e-9, "{worst}");
+        // Each alone, without creep (one pass of the stroke equation), from the first sample.
+        for alone in [
+            EffectSet { electrostriction: Some(Electrostriction { epsilon_per_um: -0.01 }), ..EffectSet::none() },
+            EffectSet { gain_drift: Some(GainDrift { rate_per_s: -0.05 }), ..EffectSet::none() },
+        ] {
+            let x_d = simulate_extended(&p, &alone, &u_true, dt, 0.0).unwrap();
+            let (u, _) = invert_extended(&p, &alone, &x_d, dt, 0.0, VoltageLimits::NONE).unwrap();
+            let x = simulate_extended(&p, &alone, &u, dt, 0.0).unwrap();
+            let worst = x.iter().zip(&x_d).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            assert!(worst <= 1e-9, "{:?}: {worst}", alone.names());
+        }
+    }
+
+    #[test]
+    fn pickup_and_saturation_are_left_to_the_reading() {
+        let dt = 1e-4;
+        let p = Params::paper_1hz();
+        let x_d: Vec<f64> = (0..3000).map(|k| 9.0 - 8.0 * (k as f64 * 0.003).cos()).collect();
+        let reading = EffectSet {
+            pickup: Some(Pickup { line_hz: 50.0, sin_um: vec![0.2], cos_um: vec![0.1] }),
+            saturation: Some(Saturation { min_um: 0.0, max_um: 15.0 }),
+            ..lag_creep_delay()
+        };
+        let (with, _) = invert_extended(&p, &reading, &x_d, dt, 0.0, VoltageLimits::NONE).unwrap();
+        let (without, _) = invert_extended(&p, &lag_creep_delay(), &x_d, dt, 0.0, VoltageLimits::NONE).unwrap();
+        assert_eq!(with, without);
+        let two = EffectSet { resonance2: Some(Resonance2 { fn_hz: 1000.0, zeta: 0.1 }), ..EffectSet::none() };
+        assert!(ExtendedInverse::new(p, two, 1e-4, 0.0, VoltageLimits::NONE).is_err());
     }
 }

@@ -4,30 +4,40 @@
 //!
 //! ```text
 //! u (command, V) ─► input_lag ─► u_a (on the stack, V)
-//! u_a ─► Bouc–Wen, eqs. (3)+(5): kv·u_a + x0 + h ─┐
-//! u_a ─► creep: Σ first-order elements ────────────┴─► y (stack, µm)
-//! y ─► resonance (2nd order, unit static gain) ─► z (µm)
-//! z + drift·t ─► delay by d samples ─► x (sensor, µm)
+//! u_a ─► Bouc–Wen, eqs. (3)+(5): s = kv(t)·u_a + h,  kv(t) = kv·(1 + gain_drift·t)
+//! s ─► electrostriction: s + ε·s² ─► + x0 ─┐
+//! u_a ─► creep: Σ first-order elements ─────┴─► y (stack, µm)
+//! y ─► resonance (2nd order, unit static gain) ─► resonance2 (the same) ─► z (µm)
+//! z + drift·t ─► delay by d samples ─► + pickup(t) ─► saturation ─► x (sensor, µm)
 //! ```
 //!
 //! Each effect is optional; with none, the chain is the base model exactly. The
-//! names of [`EffectSet::NAMES`] (`creep`, `input_lag`, `resonance`, `drift`,
-//! `delay`) are the vocabulary of the diagnosis. Every effect validates its own
+//! names of [`EffectSet::NAMES`] (`creep`, `input_lag`, `gain_drift`,
+//! `electrostriction`, `resonance`, `resonance2`, `drift`, `delay`, `pickup`,
+//! `saturation`) are the vocabulary of the diagnosis. Every effect validates its own
 //! parameters ([`Effect::validate`]) with a message that names the parameter.
 //!
 //! The voltage is a straight line between samples; the first-order stages (lag,
-//! creep) and the resonance are stepped exactly for such an input. With a resonance,
-//! the chain runs on [`RESONANCE_SUBSTEPS`] sub-intervals per sample, because the
-//! stack's displacement is not a straight line within a fast voltage step (h bends)
-//! and a lightly damped resonance responds to that shape. Everything starts
-//! at rest in equilibrium with the first sample: u_a = u\[0\], c_i = g_i·u\[0\],
-//! z = y\[0\], ż = 0, no trend, the delay line full of the first value.
+//! creep) and the resonances are stepped exactly for such an input (the second mode's
+//! input, the first mode's output, to within its curvature over a sub-step). With a
+//! resonance, the chain runs on [`RESONANCE_SUBSTEPS`] sub-intervals per sample,
+//! because the stack's displacement is not a straight line within a fast voltage step
+//! (h bends) and a lightly damped resonance responds to that shape. The algebraic
+//! stages (gain_drift, electrostriction, pickup, saturation) are exact at every
+//! instant they are evaluated at. Everything starts at rest in equilibrium with the
+//! first sample: u_a = u\[0\], c_i = g_i·u\[0\], z = y\[0\], ż = 0, no trend, the
+//! delay line full of the first value.
 
 pub mod creep;
 pub mod delay;
 pub mod drift;
+pub mod electrostriction;
+pub mod gain_drift;
 pub mod input_lag;
+pub mod pickup;
 pub mod resonance;
+pub mod resonance2;
+pub mod saturation;
 
 use alloc::vec;
 use alloc::vec::Vec;
@@ -37,8 +47,13 @@ use nalgebra::Vector2;
 pub use creep::Creep;
 pub use delay::Delay;
 pub use drift::Drift;
+pub use electrostriction::Electrostriction;
+pub use gain_drift::GainDrift;
 pub use input_lag::InputLag;
+pub use pickup::Pickup;
 pub use resonance::Resonance;
+pub use resonance2::Resonance2;
+pub use saturation::Saturation;
 
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::model::{advance_h, output};
@@ -78,14 +93,30 @@ pub(crate) fn first_order_step(y: f64, v0: f64, v1: f64, tau: f64, decay: f64, d
 pub struct EffectSet {
     pub creep: Option<Creep>,
     pub input_lag: Option<InputLag>,
+    pub gain_drift: Option<GainDrift>,
+    pub electrostriction: Option<Electrostriction>,
     pub resonance: Option<Resonance>,
+    pub resonance2: Option<Resonance2>,
     pub drift: Option<Drift>,
     pub delay: Option<Delay>,
+    pub pickup: Option<Pickup>,
+    pub saturation: Option<Saturation>,
 }
 
 impl EffectSet {
     /// The vocabulary, in the order of the signal chain.
-    pub const NAMES: [&'static str; 5] = [Creep::NAME, InputLag::NAME, Resonance::NAME, Drift::NAME, Delay::NAME];
+    pub const NAMES: [&'static str; 10] = [
+        Creep::NAME,
+        InputLag::NAME,
+        GainDrift::NAME,
+        Electrostriction::NAME,
+        Resonance::NAME,
+        Resonance2::NAME,
+        Drift::NAME,
+        Delay::NAME,
+        Pickup::NAME,
+        Saturation::NAME,
+    ];
 
     /// No effect: the base model.
     pub fn none() -> Self {
@@ -97,9 +128,14 @@ impl EffectSet {
         let present = [
             name_if(&self.creep),
             name_if(&self.input_lag),
+            name_if(&self.gain_drift),
+            name_if(&self.electrostriction),
             name_if(&self.resonance),
+            name_if(&self.resonance2),
             name_if(&self.drift),
             name_if(&self.delay),
+            name_if(&self.pickup),
+            name_if(&self.saturation),
         ];
         present.into_iter().flatten().collect()
     }
@@ -108,10 +144,34 @@ impl EffectSet {
     pub fn validate(&self) -> Result<()> {
         validate_if(&self.creep)?;
         validate_if(&self.input_lag)?;
+        validate_if(&self.gain_drift)?;
+        validate_if(&self.electrostriction)?;
         validate_if(&self.resonance)?;
+        validate_if(&self.resonance2)?;
         validate_if(&self.drift)?;
-        validate_if(&self.delay)
+        validate_if(&self.delay)?;
+        validate_if(&self.pickup)?;
+        validate_if(&self.saturation)
     }
+
+    /// The names of the effects present that are not among `supported`, for the
+    /// methods that understand part of the vocabulary only.
+    pub fn unsupported(&self, supported: &[&str]) -> Vec<&'static str> {
+        self.names().into_iter().filter(|n| !supported.contains(n)).collect()
+    }
+}
+
+/// The stack's displacement without creep \[µm\] at time `t` \[s\]: x0 + s (+ ε·s²),
+/// s = kv(t)·u_a + h; [`output`] itself where neither gain_drift nor
+/// electrostriction is present.
+#[inline]
+pub(crate) fn stack_output(params: &Params, effects: &EffectSet, ua: f64, h: f64, t: f64) -> f64 {
+    if effects.gain_drift.is_none() && effects.electrostriction.is_none() {
+        return output(params, ua, h);
+    }
+    let kv = effects.gain_drift.map_or(params.kv, |g| params.kv * g.factor(t));
+    let s = kv * ua + h;
+    params.x0 + effects.electrostriction.map_or(s, |e| e.apply(s))
 }
 
 /// The effect's name if it is present.
@@ -135,6 +195,7 @@ pub struct ExtendedModel {
     lag: Option<LagStage>,
     creep_decays: Vec<f64>,
     resonance: Option<ResonanceStage>,
+    resonance2: Option<ResonanceStage>,
     delay: DelayLine,
     // state
     started: bool,
@@ -145,6 +206,7 @@ pub struct ExtendedModel {
     creep_states: Vec<f64>,
     y_prev: f64,
     z: Vector2<f64>,
+    z2: Vector2<f64>,
 }
 
 impl ExtendedModel {
@@ -155,7 +217,8 @@ impl ExtendedModel {
         effects.validate()?;
         positive_dt(dt)?;
         finite_sample("h0", h0)?;
-        let substeps = if effects.resonance.is_some() { RESONANCE_SUBSTEPS } else { 1 };
+        let resonant = effects.resonance.is_some() || effects.resonance2.is_some();
+        let substeps = if resonant { RESONANCE_SUBSTEPS } else { 1 };
         let dt_sub = dt / substeps as f64;
         let resonance = match &effects.resonance {
             Some(r) => {
@@ -164,6 +227,16 @@ impl ExtendedModel {
             }
             None => None,
         };
+        let resonance2 = match &effects.resonance2 {
+            Some(r) => {
+                r.stage(dt)?;
+                Some(r.stage(dt_sub)?)
+            }
+            None => None,
+        };
+        if let Some(p) = &effects.pickup {
+            p.check_sampling(dt)?;
+        }
         let creep_decays = effects.creep.as_ref().map(|c| c.decays(dt_sub)).unwrap_or_default();
         Ok(ExtendedModel {
             substeps,
@@ -171,6 +244,7 @@ impl ExtendedModel {
             creep_states: vec![0.0; creep_decays.len()],
             creep_decays,
             resonance,
+            resonance2,
             delay: DelayLine::new(effects.delay.map_or(0, |d| d.samples)),
             params,
             effects,
@@ -183,6 +257,7 @@ impl ExtendedModel {
             h: h0,
             y_prev: 0.0,
             z: Vector2::zeros(),
+            z2: Vector2::zeros(),
         })
     }
 
@@ -190,6 +265,7 @@ impl ExtendedModel {
     /// displacement x \[µm\]. A non-finite `u` is rejected and the state kept.
     pub fn step(&mut self, u: f64) -> Result<f64> {
         finite_sample("u", u)?;
+        let t = self.samples as f64 * self.dt;
         let y = if !self.started {
             self.started = true;
             if let Some(c) = &self.effects.creep {
@@ -198,13 +274,15 @@ impl ExtendedModel {
                 }
             }
             self.ua_prev = u;
-            let y = output(&self.params, u, self.h) + self.creep_states.iter().sum::<f64>();
+            let y = stack_output(&self.params, &self.effects, u, self.h, t) + self.creep_states.iter().sum::<f64>();
             self.z = Vector2::new(y, 0.0);
+            self.z2 = self.z;
             y
         } else {
             let m = self.substeps;
             let dt_sub = self.dt / m as f64;
             let mut y = self.y_prev;
+            let t_prev = t - self.dt;
             for j in 1..=m {
                 let u0 = self.u_prev + (u - self.u_prev) * ((j - 1) as f64 / m as f64);
                 let u1 = if j == m { u } else { self.u_prev + (u - self.u_prev) * (j as f64 / m as f64) };
@@ -217,11 +295,16 @@ impl ExtendedModel {
                     Some(creep) => creep.advance(&mut self.creep_states, &self.creep_decays, self.ua_prev, ua, dt_sub),
                     None => 0.0,
                 };
-                let y_next = output(&self.params, ua, self.h) + c;
+                let t_j = if j == m { t } else { t_prev + self.dt * (j as f64 / m as f64) };
+                let y_next = stack_output(&self.params, &self.effects, ua, self.h, t_j) + c;
+                let z_prev = self.z[0];
                 self.z = match &self.resonance {
                     Some(r) => r.advance(self.z, y, y_next),
                     None => Vector2::new(y_next, 0.0),
                 };
+                if let Some(r) = &self.resonance2 {
+                    self.z2 = r.advance(self.z2, z_prev, self.z[0]);
+                }
                 self.ua_prev = ua;
                 y = y_next;
             }
@@ -229,10 +312,17 @@ impl ExtendedModel {
         };
         self.u_prev = u;
         self.y_prev = y;
-        let t = self.samples as f64 * self.dt;
         self.samples += 1;
         let trend = self.effects.drift.map_or(0.0, |d| d.at(t));
-        Ok(self.delay.push(self.z[0] + trend))
+        let z = if self.resonance2.is_some() { self.z2[0] } else { self.z[0] };
+        let mut x = self.delay.push(z + trend);
+        if let Some(p) = &self.effects.pickup {
+            x += p.at(t);
+        }
+        if let Some(s) = &self.effects.saturation {
+            x = s.apply(x);
+        }
+        Ok(x)
     }
 
     /// Base parameters.
@@ -368,8 +458,87 @@ mod tests {
             resonance: Some(Resonance { fn_hz: 100.0, zeta: 0.1 }),
             drift: Some(Drift { rate_um_per_s: 0.0 }),
             delay: Some(Delay { samples: 1 }),
+            gain_drift: Some(GainDrift { rate_per_s: 0.01 }),
+            electrostriction: Some(Electrostriction { epsilon_per_um: 0.004 }),
+            resonance2: Some(Resonance2 { fn_hz: 300.0, zeta: 0.2 }),
+            pickup: Some(Pickup { line_hz: 50.0, sin_um: vec![0.1], cos_um: vec![0.0] }),
+            saturation: Some(Saturation { min_um: -1.0, max_um: 30.0 }),
         };
         assert_eq!(all.names(), EffectSet::NAMES.to_vec());
         assert!(all.validate().is_ok());
+        assert_eq!(all.unsupported(&["creep", "input_lag", "drift", "delay", "resonance", "resonance2"]).len(), 4);
+    }
+
+    fn sine_record(n: usize) -> Vec<f64> {
+        (0..n).map(|k| 50.0 + 40.0 * (k as f64 * 0.02).sin()).collect()
+    }
+
+    #[test]
+    fn gain_drift_and_electrostriction_shape_the_stack_output() {
+        let dt = 1e-3;
+        let u = sine_record(800);
+        let p = Params::paper_1hz();
+        let zero_h = EffectSet::none();
+        // h of the base model: x − kv·u − x0.
+        let base = simulate_extended(&p, &zero_h, &u, dt, 0.0).unwrap();
+        let (r, eps) = (0.05, 0.004);
+        let effects = EffectSet {
+            gain_drift: Some(GainDrift { rate_per_s: r }),
+            electrostriction: Some(Electrostriction { epsilon_per_um: eps }),
+            ..EffectSet::none()
+        };
+        let x = simulate_extended(&p, &effects, &u, dt, 0.0).unwrap();
+        for k in 0..u.len() {
+            let h = base[k] - p.kv * u[k] - p.x0;
+            let s = p.kv * (1.0 + r * k as f64 * dt) * u[k] + h;
+            let want = p.x0 + s + eps * s * s;
+            assert!((x[k] - want).abs() < 1e-12, "{k}: {} {want}", x[k]);
+        }
+    }
+
+    #[test]
+    fn pickup_and_saturation_act_on_the_reading_after_the_delay() {
+        let dt = 1e-3;
+        let u = sine_record(600);
+        let p = Params::paper_1hz();
+        let delayed = EffectSet { delay: Some(Delay { samples: 2 }), ..EffectSet::none() };
+        let base = simulate_extended(&p, &delayed, &u, dt, 0.0).unwrap();
+        let pickup = Pickup { line_hz: 60.0, sin_um: vec![0.3, 0.0, 0.05], cos_um: vec![-0.1, 0.02, 0.0] };
+        let effects = EffectSet {
+            pickup: Some(pickup.clone()),
+            saturation: Some(Saturation { min_um: 2.0, max_um: 12.0 }),
+            ..delayed
+        };
+        let x = simulate_extended(&p, &effects, &u, dt, 0.0).unwrap();
+        let mut clipped = 0;
+        for k in 0..u.len() {
+            let t = k as f64 * dt;
+            let w = 2.0 * core::f64::consts::PI * 60.0 * t;
+            let line = 0.3 * w.sin() - 0.1 * w.cos() + 0.02 * (2.0 * w).cos() + 0.05 * (3.0 * w).sin();
+            let want = (base[k] + line).clamp(2.0, 12.0);
+            clipped += usize::from(want == 12.0 || want == 2.0);
+            assert!((x[k] - want).abs() < 1e-9, "{k}");
+        }
+        assert!(clipped > 50, "{clipped}");
+        let fast = EffectSet { pickup: Some(Pickup { line_hz: 200.0, ..pickup }), ..EffectSet::none() };
+        assert!(simulate_extended(&p, &fast, &u, dt, 0.0).unwrap_err().to_string().contains("pickup.line_hz"));
+    }
+
+    #[test]
+    fn a_second_mode_alone_is_the_first_and_two_modes_are_in_series() {
+        let dt = 1e-4;
+        let u = paper_input(dt, 0.0);
+        let u = &u[..3000];
+        let p = Params::paper_1hz();
+        let one = EffectSet { resonance: Some(Resonance { fn_hz: 900.0, zeta: 0.05 }), ..EffectSet::none() };
+        let two = EffectSet { resonance2: Some(Resonance2 { fn_hz: 900.0, zeta: 0.05 }), ..EffectSet::none() };
+        assert_eq!(simulate_extended(&p, &one, u, dt, 0.0).unwrap(), simulate_extended(&p, &two, u, dt, 0.0).unwrap());
+        // In series: modes far apart barely see each other's shape, so the output is
+        // close to the first mode where the second is stiff.
+        let both = EffectSet { resonance2: Some(Resonance2 { fn_hz: 4000.0, zeta: 0.7 }), ..one.clone() };
+        let a = simulate_extended(&p, &one, u, dt, 0.0).unwrap();
+        let b = simulate_extended(&p, &both, u, dt, 0.0).unwrap();
+        let worst = a.iter().zip(&b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(worst > 0.0 && worst < 0.05, "{worst}");
     }
 }

@@ -30,51 +30,71 @@ impl Effect for Resonance {
     const NAME: &'static str = "resonance";
 
     fn validate(&self) -> Result<()> {
-        if !(self.fn_hz.is_finite() && self.fn_hz > 0.0) {
-            return Err(Error::InvalidParameter {
-                name: "resonance.fn_hz",
-                value: self.fn_hz,
-                reason: "the natural frequency must be finite and > 0 Hz",
-            });
-        }
-        if !(self.zeta.is_finite() && self.zeta > 0.0) {
-            return Err(Error::InvalidParameter {
-                name: "resonance.zeta",
-                value: self.zeta,
-                reason: "the damping ratio must be finite and > 0",
-            });
-        }
-        Ok(())
+        validate_mode(self.fn_hz, self.zeta, NAMES)
     }
+}
+
+/// The parameter names of a mode, for the errors: (fn, ζ).
+pub(crate) type ModeNames = (&'static str, &'static str);
+
+const NAMES: ModeNames = ("resonance.fn_hz", "resonance.zeta");
+
+/// Checks a mode's natural frequency `fn_hz` \[Hz\] and damping ratio `zeta` \[-\].
+pub(crate) fn validate_mode(fn_hz: f64, zeta: f64, names: ModeNames) -> Result<()> {
+    if !(fn_hz.is_finite() && fn_hz > 0.0) {
+        return Err(Error::InvalidParameter {
+            name: names.0,
+            value: fn_hz,
+            reason: "the natural frequency must be finite and > 0 Hz",
+        });
+    }
+    if !(zeta.is_finite() && zeta > 0.0) {
+        return Err(Error::InvalidParameter {
+            name: names.1,
+            value: zeta,
+            reason: "the damping ratio must be finite and > 0",
+        });
+    }
+    Ok(())
 }
 
 impl Resonance {
     /// The exact one-interval map for sampling interval `dt` \[s\].
     pub(crate) fn stage(&self, dt: f64) -> Result<ResonanceStage> {
-        self.validate()?;
-        if self.fn_hz >= 0.5 / dt {
-            return Err(Error::InvalidParameter {
-                name: "resonance.fn_hz",
-                value: self.fn_hz,
-                reason: "the natural frequency must be below the Nyquist frequency 1/(2·dt)",
-            });
-        }
-        let w = 2.0 * core::f64::consts::PI * self.fn_hz;
-        // d/dt [z, ż, y, Δy] with ẏ = Δy/dt over the interval.
-        #[rustfmt::skip]
-        let m = Matrix4::new(
-            0.0,    1.0,                    0.0,   0.0,
-            -w * w, -2.0 * self.zeta * w,   w * w, 0.0,
-            0.0,    0.0,                    0.0,   1.0 / dt,
-            0.0,    0.0,                    0.0,   0.0,
-        ) * dt;
-        let e = matrix_exp(m);
-        Ok(ResonanceStage {
-            phi: e.fixed_view::<2, 2>(0, 0).into_owned(),
-            from_y: Vector2::new(e[(0, 2)], e[(1, 2)]),
-            from_dy: Vector2::new(e[(0, 3)], e[(1, 3)]),
-        })
+        mode_stage(self.fn_hz, self.zeta, dt, NAMES)
     }
+}
+
+/// The exact one-interval map of a mode for sampling interval `dt` \[s\].
+pub(crate) fn mode_stage(fn_hz: f64, zeta: f64, dt: f64, names: ModeNames) -> Result<ResonanceStage> {
+    validate_mode(fn_hz, zeta, names)?;
+    if fn_hz >= 0.5 / dt {
+        return Err(Error::InvalidParameter {
+            name: names.0,
+            value: fn_hz,
+            reason: "the natural frequency must be below the Nyquist frequency 1/(2·dt)",
+        });
+    }
+    let e = matrix_exp(augmented(fn_hz, zeta, dt));
+    Ok(ResonanceStage {
+        phi: e.fixed_view::<2, 2>(0, 0).into_owned(),
+        from_y: Vector2::new(e[(0, 2)], e[(1, 2)]),
+        from_dy: Vector2::new(e[(0, 3)], e[(1, 3)]),
+    })
+}
+
+/// The augmented system's matrix times `dt`: d/dt \[z, ż, y, Δy\] with ẏ = Δy/dt over
+/// the interval.
+fn augmented(fn_hz: f64, zeta: f64, dt: f64) -> Matrix4<f64> {
+    let w = 2.0 * core::f64::consts::PI * fn_hz;
+    #[rustfmt::skip]
+    let m = Matrix4::new(
+        0.0,    1.0,               0.0,   0.0,
+        -w * w, -2.0 * zeta * w,   w * w, 0.0,
+        0.0,    0.0,               0.0,   1.0 / dt,
+        0.0,    0.0,               0.0,   0.0,
+    );
+    m * dt
 }
 
 /// e^m: nalgebra's `exp` with `std`; without it (nalgebra's `exp` needs `std`),
@@ -142,14 +162,7 @@ mod tests {
     #[test]
     fn the_no_std_exponential_matches_nalgebras() {
         for (fn_hz, zeta, dt) in [(1500.0, 0.05, 1e-4), (40.0, 1.0, 1e-3), (4000.0, 3.0, 2.5e-5)] {
-            let w = 2.0 * std::f64::consts::PI * fn_hz;
-            #[rustfmt::skip]
-            let m = Matrix4::new(
-                0.0, 1.0, 0.0, 0.0,
-                -w * w, -2.0 * zeta * w, w * w, 0.0,
-                0.0, 0.0, 0.0, 1.0 / dt,
-                0.0, 0.0, 0.0, 0.0,
-            ) * dt;
+            let m = augmented(fn_hz, zeta, dt);
             let (a, b) = (taylor_exp(m), m.exp());
             // The matrix is badly scaled (ω²·dt ≈ 9e3 against 1), and both forms round
             // through several squarings: 1e-11 of the largest entry is rounding.

@@ -55,7 +55,8 @@ type InverseArgs = (PyParams, f64, f64, Option<f64>, Option<f64>, Option<PyEffec
 /// 40 evaluations of Φ per sample), within [u_min, u_max] \[V\]; h \[µm\] then follows
 /// the u returned (the clipped one where a limit binds). `status` reports the limit,
 /// the residual \[µm\] and the evaluations of the last sample. `effects`: an
-/// `EffectSet` whose input_lag, creep, drift and delay are inverted too (no resonance);
+/// `EffectSet` whose input_lag, creep, gain_drift, electrostriction, drift and delay are
+/// inverted too (no resonance; pickup and saturation, in the reading only, are ignored);
 /// with a delay of d samples, `step` takes the reference d samples ahead.
 #[pyclass(name = "Inverse", module = "boucwen")]
 #[derive(Clone)]
@@ -228,8 +229,8 @@ impl PyInverse {
 /// with the simulator's integrator, so `simulate(params, u, dt)` returns x_d
 /// wherever the root lies within [u_min, u_max] (to 1e-12·max(1, |x_d|) µm). With
 /// `u_prev=v` the first interval starts at v (stream a record in chunks, as
-/// `simulate`). With `effects` (input_lag, creep, drift, delay), the extended
-/// model is inverted; a delay of d samples is met by reading x_d d samples ahead.
+/// `simulate`). With `effects` (input_lag, creep, gain_drift, electrostriction, drift,
+/// delay; pickup and saturation ignored), the extended model is inverted; a delay of d samples is met by reading x_d d samples ahead.
 /// The GIL is released while it runs.
 #[pyfunction]
 #[pyo3(signature = (params, x_d, dt, h0 = 0.0, u_prev = None, *, u_min = None, u_max = None, effects = None))]

@@ -7,7 +7,9 @@ use pyo3::types::{PyDict, PyTuple};
 
 use super::params::PyParams;
 use super::{samples, value_error};
-use crate::effects::{Creep, Delay, Drift, EffectSet, InputLag, Resonance};
+use crate::effects::{
+    Creep, Delay, Drift, EffectSet, Electrostriction, GainDrift, InputLag, Pickup, Resonance, Resonance2, Saturation,
+};
 
 /// Which effects surround the base model, with their parameters.
 ///
@@ -18,8 +20,17 @@ use crate::effects::{Creep, Delay, Drift, EffectSet, InputLag, Resonance};
 /// - ``input_lag={"fc_hz": fc}``: first-order lag of the voltage, corner fc \[Hz\] > 0;
 /// - ``resonance={"fn_hz": fn, "zeta": ζ}``: z̈ + 2ζω·ż + ω²·z = ω²·y between the stack
 ///   and the sensor, ω = 2π·fn (fn \[Hz\] > 0 and below Nyquist, ζ > 0);
+/// - ``gain_drift={"rate_per_s": r}``: kv(t) = kv·(1 + r·t), r \[1/s\];
+/// - ``electrostriction={"epsilon_per_um": ε}``: s = kv·u_a + h becomes s + ε·s²,
+///   ε \[1/µm\];
+/// - ``resonance2={"fn_hz": fn, "zeta": ζ}``: a second mode in series after
+///   ``resonance`` (same form and bounds);
 /// - ``drift={"rate_um_per_s": r}``: x += r·t, t \[s\] from the first sample;
-/// - ``delay={"samples": d}``: the sensor reads x[k − d], d ≥ 0 whole samples.
+/// - ``delay={"samples": d}``: the sensor reads x[k − d], d ≥ 0 whole samples;
+/// - ``pickup={"line_hz": f, "sin_um": [a_k …], "cos_um": [b_k …]}``:
+///   x += Σ_k a_k·sin(2π·k·f·t) + b_k·cos(2π·k·f·t), k = 1 … K ≤ 8, f \[Hz\],
+///   a_k, b_k \[µm\];
+/// - ``saturation={"min_um": lo, "max_um": hi}``: x = clip(x, lo, hi) \[µm\].
 ///
 /// Immutable, comparable, picklable; ``to_dict``/``from_dict`` round-trip. The typed
 /// form (``InputLag(fc_hz=650.0)``, …) is in :mod:`boucwen.effects`:
@@ -57,42 +68,54 @@ fn as_dict<'py>(obj: &Bound<'py, PyAny>, effect: &str, keys: &[&str]) -> PyResul
     Ok(d.clone())
 }
 
-fn some<'py>(o: Option<&Bound<'py, PyAny>>) -> Option<Bound<'py, PyAny>> {
-    o.filter(|o| !o.is_none()).cloned()
+/// The value given for each effect (None: absent), in vocabulary order.
+type Given<'py> = [Option<Bound<'py, PyAny>>; 10];
+
+fn float_list(d: &Bound<'_, PyDict>, effect: &str, key: &str) -> PyResult<Vec<f64>> {
+    let item = d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("{effect}: missing parameter {key:?}")))?;
+    samples(&item, &format!("{effect}.{key}"))
 }
 
-fn parse(
-    creep: Option<&Bound<'_, PyAny>>,
-    input_lag: Option<&Bound<'_, PyAny>>,
-    resonance: Option<&Bound<'_, PyAny>>,
-    drift: Option<&Bound<'_, PyAny>>,
-    delay: Option<&Bound<'_, PyAny>>,
-) -> PyResult<EffectSet> {
+fn parse(given: &Given<'_>) -> PyResult<EffectSet> {
+    let [creep, input_lag, gain_drift, electrostriction, resonance, resonance2, drift, delay, pickup, saturation] =
+        given.each_ref().map(|o| o.as_ref().filter(|o| !o.is_none()));
     let mut set = EffectSet::none();
-    if let Some(o) = some(creep) {
-        let d = as_dict(&o, "creep", &["tau_s", "gain_um_per_v"])?;
-        let field = |key: &str| -> PyResult<Vec<f64>> {
-            let item =
-                d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("creep: missing parameter {key:?}")))?;
-            samples(&item, &format!("creep.{key}"))
-        };
-        set.creep = Some(Creep { tau_s: field("tau_s")?, gain_um_per_v: field("gain_um_per_v")? });
+    if let Some(o) = creep {
+        let d = as_dict(o, "creep", &["tau_s", "gain_um_per_v"])?;
+        set.creep = Some(Creep {
+            tau_s: float_list(&d, "creep", "tau_s")?,
+            gain_um_per_v: float_list(&d, "creep", "gain_um_per_v")?,
+        });
     }
-    if let Some(o) = some(input_lag) {
-        let d = as_dict(&o, "input_lag", &["fc_hz"])?;
+    if let Some(o) = input_lag {
+        let d = as_dict(o, "input_lag", &["fc_hz"])?;
         set.input_lag = Some(InputLag { fc_hz: get_f64(&d, "input_lag", "fc_hz")? });
     }
-    if let Some(o) = some(resonance) {
-        let d = as_dict(&o, "resonance", &["fn_hz", "zeta"])?;
+    if let Some(o) = gain_drift {
+        let d = as_dict(o, "gain_drift", &["rate_per_s"])?;
+        set.gain_drift = Some(GainDrift { rate_per_s: get_f64(&d, "gain_drift", "rate_per_s")? });
+    }
+    if let Some(o) = electrostriction {
+        let d = as_dict(o, "electrostriction", &["epsilon_per_um"])?;
+        set.electrostriction =
+            Some(Electrostriction { epsilon_per_um: get_f64(&d, "electrostriction", "epsilon_per_um")? });
+    }
+    if let Some(o) = resonance {
+        let d = as_dict(o, "resonance", &["fn_hz", "zeta"])?;
         set.resonance =
             Some(Resonance { fn_hz: get_f64(&d, "resonance", "fn_hz")?, zeta: get_f64(&d, "resonance", "zeta")? });
     }
-    if let Some(o) = some(drift) {
-        let d = as_dict(&o, "drift", &["rate_um_per_s"])?;
+    if let Some(o) = resonance2 {
+        let d = as_dict(o, "resonance2", &["fn_hz", "zeta"])?;
+        set.resonance2 =
+            Some(Resonance2 { fn_hz: get_f64(&d, "resonance2", "fn_hz")?, zeta: get_f64(&d, "resonance2", "zeta")? });
+    }
+    if let Some(o) = drift {
+        let d = as_dict(o, "drift", &["rate_um_per_s"])?;
         set.drift = Some(Drift { rate_um_per_s: get_f64(&d, "drift", "rate_um_per_s")? });
     }
-    if let Some(o) = some(delay) {
-        let d = as_dict(&o, "delay", &["samples"])?;
+    if let Some(o) = delay {
+        let d = as_dict(o, "delay", &["samples"])?;
         let item =
             d.get_item("samples")?.ok_or_else(|| PyValueError::new_err("delay: missing parameter \"samples\""))?;
         if item.is_instance_of::<pyo3::types::PyBool>() {
@@ -106,6 +129,21 @@ fn parse(
         }
         set.delay = Some(Delay { samples: v as usize });
     }
+    if let Some(o) = pickup {
+        let d = as_dict(o, "pickup", &["line_hz", "sin_um", "cos_um"])?;
+        set.pickup = Some(Pickup {
+            line_hz: get_f64(&d, "pickup", "line_hz")?,
+            sin_um: float_list(&d, "pickup", "sin_um")?,
+            cos_um: float_list(&d, "pickup", "cos_um")?,
+        });
+    }
+    if let Some(o) = saturation {
+        let d = as_dict(o, "saturation", &["min_um", "max_um"])?;
+        set.saturation = Some(Saturation {
+            min_um: get_f64(&d, "saturation", "min_um")?,
+            max_um: get_f64(&d, "saturation", "max_um")?,
+        });
+    }
     set.validate().map_err(value_error)?;
     Ok(set)
 }
@@ -113,15 +151,26 @@ fn parse(
 #[pymethods]
 impl PyEffectSet {
     #[new]
-    #[pyo3(signature = (*, creep = None, input_lag = None, resonance = None, drift = None, delay = None))]
-    fn new(
-        creep: Option<&Bound<'_, PyAny>>,
-        input_lag: Option<&Bound<'_, PyAny>>,
-        resonance: Option<&Bound<'_, PyAny>>,
-        drift: Option<&Bound<'_, PyAny>>,
-        delay: Option<&Bound<'_, PyAny>>,
+    #[pyo3(signature = (
+        *, creep = None, input_lag = None, gain_drift = None, electrostriction = None, resonance = None,
+        resonance2 = None, drift = None, delay = None, pickup = None, saturation = None
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn new<'py>(
+        creep: Option<Bound<'py, PyAny>>,
+        input_lag: Option<Bound<'py, PyAny>>,
+        gain_drift: Option<Bound<'py, PyAny>>,
+        electrostriction: Option<Bound<'py, PyAny>>,
+        resonance: Option<Bound<'py, PyAny>>,
+        resonance2: Option<Bound<'py, PyAny>>,
+        drift: Option<Bound<'py, PyAny>>,
+        delay: Option<Bound<'py, PyAny>>,
+        pickup: Option<Bound<'py, PyAny>>,
+        saturation: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Self> {
-        parse(creep, input_lag, resonance, drift, delay).map(|inner| PyEffectSet { inner })
+        let given =
+            [creep, input_lag, gain_drift, electrostriction, resonance, resonance2, drift, delay, pickup, saturation];
+        parse(&given).map(|inner| PyEffectSet { inner })
     }
 
     /// The vocabulary of effect names, in signal-chain order.
@@ -159,11 +208,26 @@ impl PyEffectSet {
             d.set_item("fc_hz", l.fc_hz)?;
             out.set_item("input_lag", d)?;
         }
-        if let Some(r) = &e.resonance {
+        if let Some(g) = &e.gain_drift {
             let d = PyDict::new(py);
-            d.set_item("fn_hz", r.fn_hz)?;
-            d.set_item("zeta", r.zeta)?;
-            out.set_item("resonance", d)?;
+            d.set_item("rate_per_s", g.rate_per_s)?;
+            out.set_item("gain_drift", d)?;
+        }
+        if let Some(g) = &e.electrostriction {
+            let d = PyDict::new(py);
+            d.set_item("epsilon_per_um", g.epsilon_per_um)?;
+            out.set_item("electrostriction", d)?;
+        }
+        for (name, mode) in [
+            ("resonance", e.resonance.map(|r| (r.fn_hz, r.zeta))),
+            ("resonance2", e.resonance2.map(|r| (r.fn_hz, r.zeta))),
+        ] {
+            if let Some((fn_hz, zeta)) = mode {
+                let d = PyDict::new(py);
+                d.set_item("fn_hz", fn_hz)?;
+                d.set_item("zeta", zeta)?;
+                out.set_item(name, d)?;
+            }
         }
         if let Some(r) = &e.drift {
             let d = PyDict::new(py);
@@ -174,6 +238,19 @@ impl PyEffectSet {
             let d = PyDict::new(py);
             d.set_item("samples", r.samples)?;
             out.set_item("delay", d)?;
+        }
+        if let Some(p) = &e.pickup {
+            let d = PyDict::new(py);
+            d.set_item("line_hz", p.line_hz)?;
+            d.set_item("sin_um", p.sin_um.clone())?;
+            d.set_item("cos_um", p.cos_um.clone())?;
+            out.set_item("pickup", d)?;
+        }
+        if let Some(s) = &e.saturation {
+            let d = PyDict::new(py);
+            d.set_item("min_um", s.min_um)?;
+            d.set_item("max_um", s.max_um)?;
+            out.set_item("saturation", d)?;
         }
         Ok(out)
     }
@@ -193,15 +270,11 @@ impl PyEffectSet {
                 )));
             }
         }
-        let get = |k: &str| d.get_item(k);
-        parse(
-            get("creep")?.as_ref(),
-            get("input_lag")?.as_ref(),
-            get("resonance")?.as_ref(),
-            get("drift")?.as_ref(),
-            get("delay")?.as_ref(),
-        )
-        .map(|inner| PyEffectSet { inner })
+        let mut given: Given<'_> = Default::default();
+        for (slot, name) in given.iter_mut().zip(EffectSet::NAMES) {
+            *slot = d.get_item(name)?;
+        }
+        parse(&given).map(|inner| PyEffectSet { inner })
     }
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
@@ -224,8 +297,9 @@ impl PyEffectSet {
 /// ``params``: the base :class:`Params`; ``effects``: an :class:`EffectSet` (or None
 /// for none); ``u``: commanded voltage \[V\], piecewise linear between samples ``dt``
 /// \[s\] apart; ``h0``: initial hysteresis state \[µm\]. Returns x \[µm\] as the sensor
-/// reads it. The chain is u → input_lag → (Bouc–Wen + creep) → resonance → + drift →
-/// delay; everything starts at rest with the first sample. The GIL is released while
+/// reads it. The chain is u → input_lag → (Bouc–Wen with gain_drift, electrostriction,
+/// + creep) → resonance → resonance2 → + drift → delay → + pickup → saturation;
+/// everything starts at rest with the first sample. The GIL is released while
 /// it runs.
 #[pyfunction]
 #[pyo3(signature = (params, effects, u, dt, h0 = 0.0))]

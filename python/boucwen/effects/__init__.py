@@ -10,9 +10,14 @@ class                         name                   parameters
 ============================  =====================  ===========================
 :class:`Creep`                ``creep``              ``tau_s`` [s], ``gain_um_per_v`` [µm/V]
 :class:`InputLag`             ``input_lag``          ``fc_hz`` [Hz]
+:class:`GainDrift`            ``gain_drift``         ``rate_per_s`` [1/s]
+:class:`Electrostriction`     ``electrostriction``   ``epsilon_per_um`` [1/µm]
 :class:`Resonance`            ``resonance``          ``fn_hz`` [Hz], ``zeta`` [-]
+:class:`Resonance2`           ``resonance2``         ``fn_hz`` [Hz], ``zeta`` [-]
 :class:`Drift`                ``drift``              ``rate_um_per_s`` [µm/s]
 :class:`Delay`                ``delay``              ``samples`` [samples]
+:class:`Pickup`               ``pickup``             ``line_hz`` [Hz], ``sin_um``, ``cos_um`` [µm]
+:class:`Saturation`           ``saturation``         ``min_um``, ``max_um`` [µm]
 ============================  =====================  ===========================
 
 The simulation is the Rust core's (:class:`boucwen.EffectSet`,
@@ -34,14 +39,21 @@ from .base import Context, Effect, Start, simulate_chain
 from .creep import Creep, creep_time_constants
 from .delay import Delay, best_delay
 from .drift import Drift
+from .electrostriction import Electrostriction
 from .fit import ExtendedFit, Layout, candidate_starts, fit_extended, fit_extended_record
+from .gain_drift import GainDrift
 from .input_lag import InputLag
+from .pickup import LINE_FREQUENCIES_HZ, MAX_START_HARMONICS, Pickup
 from .registry import EFFECTS, VOCABULARY, effect_class, effect_set, effects_of, from_json, to_json
 from .resonance import FN_MAX_NYQUIST_FRACTION, ZETA_BOUNDS, Resonance
+from .resonance2 import Resonance2
+from .saturation import Saturation
 
 __all__ = [
     "EFFECTS",
     "FN_MAX_NYQUIST_FRACTION",
+    "LINE_FREQUENCIES_HZ",
+    "MAX_START_HARMONICS",
     "VOCABULARY",
     "ZETA_BOUNDS",
     "Context",
@@ -49,10 +61,15 @@ __all__ = [
     "Delay",
     "Drift",
     "Effect",
+    "Electrostriction",
     "ExtendedFit",
+    "GainDrift",
     "InputLag",
     "Layout",
+    "Pickup",
     "Resonance",
+    "Resonance2",
+    "Saturation",
     "Start",
     "best_delay",
     "candidate_starts",

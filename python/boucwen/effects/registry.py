@@ -12,13 +12,29 @@ from .base import Effect, params_of, set_of
 from .creep import Creep
 from .delay import Delay
 from .drift import Drift
+from .electrostriction import Electrostriction
+from .gain_drift import GainDrift
 from .input_lag import InputLag
+from .pickup import Pickup
 from .resonance import Resonance
+from .resonance2 import Resonance2
+from .saturation import Saturation
 
 __all__ = ["EFFECTS", "VOCABULARY", "effect_class", "effect_set", "effects_of", "from_json", "to_json"]
 
 #: Every effect class, in signal-chain order (that of :data:`boucwen.EffectSet.vocabulary`).
-EFFECTS: tuple[type[Effect], ...] = (Creep, InputLag, Resonance, Drift, Delay)
+EFFECTS: tuple[type[Effect], ...] = (
+    Creep,
+    InputLag,
+    GainDrift,
+    Electrostriction,
+    Resonance,
+    Resonance2,
+    Drift,
+    Delay,
+    Pickup,
+    Saturation,
+)
 #: The effect names, in signal-chain order.
 VOCABULARY: tuple[str, ...] = tuple(cls.name for cls in EFFECTS)
 

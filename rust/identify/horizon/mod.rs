@@ -313,12 +313,11 @@ impl HorizonIdentifier {
         config.validate()?;
         finite_sample("h0", h0)?;
         effects.validate()?;
-        if effects.creep.is_some() || effects.resonance.is_some() || effects.drift.is_some() || effects.delay.is_some()
-        {
+        if !effects.unsupported(&["input_lag"]).is_empty() {
             return Err(Error::InvalidConfig {
                 name: "effects",
                 value: effects.names().len() as f64,
-                reason: "the horizon method identifies an input_lag only (creep, resonance, drift and delay are not supported)",
+                reason: "the horizon method identifies an input_lag only (the other effects are not supported)",
             });
         }
         let (lo, hi) = config.fc_bounds_hz;

@@ -156,12 +156,11 @@ impl RpemIdentifier {
         config.validate()?;
         effects.validate()?;
         finite_sample("h0", h0)?;
-        if effects.resonance.is_some() || effects.drift.is_some() || effects.delay.is_some() {
+        if !effects.unsupported(&["input_lag", "creep"]).is_empty() {
             return Err(Error::InvalidConfig {
                 name: "effects",
                 value: f64::NAN,
-                reason:
-                    "the rpem method identifies input_lag and creep only (resonance, drift and delay are not supported)",
+                reason: "the rpem method identifies input_lag and creep only (the other effects are not supported)",
             });
         }
         let mut shape = Shape { lag: false, n_creep: 0, creep_tau: [1.0; MAX_CREEP], creep_decay: [0.0; MAX_CREEP] };
