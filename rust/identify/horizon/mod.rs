@@ -51,8 +51,9 @@ use super::OnlineIdentifier;
 use crate::effects::{first_order_coefficient, first_order_step, EffectSet, InputLag};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::math;
+use crate::model::integrator::advance_seeded;
 use crate::model::scalar::{Dual, Scalar};
-use crate::model::{advance, advance_h, output, Coefficients, H_LIMIT_UM};
+use crate::model::{advance_h, output, H_LIMIT_UM};
 use crate::params::Params;
 
 /// Unknowns of the window fit: kv, x0, A, β, γ, n, δ, the window's initial h and
@@ -363,25 +364,29 @@ impl HorizonIdentifier {
         &self.buffer[self.slot(k)]
     }
 
-    /// Simulates the pass one sample further and accumulates the normal equations.
+    /// The slot after `slot` in the ring buffer.
+    #[inline(always)]
+    fn following(&self, slot: usize) -> usize {
+        if slot + 1 == self.buffer.len() {
+            0
+        } else {
+            slot + 1
+        }
+    }
+
+    /// Simulates the pass one sample further and accumulates the normal equations;
+    /// `slot` is the slot of the pass's cursor and `before` that of the sample before it.
     #[inline]
-    fn pass_step(&mut self) {
+    fn pass_step(&mut self, slot: usize, before: usize) {
         let k = self.pass.cursor;
-        let e = *self.entry(k);
+        let e = self.buffer[slot];
         let p = self.pass.params;
         if k > self.pass.start {
-            let u0 = self.entry(k - 1).u;
-            let c = Coefficients {
-                a: Dual::var(p.a, 0),
-                beta: Dual::var(p.beta, 1),
-                gamma: Dual::var(p.gamma, 2),
-                n: Dual::var(p.n, 3),
-                delta: Dual::var(p.delta, 4),
-            };
+            let u0 = self.buffer[before].u;
             let ua0 = self.pass.ua;
             let ua1 =
                 if self.ln_fc.is_some() { self.pass.lag.step_dual(ua0, u0, e.u, self.dt) } else { Dual::cst(e.u) };
-            self.pass.h = advance(&p, &c, self.pass.h, ua0, ua1, self.dt);
+            self.pass.h = advance_seeded::<ND, 0, { I_LN_FC - 2 }>(&p, self.pass.h, ua0, ua1, self.dt, None);
             self.pass.ua = ua1;
         } else if self.ln_fc.is_none() {
             self.pass.ua = Dual::cst(e.u);
@@ -403,7 +408,6 @@ impl HorizonIdentifier {
             self.pass.sse += residual * residual;
             self.pass.count += 1;
         }
-        let slot = self.slot(k);
         let entry = &mut self.buffer[slot];
         entry.h = h.re;
         entry.dh = h.du.into();
@@ -541,11 +545,17 @@ impl OnlineIdentifier for HorizonIdentifier {
             let e = *self.entry(self.start);
             self.pass = Pass::new(self.start, self.params, e.h, e.ua, e.dua, self.lag);
         }
-        for _ in 0..self.config.samples_per_push {
-            if self.pass.cursor >= self.next {
-                break;
+        if self.pass.cursor < self.next {
+            let mut slot = self.slot(self.pass.cursor);
+            let mut before = if slot == 0 { self.buffer.len() - 1 } else { slot - 1 };
+            for _ in 0..self.config.samples_per_push {
+                if self.pass.cursor >= self.next {
+                    break;
+                }
+                self.pass_step(slot, before);
+                before = slot;
+                slot = self.following(slot);
             }
-            self.pass_step();
         }
         if self.pass.cursor >= self.next {
             let span_travel = travel - self.entry(self.pass.start).travel;
