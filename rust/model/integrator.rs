@@ -114,8 +114,20 @@ pub fn hysteresis_rate(p: &Params, h: f64, u: f64, udot: f64) -> f64 {
 /// dh/dt of eq. (5) given `hn` = |h|^n and `su` = sgn(u̇): the stage computation.
 #[inline(always)]
 fn rate<S: Scalar>(c: &Coefficients<S>, h: S, hn: S, u: S, udot: S, su: f64) -> S {
-    let sh = sgn(h.re());
-    c.a * udot - (c.beta * (udot * su) * sh + c.gamma * udot) * hn + c.delta * u * su
+    c.a * udot - (times_sgn(c.beta * (udot * su), h.re()) + c.gamma * udot) * hn + c.delta * u * su
+}
+
+/// x·sgn(v), by a sign change where sgn(v) = ±1 (the same number: multiplying by ±1 is
+/// exact).
+#[inline(always)]
+fn times_sgn<S: Scalar>(x: S, v: f64) -> S {
+    if v > 0.0 {
+        x
+    } else if v < 0.0 {
+        -x
+    } else {
+        x * 0.0
+    }
 }
 
 /// What the stages need of the coefficients: |x|^n and the rate of eq. (5). Implemented

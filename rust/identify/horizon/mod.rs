@@ -402,7 +402,7 @@ impl HorizonIdentifier {
             psi[2 + i] = h.du[i] * s[2 + i];
         }
         psi[I_LN_FC] = (h.du[I_LN_FC - 2] + p.kv * ua.du[I_LN_FC - 2]) * LN_FC_SCALE;
-        if residual.is_finite() && psi.iter().all(|v| v.is_finite()) {
+        if residual.is_finite() && psi.as_slice().iter().all(|v| v.is_finite()) {
             self.pass.jtj.syger(1.0, &psi, &psi, 1.0);
             self.pass.jtr.axpy(residual, &psi, 1.0);
             self.pass.sse += residual * residual;

@@ -121,8 +121,8 @@ impl Chain {
     }
 
     pub(super) fn is_finite(&self) -> bool {
-        self.dh.iter().chain(self.dua.iter()).all(|v| v.is_finite())
-            && self.dcreep.iter().all(|d| d.iter().all(|v| v.is_finite()))
+        self.dh.as_slice().iter().chain(self.dua.as_slice()).all(|v| v.is_finite())
+            && self.dcreep.iter().all(|d| d.as_slice().iter().all(|v| v.is_finite()))
     }
 
     /// [`Chain::step`] without effects (u_a = u, no creep), with ∂x̂/∂θ over the
@@ -144,13 +144,13 @@ impl Chain {
                 let ua0 = self.ua;
                 self.ua = u;
                 let zero = SVector::<f64, NUM_BASE>::zeros();
-                let dh: SVector<f64, NUM_BASE> = self.dh.fixed_rows::<NUM_BASE>(0).into_owned();
+                let dh = SVector::<f64, NUM_BASE>::from_fn(|i, _| self.dh[i]);
                 let (h, dh) = advance_h_with_gradient(p, self.h, &dh, (ua0, &zero), (u, &zero), dt);
                 self.h = h;
-                self.dh.fixed_rows_mut::<NUM_BASE>(0).copy_from(&dh);
+                self.dh.as_mut_slice()[..NUM_BASE].copy_from_slice(dh.as_slice());
             }
         }
-        let mut psi: SVector<f64, NUM_BASE> = self.dh.fixed_rows::<NUM_BASE>(0).into_owned();
+        let mut psi = SVector::<f64, NUM_BASE>::from_fn(|i, _| self.dh[i]);
         psi[I_KV] += self.ua;
         psi[I_X0] += 1.0;
         (output(p, self.ua, self.h), psi)
