@@ -19,8 +19,9 @@
 //! on that core do not preempt it; the kernel's real-time throttling still takes
 //! 50 ms of every second, which shows in the max column. Release build (`cargo bench`).
 //!
-//! Rows: `Model::step`; `horizon` push (the default online method); `rpem` push; the paper's method at
-//! N = 100 … 100 000; `simulate` throughput; and a hand-written floor: one RK4
+//! Rows: `Model::step`; `horizon` push without the input lag (`HorizonIdentifier::new`)
+//! and with it (`HorizonIdentifier::recommended`, the default online method); `rpem`
+//! push; the paper's method at N = 100 … 100 000; `simulate` throughput; and a hand-written floor: one RK4
 //! step with one `powf` per sample (stage powers from its first-order expansion) and
 //! a 7-parameter RLS update on fixed arrays, the least work any identifier of this
 //! model can do per sample, timed the same way in the same run.

@@ -20,7 +20,7 @@
 //! 32 RK4 sub-steps (128 stage evaluations) or 32 × 4 Newton iterations.
 //!
 //! The rule is decided on values only, so that [`advance`] on `f64` (the model) and on
-//! [`Dual`](super::scalar::Dual) (the identifiers' sensitivities) take the same
+//! [`Dual`] (the identifiers' sensitivities) take the same
 //! sub-steps, and the derivative is that of the discrete map actually computed.
 
 use nalgebra::SVector;
@@ -410,7 +410,7 @@ pub fn advance_h(p: &Params, h: f64, u0: f64, u1: f64, dt: f64) -> f64 {
     advance(p, &Coefficients::of(p), h, u0, u1, dt)
 }
 
-/// [`advance_h`] in any [`Scalar`]: with [`Dual`](super::scalar::Dual) numbers it
+/// [`advance_h`] in any [`Scalar`]: with [`Dual`] numbers it
 /// returns h with its derivatives with respect to whatever `c`, `h`, `u0` and `u1`
 /// were seeded with. `p` holds the values of `c` (the sub-step rule and Newton's
 /// iterations run on values). The value is bit for bit that of [`advance_h`].

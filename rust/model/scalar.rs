@@ -140,6 +140,8 @@ impl<const M: usize> Sub for Dual<M> {
 
 impl<const M: usize> Mul for Dual<M> {
     type Output = Self;
+    // The product rule: the sum is meant.
+    #[allow(clippy::suspicious_arithmetic_impl)]
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Dual { re: self.re * o.re, du: zip(self.du, &o.du, |a, b| a * o.re + b * self.re) }

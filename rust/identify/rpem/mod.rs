@@ -352,7 +352,7 @@ impl RpemIdentifier {
         let mut p_psi = SVector::<f64, M>::from_fn(|i, _| p[(i, 0)] * psi[0]);
         for j in 1..M {
             for i in 0..M {
-                p_psi[i] = p[(i, j)] * psi[j] + p_psi[i];
+                p_psi[i] += p[(i, j)] * psi[j];
             }
         }
         let noise = if self.status.samples == 0 { cfg.noise_um2 } else { self.status.noise_um2 };
