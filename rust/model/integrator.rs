@@ -25,7 +25,7 @@
 
 use nalgebra::SVector;
 
-use super::scalar::{Dual, Scalar, SLOPE_FLOOR_UM};
+use super::scalar::{abs_pow_slope, Dual, Scalar};
 use crate::math;
 use crate::params::Params;
 
@@ -138,6 +138,11 @@ pub(crate) trait Law<S: Scalar> {
     fn power(&self, x: S, hn: f64, ln_abs: f64) -> S;
     /// dh/dt at state `h` with `hn` = |h|^n, voltage `u`, rate `udot` and `su` = sgn(u̇).
     fn rate(&self, h: S, hn: S, u: S, udot: S, su: f64) -> S;
+    /// u̇ = `du` / `dt` for the change `du` = u₁ − u₀ of the voltage over an interval.
+    #[inline(always)]
+    fn per_second(&self, du: S, dt: f64) -> S {
+        du / dt
+    }
 }
 
 impl<S: Scalar> Law<S> for Coefficients<S> {
@@ -196,22 +201,25 @@ impl<const M: usize, const FIRST: usize, const INPUT: usize> Law<Dual<M>> for Se
     /// [`Scalar::abs_pow`] with ∂n = 1 at the slot of n and 0 elsewhere.
     #[inline(always)]
     fn power(&self, x: Dual<M>, hn: f64, ln_abs: f64) -> Dual<M> {
-        let a = x.re.abs();
-        if a == 0.0 {
+        let Some(signed) = abs_pow_slope(x.re, self.n, hn) else {
             return Dual::cst(0.0);
-        }
-        let slope = if a >= SLOPE_FLOOR_UM || self.n >= 1.0 {
-            self.n * hn / a
-        } else {
-            self.n * math::powf(SLOPE_FLOOR_UM, self.n - 1.0)
         };
-        let signed = if x.re > 0.0 { slope } else { -slope };
         let dn = hn * ln_abs;
         let mut du = x.du;
         for (j, v) in du.iter_mut().enumerate() {
             *v = if j == FIRST + 3 { *v * signed + dn } else { *v * signed };
         }
         Dual::new(hn, du)
+    }
+
+    /// The voltages' derivatives are 0 outside `INPUT`, and so are those of u̇.
+    #[inline(always)]
+    fn per_second(&self, du: Dual<M>, dt: f64) -> Dual<M> {
+        let mut udot = Dual::cst(du.re / dt);
+        if INPUT < M {
+            udot.du[INPUT] = du.du[INPUT] / dt;
+        }
+        udot
     }
 
     /// The operations of [`rate`] on [`Dual`] numbers, slot by slot (see the type's
@@ -454,7 +462,7 @@ pub(crate) fn advance_forced<S: Scalar, L: Law<S>>(
     if du.re() == 0.0 {
         return h;
     }
-    let udot = du / dt;
+    let udot = c.per_second(du, dt);
     let (hv, udv) = (h.re(), udot.re());
     let su = sgn(udv);
     let hn_v = abs_pow(hv, p.n);

@@ -172,6 +172,20 @@ impl<const M: usize> Neg for Dual<M> {
     }
 }
 
+/// ∂|h|^n/∂h = sgn(h)·n·|h|^(n−1) given `hn` = |h|^n, with |h| taken at
+/// [`SLOPE_FLOOR_UM`] below it for n < 1; `None` at h = 0 (where both derivatives of
+/// |h|^n are taken as 0).
+#[inline(always)]
+pub(crate) fn abs_pow_slope(h: f64, n: f64, hn: f64) -> Option<f64> {
+    let a = h.abs();
+    if a == 0.0 {
+        return None;
+    }
+    let slope =
+        if a >= SLOPE_FLOOR_UM || n >= 1.0 { n * hn / a } else { n * crate::math::powf(SLOPE_FLOOR_UM, n - 1.0) };
+    Some(if h > 0.0 { slope } else { -slope })
+}
+
 impl<const M: usize> Scalar for Dual<M> {
     const DERIVATIVES: bool = true;
     #[inline(always)]
@@ -186,17 +200,9 @@ impl<const M: usize> Scalar for Dual<M> {
     /// [`SLOPE_FLOOR_UM`] in the first term for n < 1 only; both terms are 0 at h = 0.
     #[inline(always)]
     fn abs_pow(self, n: Self, hn: f64, ln_abs: f64) -> Self {
-        let a = self.re.abs();
-        if a == 0.0 {
+        let Some(signed) = abs_pow_slope(self.re, n.re, hn) else {
             return Dual::cst(0.0);
-        }
-        // n·|h|^(n−1), taken at the floor below it.
-        let slope = if a >= SLOPE_FLOOR_UM || n.re >= 1.0 {
-            n.re * hn / a
-        } else {
-            n.re * crate::math::powf(SLOPE_FLOOR_UM, n.re - 1.0)
         };
-        let signed = if self.re > 0.0 { slope } else { -slope };
         let dn = hn * ln_abs;
         Dual { re: hn, du: zip(self.du, &n.du, |a, b| a * signed + b * dn) }
     }
