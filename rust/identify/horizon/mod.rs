@@ -18,7 +18,8 @@
 //! 2. **Store** the sample; the window's start moves on as the travel grows.
 //! 3. **Pass.** A simulation of the window with the current estimates runs
 //!    `samples_per_push` samples further, on dual numbers ([`crate::model::advance`]),
-//!    accumulating the Gauss–Newton normal equations JᵀJ, Jᵀr over the 8 unknowns.
+//!    accumulating the Gauss–Newton normal equations JᵀJ, Jᵀr over the 8 unknowns (9
+//!    with the input lag).
 //!    When it has caught up with the newest sample (and spans at least
 //!    `min_pass_fraction` of the memory), one Levenberg–Marquardt step is taken in
 //!    scaled coordinates, bounded by a trust region and projected onto the region
@@ -32,8 +33,9 @@
 //! grow, no pass reaches the span it needs, and nothing changes.
 //!
 //! Worst case per push: one integration interval for the prediction and
-//! `samples_per_push` on 6-derivative duals (each bounded by the integrator's 32
-//! sub-steps), plus, on the push that ends a pass, an 8 × 8 Cholesky solve. The
+//! `samples_per_push` on 7-derivative duals (each bounded by the integrator's 32
+//! sub-steps), plus, on the push that ends a pass, a 9 × 9 Cholesky solve and up to
+//! three re-solves for the active bounds. The
 //! window buffer is the one allocation (at construction, `max_window` samples).
 //! Starting values are used as given (n < 1 included; the sensitivities are
 //! regularised at h = 0, see [`crate::model::scalar::SLOPE_FLOOR_UM`]).
