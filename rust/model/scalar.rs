@@ -104,11 +104,29 @@ impl<const M: usize> Dual<M> {
     }
 }
 
+/// `f` of the derivatives slot by slot, in place (one pass, no temporaries).
+#[inline(always)]
+fn map<const M: usize>(mut a: SVector<f64, M>, f: impl Fn(f64) -> f64) -> SVector<f64, M> {
+    for v in a.iter_mut() {
+        *v = f(*v);
+    }
+    a
+}
+
+/// `f` of two sets of derivatives slot by slot, into the first.
+#[inline(always)]
+fn zip<const M: usize>(mut a: SVector<f64, M>, b: &SVector<f64, M>, f: impl Fn(f64, f64) -> f64) -> SVector<f64, M> {
+    for (v, &w) in a.iter_mut().zip(b.iter()) {
+        *v = f(*v, w);
+    }
+    a
+}
+
 impl<const M: usize> Add for Dual<M> {
     type Output = Self;
     #[inline(always)]
     fn add(self, o: Self) -> Self {
-        Dual { re: self.re + o.re, du: self.du + o.du }
+        Dual { re: self.re + o.re, du: zip(self.du, &o.du, |a, b| a + b) }
     }
 }
 
@@ -116,15 +134,17 @@ impl<const M: usize> Sub for Dual<M> {
     type Output = Self;
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
-        Dual { re: self.re - o.re, du: self.du - o.du }
+        Dual { re: self.re - o.re, du: zip(self.du, &o.du, |a, b| a - b) }
     }
 }
 
 impl<const M: usize> Mul for Dual<M> {
     type Output = Self;
+    // The product rule: the sum is meant.
+    #[allow(clippy::suspicious_arithmetic_impl)]
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
-        Dual { re: self.re * o.re, du: self.du * o.re + o.du * self.re }
+        Dual { re: self.re * o.re, du: zip(self.du, &o.du, |a, b| a * o.re + b * self.re) }
     }
 }
 
@@ -132,7 +152,7 @@ impl<const M: usize> Mul<f64> for Dual<M> {
     type Output = Self;
     #[inline(always)]
     fn mul(self, k: f64) -> Self {
-        Dual { re: self.re * k, du: self.du * k }
+        Dual { re: self.re * k, du: map(self.du, |a| a * k) }
     }
 }
 
@@ -140,7 +160,7 @@ impl<const M: usize> Div<f64> for Dual<M> {
     type Output = Self;
     #[inline(always)]
     fn div(self, k: f64) -> Self {
-        Dual { re: self.re / k, du: self.du / k }
+        Dual { re: self.re / k, du: map(self.du, |a| a / k) }
     }
 }
 
@@ -148,8 +168,22 @@ impl<const M: usize> Neg for Dual<M> {
     type Output = Self;
     #[inline(always)]
     fn neg(self) -> Self {
-        Dual { re: -self.re, du: -self.du }
+        Dual { re: -self.re, du: map(self.du, |a| -a) }
     }
+}
+
+/// ∂|h|^n/∂h = sgn(h)·n·|h|^(n−1) given `hn` = |h|^n, with |h| taken at
+/// [`SLOPE_FLOOR_UM`] below it for n < 1; `None` at h = 0 (where both derivatives of
+/// |h|^n are taken as 0).
+#[inline(always)]
+pub(crate) fn abs_pow_slope(h: f64, n: f64, hn: f64) -> Option<f64> {
+    let a = h.abs();
+    if a == 0.0 {
+        return None;
+    }
+    let slope =
+        if a >= SLOPE_FLOOR_UM || n >= 1.0 { n * hn / a } else { n * crate::math::powf(SLOPE_FLOOR_UM, n - 1.0) };
+    Some(if h > 0.0 { slope } else { -slope })
 }
 
 impl<const M: usize> Scalar for Dual<M> {
@@ -166,18 +200,11 @@ impl<const M: usize> Scalar for Dual<M> {
     /// [`SLOPE_FLOOR_UM`] in the first term for n < 1 only; both terms are 0 at h = 0.
     #[inline(always)]
     fn abs_pow(self, n: Self, hn: f64, ln_abs: f64) -> Self {
-        let a = self.re.abs();
-        if a == 0.0 {
+        let Some(signed) = abs_pow_slope(self.re, n.re, hn) else {
             return Dual::cst(0.0);
-        }
-        // n·|h|^(n−1), taken at the floor below it.
-        let slope = if a >= SLOPE_FLOOR_UM || n.re >= 1.0 {
-            n.re * hn / a
-        } else {
-            n.re * crate::math::powf(SLOPE_FLOOR_UM, n.re - 1.0)
         };
-        let signed = if self.re > 0.0 { slope } else { -slope };
-        Dual { re: hn, du: self.du * signed + n.du * (hn * ln_abs) }
+        let dn = hn * ln_abs;
+        Dual { re: hn, du: zip(self.du, &n.du, |a, b| a * signed + b * dn) }
     }
     #[inline(always)]
     fn with_re(self, v: f64) -> Self {
@@ -185,7 +212,8 @@ impl<const M: usize> Scalar for Dual<M> {
     }
     #[inline(always)]
     fn implicit(h_star: f64, h0: Self, f_at: Self, slope: f64, step: f64) -> Self {
-        Dual { re: h_star, du: (h0.du + f_at.du * step) / (1.0 - step * slope).max(1.0) }
+        let den = (1.0 - step * slope).max(1.0);
+        Dual { re: h_star, du: zip(h0.du, &f_at.du, |a, b| (a + b * step) / den) }
     }
     #[inline(always)]
     fn all_finite(self) -> bool {

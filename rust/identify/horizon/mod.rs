@@ -26,7 +26,8 @@
 //! 2. **Store** the sample; the window's start moves on as the travel grows.
 //! 3. **Pass.** A simulation of the window with the current estimates runs
 //!    `samples_per_push` samples further, on dual numbers ([`crate::model::advance`]),
-//!    accumulating the Gauss–Newton normal equations JᵀJ, Jᵀr over the 8 unknowns.
+//!    accumulating the Gauss–Newton normal equations JᵀJ, Jᵀr over the 8 unknowns (9
+//!    with the input lag).
 //!    When it has caught up with the newest sample (and spans at least
 //!    `min_pass_fraction` of the memory), one Levenberg–Marquardt step is taken in
 //!    scaled coordinates, bounded by a trust region and projected onto the region
@@ -40,8 +41,9 @@
 //! grow, no pass reaches the span it needs, and nothing changes.
 //!
 //! Worst case per push: one integration interval for the prediction and
-//! `samples_per_push` on 6-derivative duals (each bounded by the integrator's 32
-//! sub-steps), plus, on the push that ends a pass, an 8 × 8 Cholesky solve. The
+//! `samples_per_push` on 7-derivative duals (each bounded by the integrator's 32
+//! sub-steps), plus, on the push that ends a pass, a 9 × 9 Cholesky solve and up to
+//! three re-solves for the active bounds. The
 //! window buffer is the one allocation (at construction, `max_window` samples).
 //! Starting values are used as given (n < 1 included; the sensitivities are
 //! regularised at h = 0, see [`crate::model::scalar::SLOPE_FLOOR_UM`]).
@@ -59,8 +61,9 @@ use super::OnlineIdentifier;
 use crate::effects::{first_order_coefficient, first_order_step, EffectSet, InputLag};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::math;
+use crate::model::integrator::advance_seeded;
 use crate::model::scalar::{Dual, Scalar};
-use crate::model::{advance, advance_h, output, Coefficients, H_LIMIT_UM};
+use crate::model::{advance_h, output, H_LIMIT_UM};
 use crate::params::Params;
 
 /// Unknowns of the window fit: kv, x0, A, β, γ, n, δ, the window's initial h and
@@ -373,25 +376,29 @@ impl HorizonIdentifier {
         &self.buffer[self.slot(k)]
     }
 
-    /// Simulates the pass one sample further and accumulates the normal equations.
+    /// The slot after `slot` in the ring buffer.
+    #[inline(always)]
+    fn following(&self, slot: usize) -> usize {
+        if slot + 1 == self.buffer.len() {
+            0
+        } else {
+            slot + 1
+        }
+    }
+
+    /// Simulates the pass one sample further and accumulates the normal equations;
+    /// `slot` is the slot of the pass's cursor and `before` that of the sample before it.
     #[inline]
-    fn pass_step(&mut self) {
+    fn pass_step(&mut self, slot: usize, before: usize) {
         let k = self.pass.cursor;
-        let e = *self.entry(k);
+        let e = self.buffer[slot];
         let p = self.pass.params;
         if k > self.pass.start {
-            let u0 = self.entry(k - 1).u;
-            let c = Coefficients {
-                a: Dual::var(p.a, 0),
-                beta: Dual::var(p.beta, 1),
-                gamma: Dual::var(p.gamma, 2),
-                n: Dual::var(p.n, 3),
-                delta: Dual::var(p.delta, 4),
-            };
+            let u0 = self.buffer[before].u;
             let ua0 = self.pass.ua;
             let ua1 =
                 if self.ln_fc.is_some() { self.pass.lag.step_dual(ua0, u0, e.u, self.dt) } else { Dual::cst(e.u) };
-            self.pass.h = advance(&p, &c, self.pass.h, ua0, ua1, self.dt);
+            self.pass.h = advance_seeded::<ND, 0, { I_LN_FC - 2 }>(&p, self.pass.h, ua0, ua1, self.dt, None);
             self.pass.ua = ua1;
         } else if self.ln_fc.is_none() {
             self.pass.ua = Dual::cst(e.u);
@@ -407,13 +414,12 @@ impl HorizonIdentifier {
             psi[2 + i] = h.du[i] * s[2 + i];
         }
         psi[I_LN_FC] = (h.du[I_LN_FC - 2] + p.kv * ua.du[I_LN_FC - 2]) * LN_FC_SCALE;
-        if residual.is_finite() && psi.iter().all(|v| v.is_finite()) {
+        if residual.is_finite() && psi.as_slice().iter().all(|v| v.is_finite()) {
             self.pass.jtj.syger(1.0, &psi, &psi, 1.0);
             self.pass.jtr.axpy(residual, &psi, 1.0);
             self.pass.sse += residual * residual;
             self.pass.count += 1;
         }
-        let slot = self.slot(k);
         let entry = &mut self.buffer[slot];
         entry.h = h.re;
         entry.dh = h.du.into();
@@ -559,11 +565,17 @@ impl OnlineIdentifier for HorizonIdentifier {
             let e = *self.entry(self.start);
             self.pass = Pass::new(self.start, self.params, e.h, e.ua, e.dua, self.lag);
         }
-        for _ in 0..self.config.samples_per_push {
-            if self.pass.cursor >= self.next {
-                break;
+        if self.pass.cursor < self.next {
+            let mut slot = self.slot(self.pass.cursor);
+            let mut before = if slot == 0 { self.buffer.len() - 1 } else { slot - 1 };
+            for _ in 0..self.config.samples_per_push {
+                if self.pass.cursor >= self.next {
+                    break;
+                }
+                self.pass_step(slot, before);
+                before = slot;
+                slot = self.following(slot);
             }
-            self.pass_step();
         }
         if self.pass.cursor >= self.next {
             let span_travel = travel - self.entry(self.pass.start).travel;

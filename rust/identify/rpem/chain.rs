@@ -6,22 +6,9 @@ use nalgebra::SVector;
 
 use super::*;
 use crate::effects::{first_order_coefficient, first_order_step, InputLag};
-use crate::model::integrator::advance_forced;
+use crate::model::integrator::advance_seeded;
 use crate::model::output;
 use crate::model::scalar::Dual;
-use crate::model::Coefficients;
-
-/// The Bouc–Wen coefficients of `p` as the independent variables at their slots of θ.
-#[inline(always)]
-pub(super) fn seeded<const M: usize>(p: &Params) -> Coefficients<Dual<M>> {
-    Coefficients {
-        a: Dual::var(p.a, I_A),
-        beta: Dual::var(p.beta, I_BETA),
-        gamma: Dual::var(p.gamma, I_GAMMA),
-        n: Dual::var(p.n, I_N),
-        delta: Dual::var(p.delta, I_DELTA),
-    }
-}
 
 /// h over one sample interval (u linear from `u0` to `u1`) together with its gradient
 /// over M parameters: the model's own integrator ([`crate::model::advance`]) run on
@@ -54,7 +41,11 @@ pub(super) fn advance_with_substeps<const M: usize>(
     dt: f64,
     forced: Option<u32>,
 ) -> (f64, SVector<f64, M>) {
-    let r = advance_forced(p, &seeded::<M>(p), Dual::new(h, *dh), Dual::new(u0, *du0), Dual::new(u1, *du1), dt, forced);
+    // A, β, γ, n, δ are consecutive in θ.
+    const _: () = assert!(I_BETA == I_A + 1 && I_GAMMA == I_A + 2 && I_N == I_A + 3 && I_DELTA == I_A + 4);
+    let (h, u0, u1) = (Dual::new(h, *dh), Dual::new(u0, *du0), Dual::new(u1, *du1));
+    // The voltages' derivatives are in the lag's slot (beyond M = 7 without effects).
+    let r = advance_seeded::<M, I_A, I_LN_FC>(p, h, u0, u1, dt, forced);
     (r.re, r.du)
 }
 
@@ -130,8 +121,8 @@ impl Chain {
     }
 
     pub(super) fn is_finite(&self) -> bool {
-        self.dh.iter().chain(self.dua.iter()).all(|v| v.is_finite())
-            && self.dcreep.iter().all(|d| d.iter().all(|v| v.is_finite()))
+        self.dh.as_slice().iter().chain(self.dua.as_slice()).all(|v| v.is_finite())
+            && self.dcreep.iter().all(|d| d.as_slice().iter().all(|v| v.is_finite()))
     }
 
     /// [`Chain::step`] without effects (u_a = u, no creep), with ∂x̂/∂θ over the
@@ -153,13 +144,13 @@ impl Chain {
                 let ua0 = self.ua;
                 self.ua = u;
                 let zero = SVector::<f64, NUM_BASE>::zeros();
-                let dh: SVector<f64, NUM_BASE> = self.dh.fixed_rows::<NUM_BASE>(0).into_owned();
+                let dh = SVector::<f64, NUM_BASE>::from_fn(|i, _| self.dh[i]);
                 let (h, dh) = advance_h_with_gradient(p, self.h, &dh, (ua0, &zero), (u, &zero), dt);
                 self.h = h;
-                self.dh.fixed_rows_mut::<NUM_BASE>(0).copy_from(&dh);
+                self.dh.as_mut_slice()[..NUM_BASE].copy_from_slice(dh.as_slice());
             }
         }
-        let mut psi: SVector<f64, NUM_BASE> = self.dh.fixed_rows::<NUM_BASE>(0).into_owned();
+        let mut psi = SVector::<f64, NUM_BASE>::from_fn(|i, _| self.dh[i]);
         psi[I_KV] += self.ua;
         psi[I_X0] += 1.0;
         (output(p, self.ua, self.h), psi)

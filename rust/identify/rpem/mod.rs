@@ -333,15 +333,27 @@ impl RpemIdentifier {
         let gmax = cfg.creep_gain_max_um_per_v;
         let n_creep = if M == NUM_PARAMS { self.shape.n_creep } else { 0 };
         // ∂θ/∂(step coordinates): the scales, and g(1 − g/gmax) for the gains.
-        let mut jac: SVector<f64, M> = self.scales.fixed_rows::<M>(0).into_owned();
+        // The fixed-size work below is written as index loops (nalgebra's iterators and
+        // views over part of a matrix cost more than the arithmetic); each element
+        // gets the operations, in the order, of the matrix expression in its comment.
+        let mut jac = SVector::<f64, M>::from_fn(|i, _| self.scales[i]);
         for i in 0..n_creep {
             let g = self.est.creep_gain[i];
             jac[I_CREEP + i] = g * (1.0 - g / gmax);
         }
-        let active: SVector<f64, M> = self.active.fixed_rows::<M>(0).into_owned();
-        let psi = psi.component_mul(&jac).component_mul(&active);
-        let p: SMatrix<f64, M, M> = self.p.fixed_view::<M, M>(0, 0).into_owned();
-        let p_psi = p * psi;
+        // psi ∘ jac ∘ active.
+        let psi = SVector::<f64, M>::from_fn(|i, _| psi[i] * jac[i] * self.active[i]);
+        let mut p = SMatrix::<f64, M, M>::zeros();
+        for (col, full) in p.as_mut_slice().chunks_exact_mut(M).zip(self.p.as_slice().chunks_exact(NUM_PARAMS)) {
+            col.copy_from_slice(&full[..M]);
+        }
+        // p · psi, column by column as a matrix–vector product accumulates.
+        let mut p_psi = SVector::<f64, M>::from_fn(|i, _| p[(i, 0)] * psi[0]);
+        for j in 1..M {
+            for i in 0..M {
+                p_psi[i] += p[(i, j)] * psi[j];
+            }
+        }
         let noise = if self.status.samples == 0 { cfg.noise_um2 } else { self.status.noise_um2 };
         status.noise_um2 = if cfg.noise_memory_samples.is_finite() {
             let a = 1.0 / cfg.noise_memory_samples;
@@ -366,10 +378,27 @@ impl RpemIdentifier {
         status.step_limited |= offset_capped != offset_step;
         step[I_X0] = offset_capped / self.scales[I_X0];
         let lambda = cfg.forgetting * math::exp(-travel / cfg.memory_travel_v);
-        let mut new_p = (p - gain * p_psi.transpose()) / lambda;
-        new_p = (new_p + new_p.transpose()) * 0.5;
+        // (p − gain·p_psiᵀ) / λ, then (new_p + new_pᵀ) · 0.5.
+        let mut new_p = SMatrix::<f64, M, M>::zeros();
+        for ((col, p_col), &w) in
+            new_p.as_mut_slice().chunks_exact_mut(M).zip(p.as_slice().chunks_exact(M)).zip(p_psi.as_slice())
+        {
+            for ((v, &pv), &g) in col.iter_mut().zip(p_col).zip(gain.as_slice()) {
+                *v = (pv - g * w) / lambda;
+            }
+        }
+        for j in 0..M {
+            for i in j..M {
+                let v = (new_p[(i, j)] + new_p[(j, i)]) * 0.5;
+                new_p[(i, j)] = v;
+                new_p[(j, i)] = v;
+            }
+        }
         new_p[(I_X0, I_X0)] += math::powi(cfg.offset_walk_um / self.scales[I_X0], 2);
-        let trace = new_p.trace();
+        let mut trace = 0.0;
+        for i in 0..M {
+            trace += new_p[(i, i)];
+        }
         if trace > cfg.max_trace {
             new_p *= cfg.max_trace / trace;
             status.trace_capped = true;
@@ -378,9 +407,9 @@ impl RpemIdentifier {
         for (i, t) in theta.iter_mut().enumerate() {
             *t += step[i] * self.scales[i];
         }
-        let finite = step.iter().all(|v| v.is_finite())
-            && new_p.iter().all(|v| v.is_finite())
-            && new_p.diagonal().iter().all(|&v| v >= 0.0);
+        let finite = step.as_slice().iter().all(|v| v.is_finite())
+            && new_p.as_slice().iter().all(|v| v.is_finite())
+            && (0..M).all(|i| new_p[(i, i)] >= 0.0);
         match Params::from_array(theta) {
             Ok(params) if finite => {
                 let mut raw = Estimates { params, ..self.est };
@@ -407,7 +436,11 @@ impl RpemIdentifier {
                 }
                 status.projected = candidate != raw;
                 self.est = candidate;
-                self.p.fixed_view_mut::<M, M>(0, 0).copy_from(&new_p);
+                for (full, col) in
+                    self.p.as_mut_slice().chunks_exact_mut(NUM_PARAMS).zip(new_p.as_slice().chunks_exact(M))
+                {
+                    full[..M].copy_from_slice(col);
+                }
                 status.updated = true;
             }
             _ => {
@@ -439,7 +472,7 @@ impl OnlineIdentifier for RpemIdentifier {
             let (prediction, psi) = self.chain.step_base(&self.est.params, self.u_prev, u, self.dt);
             let status = self.update::<NUM_BASE>(prediction, u, x, psi);
             // Without effects only ∂h/∂θ moves (∂u_a/∂θ and the creep rows stay zero).
-            (prediction, status, self.chain.dh.iter().all(|v| v.is_finite()))
+            (prediction, status, self.chain.dh.as_slice().iter().all(|v| v.is_finite()))
         };
         if !finite {
             let h = self.chain.h;
