@@ -32,7 +32,7 @@ typedef enum {
   BW_PANIC = 8,
 } BwStatus;
 
-// Opaque bank of channels (identifier + model each).
+// Opaque bank of channels (identifier, model and inverse each).
 typedef struct BwBank BwBank;
 
 // Opaque horizon identifier.
@@ -423,6 +423,13 @@ BwStatus bw_bank_step_models(BwBank *bank, const double *u, double *x_out);
 
 // Every model takes its identifier's current estimates (states kept).
 BwStatus bw_bank_adopt_estimates(BwBank *bank);
+
+// One frame of feedforward: `x_d` (C desired displacements \[µm\]) in, the C voltages
+// \[V\] at which each channel's inverse model reaches them out. No allocation.
+BwStatus bw_bank_feedforward(BwBank *bank, const double *x_d, double *u_out);
+
+// Voltage limits \[V\] of every channel's inverse (±INFINITY: none).
+BwStatus bw_bank_set_voltage_limits(BwBank *bank, double u_min, double u_max);
 
 // The current estimates of channel `channel`'s identifier.
 BwStatus bw_bank_params(const BwBank *bank, size_t channel, BwParams *out);

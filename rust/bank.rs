@@ -1,5 +1,6 @@
-//! Many channels stepped with one call per frame: an online identifier and a model
-//! per channel (adaptive optics: hundreds of actuators; multi-axis stages).
+//! Many channels stepped with one call per frame: an online identifier, a model and
+//! an inverse of the model per channel (adaptive optics: hundreds of actuators;
+//! multi-axis stages).
 //!
 //! A frame is one sample of every channel: `u[c]` \[V\] and `x[c]` \[µm\] for channel
 //! `c < C`. Every channel is independent and its results are bit for bit those of a
@@ -16,8 +17,8 @@
 //!   channel's own), so the channels' independent chains overlap in the processor
 //!   rather than in SIMD lanes.
 //! - [`Bank`]: the identifiers (one contiguous `Vec` of them, each with its own
-//!   fixed-size state) and a [`ModelBank`]. An inverse model per channel will be one
-//!   more field beside `models`.
+//!   fixed-size state), a [`ModelBank`] and one [`Inverse`] per channel
+//!   ([`Bank::feedforward`]: the voltages for the desired displacements of a frame).
 //!
 //! A frame with a non-finite value is rejected whole before any channel changes
 //! (the NaN policy of a single channel, applied to the frame). Stepping a frame
@@ -26,6 +27,7 @@
 use alloc::vec;
 use alloc::vec::Vec;
 
+use crate::compensate::{admissible, Inverse, VoltageLimits};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::identify::OnlineIdentifier;
 use crate::model::{advance_h, Model};
@@ -184,6 +186,7 @@ impl ModelBank {
 pub struct Bank<I> {
     identifiers: Vec<I>,
     models: ModelBank,
+    inverses: Vec<Inverse>,
 }
 
 impl<I: OnlineIdentifier + Clone> Bank<I> {
@@ -192,7 +195,39 @@ impl<I: OnlineIdentifier + Clone> Bank<I> {
     /// sampling interval `dt` \[s\] (the identifier's).
     pub fn new(channels: usize, identifier: I, dt: f64) -> Result<Self> {
         let models = ModelBank::new(channels, identifier.params(), dt, identifier.h())?;
-        Ok(Bank { identifiers: vec![identifier; channels], models })
+        let inverse = Inverse::new(identifier.params(), dt, identifier.h(), VoltageLimits::NONE)?;
+        Ok(Bank { identifiers: vec![identifier; channels], models, inverses: vec![inverse; channels] })
+    }
+
+    /// The inverses, channel by channel.
+    pub fn inverses(&self) -> &[Inverse] {
+        &self.inverses
+    }
+
+    /// Voltage limits \[V\] of every channel's inverse (the amplifier's range).
+    pub fn set_voltage_limits(&mut self, limits: VoltageLimits) -> Result<()> {
+        limits.validate()?;
+        for inv in &mut self.inverses {
+            inv.set_limits(limits)?;
+        }
+        Ok(())
+    }
+
+    /// One frame of feedforward: for each channel the voltage `u_out[c]` \[V\] at which
+    /// its inverse's model reaches the desired displacement `x_d[c]` \[µm\] (see
+    /// [`Inverse::step`]; channel c is bit for bit a single [`Inverse`] given the same
+    /// parameters and targets). A frame with a non-finite value, or of the wrong
+    /// length, is rejected before any channel changes. Allocation-free.
+    pub fn feedforward(&mut self, x_d: &[f64], u_out: &mut [f64]) -> Result<()> {
+        let channels = self.channels();
+        check_frame("x_d", x_d, channels)?;
+        if u_out.len() != channels {
+            return Err(Error::LengthMismatch { what: "bank output", expected: channels, found: u_out.len() });
+        }
+        for ((inv, out), &target) in self.inverses.iter_mut().zip(u_out.iter_mut()).zip(x_d) {
+            *out = inv.step(target)?;
+        }
+        Ok(())
     }
 
     /// Number of channels C.
@@ -267,25 +302,37 @@ impl<I: OnlineIdentifier + Clone> Bank<I> {
         self.models.step(u, x_out)
     }
 
-    /// Every model takes its identifier's current estimates (the models' states are
-    /// kept): call it when the models should follow what the identifiers learnt.
+    /// Every model takes its identifier's current estimates, and every inverse too
+    /// where they keep x(u) rising (both branch slopes ≥ a fraction of kv up to the
+    /// larger |h| of the identifier and the inverse, see
+    /// [`crate::compensate::admissible`]; otherwise the inverse keeps its parameters).
+    /// States are kept. Call it when the models and the feedforward should follow what
+    /// the identifiers learnt.
     pub fn adopt_estimates(&mut self) -> Result<()> {
         for (c, id) in self.identifiers.iter().enumerate() {
-            self.models.set_params(c, id.params())?;
+            let p = id.params();
+            self.models.set_params(c, p)?;
+            let inv = &mut self.inverses[c];
+            if admissible(&p, id.h().abs().max(inv.h().abs())) {
+                inv.set_params(p)?;
+            }
         }
         Ok(())
     }
 
-    /// Every identifier and model back to its state right after construction.
+    /// Every identifier, model and inverse back to its state right after construction
+    /// (the inverses keep their current parameters and limits).
     pub fn reset(&mut self) {
         self.identifiers.iter_mut().for_each(|id| id.reset());
         self.models.reset();
+        self.inverses.iter_mut().for_each(|inv| inv.reset());
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::compensate::VoltageLimits;
     use crate::identify::{AnyIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier};
     use crate::model::paper_input;
 
@@ -364,6 +411,35 @@ mod tests {
             assert_eq!(bank.models().params(c), bank.identifiers()[c].params());
         }
         assert_ne!(bank.models().params(0), bank.models().params(2));
+    }
+
+    #[test]
+    fn each_channel_feeds_forward_as_a_single_inverse() {
+        let channels = 3;
+        let (u, x) = frames(channels, 3000);
+        let id = RpemIdentifier::new(DT, Params::paper_1hz(), 0.0, RpemConfig::default()).unwrap();
+        let mut bank = Bank::new(channels, id, DT).unwrap();
+        bank.set_voltage_limits(VoltageLimits::new(Some(0.0), Some(100.0)).unwrap()).unwrap();
+        let mut singles: Vec<Inverse> = bank.inverses().to_vec();
+        let (mut pred, mut u_ff) = (vec![0.0; channels], vec![0.0; channels]);
+        for (t, (uf, xf)) in u.chunks_exact(channels).zip(x.chunks_exact(channels)).enumerate() {
+            bank.push(uf, xf, &mut pred).unwrap();
+            if t % 500 == 499 {
+                bank.adopt_estimates().unwrap();
+                for (single, inv) in singles.iter_mut().zip(bank.inverses()) {
+                    single.set_params(*inv.params()).unwrap();
+                }
+            }
+            bank.feedforward(xf, &mut u_ff).unwrap();
+            for c in 0..channels {
+                assert_eq!(u_ff[c].to_bits(), singles[c].step(xf[c]).unwrap().to_bits(), "frame {t}, channel {c}");
+            }
+        }
+        assert_ne!(bank.inverses()[0].params(), &Params::paper_1hz(), "the inverses took the estimates");
+        let before = bank.clone();
+        assert!(bank.feedforward(&[1.0, f64::NAN, 1.0], &mut u_ff).is_err());
+        assert!(bank.feedforward(&[1.0, 1.0], &mut u_ff[..2]).is_err());
+        assert_eq!(bank, before);
     }
 
     #[test]

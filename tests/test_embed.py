@@ -88,6 +88,27 @@ def test_bank_rejects_bad_frames_and_keeps_its_state():
     np.testing.assert_array_equal(bank.push_many(u[50:], x[50:]), twin.push_many(u[50:], x[50:]))
 
 
+def test_bank_feedforward_is_a_single_inverse_per_channel():
+    u, x = _record(3, 2000, seed=5)
+    bank = Bank(3, DT, PAPER)
+    bank.set_voltage_limits(0.0, 100.0)
+    singles = [Inverse(PAPER, DT, u_min=0.0, u_max=100.0) for _ in range(3)]
+    for t in range(u.shape[0]):
+        bank.push(u[t], x[t])
+        if t == 999:
+            bank.adopt_estimates()
+            for c, single in enumerate(singles):
+                assert bank.inverse_params(c) == bank.params(c)  # admissible here: adopted
+                single.set_params(bank.inverse_params(c))
+        expected = [single.step(float(v)) for single, v in zip(singles, x[t])]
+        np.testing.assert_array_equal(bank.feedforward(x[t]), expected)
+    assert bank.inverse_params(1) != PAPER  # the inverses took the estimates
+    with pytest.raises(ValueError, match="x_d"):
+        bank.feedforward([1.0, float("nan"), 2.0])
+    with pytest.raises(ValueError):
+        bank.set_voltage_limits(10.0, 0.0)
+
+
 # -- the C interface ------------------------------------------------------------------
 
 

@@ -425,8 +425,8 @@ class _EffectParams(TypedDict, total=False):
 
 @final
 class Bank:
-    """C independent channels, each an online identifier and a model, stepped with
-    one call per frame (adaptive optics, multi-axis stages).
+    """C independent channels, each an online identifier, a model and an inverse of the
+    model, stepped with one call per frame (adaptive optics, multi-axis stages).
 
     - ``Bank(channels, dt, init, h0=0.0, *, config=None)``: rpem channels (as ``Bank.rpem``);
     - ``Bank.paper(channels, dt, window, init, h0=0.0, *, config=None)``.
@@ -469,7 +469,15 @@ class Bank:
     def step_models_many(self, u: ArrayLike) -> NDArray[np.float64]:
         """T frames for the models: u of shape (T, C) [V]; returns (T, C) displacements [µm]."""
     def adopt_estimates(self) -> None:
-        """Every model takes its identifier's current estimates (model states kept)."""
+        """Every model takes its identifier's current estimates, and every inverse too where
+        they keep x(u) rising (states kept)."""
+    def feedforward(self, x_d: ArrayLike) -> NDArray[np.float64]:
+        """One frame of feedforward: C desired displacements [µm] in, the C voltages [V] at
+        which each channel's inverse model reaches them out."""
+    def set_voltage_limits(self, u_min: float | None = None, u_max: float | None = None) -> None:
+        """Voltage limits [V] of every channel's inverse (None: no limit on that side)."""
+    def inverse_params(self, channel: int) -> Params:
+        """The parameters of channel ``channel``'s inverse."""
     def params(self, channel: int) -> Params:
         """The current estimates of channel ``channel``'s identifier."""
     def model_params(self, channel: int) -> Params:

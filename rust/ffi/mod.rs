@@ -459,7 +459,7 @@ pub struct BwPaper(PaperIdentifier);
 pub struct BwHorizon(HorizonIdentifier);
 /// Opaque inverse of the model (feedforward compensation).
 pub struct BwInverse(Inverse);
-/// Opaque bank of channels (identifier + model each).
+/// Opaque bank of channels (identifier, model and inverse each).
 pub struct BwBank(Bank<AnyIdentifier>);
 
 /// Runs `f`, turning a panic into `BW_PANIC` and an `Err` into its code.
@@ -1150,6 +1150,23 @@ pub unsafe extern "C" fn bw_bank_step_models(bank: *mut BwBank, u: *const f64, x
 #[no_mangle]
 pub unsafe extern "C" fn bw_bank_adopt_estimates(bank: *mut BwBank) -> BwStatus {
     guard(|| Ok(get_mut(bank)?.0.adopt_estimates()?))
+}
+
+/// One frame of feedforward: `x_d` (C desired displacements \[µm\]) in, the C voltages
+/// \[V\] at which each channel's inverse model reaches them out. No allocation.
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_feedforward(bank: *mut BwBank, x_d: *const f64, u_out: *mut f64) -> BwStatus {
+    guard(|| {
+        let bank = &mut get_mut(bank)?.0;
+        let c = bank.channels();
+        Ok(bank.feedforward(slice(x_d, c)?, slice_mut(u_out, c)?)?)
+    })
+}
+
+/// Voltage limits \[V\] of every channel's inverse (±INFINITY: none).
+#[no_mangle]
+pub unsafe extern "C" fn bw_bank_set_voltage_limits(bank: *mut BwBank, u_min: f64, u_max: f64) -> BwStatus {
+    guard(|| Ok(get_mut(bank)?.0.set_voltage_limits(VoltageLimits::new(Some(u_min), Some(u_max))?)?))
 }
 
 /// The current estimates of channel `channel`'s identifier.

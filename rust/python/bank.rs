@@ -184,9 +184,36 @@ impl PyBank {
         PyArray1::from_vec(py, out).reshape([rows, channels])
     }
 
-    /// Every model takes its identifier's current estimates (model states kept).
+    /// Every model takes its identifier's current estimates, and every inverse too
+    /// where they keep x(u) rising (states kept).
     fn adopt_estimates(&mut self) -> PyResult<()> {
         self.inner.adopt_estimates().map_err(value_error)
+    }
+
+    /// One frame of feedforward: C desired displacements x_d \[µm\] in, the C voltages
+    /// \[V\] at which each channel's inverse model reaches them out (each channel as a
+    /// single `Inverse` with the channel's adopted parameters).
+    fn feedforward<'py>(&mut self, py: Python<'py>, x_d: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let x_d = samples(x_d, "x_d")?;
+        let mut out = vec![0.0; self.inner.channels()];
+        self.inner.feedforward(&x_d, &mut out).map_err(value_error)?;
+        Ok(PyArray1::from_vec(py, out))
+    }
+
+    /// Voltage limits \[V\] of every channel's inverse (None: no limit on that side).
+    #[pyo3(signature = (u_min = None, u_max = None))]
+    fn set_voltage_limits(&mut self, u_min: Option<f64>, u_max: Option<f64>) -> PyResult<()> {
+        let limits = crate::compensate::VoltageLimits::new(u_min, u_max).map_err(value_error)?;
+        self.inner.set_voltage_limits(limits).map_err(value_error)
+    }
+
+    /// The parameters of channel `channel`'s inverse.
+    fn inverse_params(&self, channel: usize) -> PyResult<PyParams> {
+        self.inner
+            .inverses()
+            .get(channel)
+            .map(|inv| PyParams { inner: *inv.params() })
+            .ok_or_else(|| PyIndexError::new_err(format!("channel {channel} out of range")))
     }
 
     /// The current estimates of channel `channel`'s identifier.
@@ -206,7 +233,7 @@ impl PyBank {
         Ok(PyParams { inner: self.inner.models().params(channel) })
     }
 
-    /// Every identifier and model back to its state right after construction.
+    /// Every identifier, model and inverse back to its state right after construction.
     fn reset(&mut self) {
         self.inner.reset()
     }

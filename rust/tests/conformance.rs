@@ -361,6 +361,10 @@ fn bank_frames_do_not_allocate() {
             }
             bank.push(&uf, &xf, &mut out).expect("finite");
             bank.step_models(&uf, &mut out).expect("finite");
+            bank.feedforward(&xf, &mut out).expect("finite");
+            if k % 1000 == 999 {
+                bank.adopt_estimates().expect("valid");
+            }
             models.step(&uf, &mut out).expect("finite");
         }
     });
