@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -62,10 +63,13 @@ def main() -> None:
     n = 200_000
     u, x = record(n)
     ul, xl = u.tolist(), x.tolist()
+    makers: dict[str, Callable[[], Identifier]] = {
+        "rpem": lambda: Identifier.rpem(DT, p),
+        "default (horizon, input lag)": lambda: Identifier(DT, p),
+    }
 
-    def push_loop() -> None:
-        ident = Identifier(DT, p)
-        push = ident.push
+    def push_loop(make: Callable[[], Identifier]) -> None:
+        push = make().push
         for a, b in zip(ul, xl):
             push(a, b)
 
@@ -74,16 +78,21 @@ def main() -> None:
         for a in ul:
             step(a)
 
-    t_push = best(push_loop) / n * 1e9
+    rows = []
+    for name, make in makers.items():
+        t_push = best(lambda make=make: push_loop(make)) / n * 1e9
+        t_many = best(lambda make=make: make().push_many(u, x)) / n * 1e9
+        rows.append((name, t_push, t_many))
     t_step = best(step_loop) / n * 1e9
-    t_many = best(lambda: Identifier(DT, p).push_many(u, x)) / n * 1e9
     channels, frames = 256, 2_000
     ub = np.stack([np.roll(u[: frames + 977 * channels], -977 * c)[:frames] for c in range(channels)], axis=1)
     xb = np.stack([np.roll(x[: frames + 977 * channels], -977 * c)[:frames] for c in range(channels)], axis=1)
     t_bank = best(lambda: Bank(channels, DT, p).push_many(ub, xb), repeats=3) / frames * 1e9
-    print(f"Identifier.push (rpem) from a Python loop: {t_push:.0f} ns per call (target ≤ 300)")
+    print(f"{'per sample [ns]':<30}{'push (Python loop)':>20}{'push_many':>12}{'loop / many':>13}")
+    for name, t_push, t_many in rows:
+        print(f"{name:<30}{t_push:>20.0f}{t_many:>12.0f}{t_push / t_many:>13.2f}")
+    print("targets: rpem push from Python <= 300 ns; push_many within 1.3x the Rust push (cargo bench --bench latency)")
     print(f"Model.step from a Python loop: {t_step:.0f} ns per call")
-    print(f"Identifier.push_many (rpem): {t_many:.0f} ns per sample (target ≤ 1.3× the Rust mean per push)")
     print(f"Bank.push_many, C = {channels} rpem: {t_bank:.0f} ns per frame ({t_bank / channels:.0f} per channel)")
 
 
