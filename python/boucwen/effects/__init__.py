@@ -34,7 +34,7 @@ from .base import Context, Effect, Start, simulate_chain
 from .creep import Creep, creep_time_constants
 from .delay import Delay, best_delay
 from .drift import Drift
-from .fit import ExtendedFit, Layout, candidate_starts, fit_extended, fit_extended_record
+from .fit import ExtendedFit, Layout, candidate_starts, fit_extended, fit_extended_record, jacobian_extended
 from .input_lag import InputLag
 from .registry import EFFECTS, VOCABULARY, effect_class, effect_set, effects_of, from_json, to_json
 from .resonance import FN_MAX_NYQUIST_FRACTION, ZETA_BOUNDS, Resonance
@@ -63,6 +63,7 @@ __all__ = [
     "fit_extended",
     "fit_extended_record",
     "from_json",
+    "jacobian_extended",
     "simulate_chain",
     "to_json",
 ]
