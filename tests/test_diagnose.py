@@ -75,8 +75,14 @@ def test_result_fields_and_json():
     assert left["rms_um"] == pytest.approx(d.rms_after)
     assert left["summary"] == d.unexplained.summary()
     first = doc["evidence"]["rounds"][0]
-    assert first["null"]["heldout_rms_um"] > 0
-    assert first["trials"]["drift"]["gain_over_null"] >= 0.1
+    assert first["null"]["rms_um"] > 0 and len(first["null"]["fold_rms_um"]) == doc["evidence"]["folds"]
+    drift = first["trials"]["drift"]
+    assert drift["gain_over_null"] >= 0.1 and len(drift["fold_gains"]) == doc["evidence"]["folds"]
+    # The competing explanations, best first, with their scores; the look-alike tests.
+    competing = first["competing"]
+    assert competing[0]["effect"] == "drift"
+    assert [c["cv_rms_um"] for c in competing] == sorted(c["cv_rms_um"] for c in competing)
+    assert first["lookalike"]["follows"]["follows"] == "drift"
     assert doc["effects"] == ["drift"]
     assert doc["params"]["drift"]["rate_um_per_s"] == pytest.approx(
         rec.effects.to_dict()["drift"]["rate_um_per_s"], rel=0.05
@@ -107,7 +113,7 @@ def test_evidence_points_the_right_way():
 @pytest.mark.parametrize(
     "kw, words",
     [
-        (dict(train_fraction=0.1), "train_fraction"),
+        (dict(folds=1), "folds"),
         (dict(min_gain=-1), "min_gain"),
         (dict(max_effects=9), "max_effects"),
     ],

@@ -20,6 +20,7 @@ Precision Engineering 38 (2014) 921–927).
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
+from . import _threads  # noqa: F401  (first: before NumPy loads)
 from ._core import (
     Bank,
     Compensator,

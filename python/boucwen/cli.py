@@ -190,8 +190,8 @@ def _add_diagnose(sub: _Subparsers) -> None:
         "diagnose",
         help="find which effect the base model misses in a record",
         description="Fits the base model, analyses the residual, adds the effects "
-        "(creep, input_lag, resonance, drift, delay) that earn their "
-        "parameters on held-out data, and reports the error before "
+        "of the vocabulary that earn their parameters under blocked "
+        "cross-validation over the whole record, and reports the error before "
         "and after [um].",
     )
     p.add_argument("data", nargs="?", default=None, help="CSV file with a header line and columns t,u,x (s, V, um)")

@@ -3,38 +3,59 @@
 :func:`diagnose` takes a record (voltage u [V], displacement x [µm], interval dt [s]),
 not told what it contains, and:
 
-1. splits it into a *fitting* part (the first ``train_fraction``, 70 % by default)
-   and a *held-out* part (the rest);
-2. fits the base asymmetric Bouc–Wen model on the fitting part (:func:`boucwen.fit`);
-3. analyses the residual and records evidence a person can check
+1. fits the base asymmetric Bouc–Wen model on the whole record (:func:`boucwen.fit`);
+2. analyses the residual and records evidence a person can check
    (:func:`residual_evidence`): how the residual moves during holds of the voltage
    (creep), its size relative to the signal per frequency band and its regression on
    the model's rate ẋ (input lag), the peak of its spectrum (resonance), its trend
    in time (drift), the whole-sample lag that best aligns model and data (delay);
-4. tries each effect of the vocabulary not yet in the model (creep, input_lag,
-   resonance, drift, delay): adds it, refits everything on the fitting part
-   (:func:`boucwen.effects.fit_extended`) and simulates the whole record; the most
-   likely effect is the one that explains most of the *held-out* error;
-5. keeps it only if it cuts the held-out RMS error by at least ``min_gain``
-   (10 % by default) — an effect that only fits the noise of the fitting part does
-   not earn its parameters there — and repeats from 3 until nothing is kept;
-6. refits the base model and the kept effects on the whole record and reports the
-   errors over the whole record, before (base model) and after (with the effects);
-7. tests what the final model leaves against the noise estimated from the record and
+3. tries each effect of the vocabulary (:data:`boucwen.effects.VOCABULARY`, read from
+   the registry at run time) not yet in the model: adds it and refits everything on
+   the whole record with a small iteration budget (a *trial*);
+4. scores every model by **blocked cross-validation** over the whole record
+   (:mod:`~boucwen.diagnosis.validation`): the record is cut into ``folds`` contiguous
+   blocks (4 by default), each held out in turn from a refit on the others, so that
+   evidence anywhere in the record — a step and its hold, a burst, the end of a
+   drift — is scored where it is;
+5. compares each trial with the *null trial*, the current model refitted with the same
+   effort and nothing added: an effect is credited only with the cut of the
+   cross-validated RMS error beyond the better of the two (``gain_over_null``), so
+   that the extra iterations of a trial are not taken for the effect. It earns its
+   parameters when that cut is at least ``min_gain`` (10 %), or — for evidence that is
+   local — when it cuts the cross-validated error by at least 30 % on the 10 % of
+   samples it changes most and by at least 3 % overall;
+6. of the effects that earn their parameters the one of least cross-validated error is
+   kept; when the first two belong to one group of look-alikes (creep / drift / gain
+   drift; delay / input lag / resonance) and their credits differ by less than
+   1 point, the group's test decides (:mod:`~boucwen.diagnosis.lookalike`: creep
+   follows u, a drift follows time; a delay has a flat group delay, a lag does not).
+   Then it repeats from 3 until nothing earns its parameters;
+7. refits the base model and the kept effects on the whole record and reports the
+   errors, before (base model) and after (with the effects);
+8. tests what the final model leaves against the noise estimated from the record and
    against what could explain it (:func:`~boucwen.diagnosis.unexplained.unexplained`):
    ``Diagnosis.unexplained`` says whether the residual is consistent with noise and,
    if not, which signals, spectral lines and time spans it follows — also when no
    effect of the vocabulary accounts for it.
 
-In step 4 each round also refits the current model with nothing added and the same
-iteration budget (the *null trial*); an effect is credited only with what it cuts
-from the held-out error beyond the better of the current model and the null trial,
-so that the extra iterations of a trial fit are not taken for the effect.
+Long records (more than 50 000 samples) sampled faster than 5 kHz are *screened* (for
+speed): the trials of step 3 run on a copy holding every q-th sample (about 2.5 kHz),
+and the best screened effect
+— with the second when its cross-validated error is within 25 % of the best's —
+is tried again, with its own null trial, on the full record, where the decision is
+taken; so are ``delay`` (whole samples of the full rate) and, when the residual's
+spectrum peaks above what the copy can hold, ``resonance``.
+
+Each round of the report (``evidence["rounds"]``) lists the competing explanations with
+their scores (overall, per fold, where they act), the null trial, the look-alike
+tests' outcomes and, when screened, the screening round.
 
 With no effect in the data, every trial fails step 5 and the result says so
 (``effects == []``).
 
 Modules: :mod:`~boucwen.diagnosis.evidence` (the residual statistics),
+:mod:`~boucwen.diagnosis.validation` (blocked cross-validation),
+:mod:`~boucwen.diagnosis.lookalike` (the tests that tell look-alikes apart),
 :mod:`~boucwen.diagnosis.unexplained` (what the final model leaves, step 7),
 :mod:`~boucwen.diagnosis.search` (the procedure above),
 :mod:`~boucwen.diagnosis.report` (:class:`Diagnosis`, its JSON and CSV files); the
@@ -42,19 +63,21 @@ figure is :func:`boucwen.plots.plot_diagnosis`.
 """
 
 from .evidence import residual_evidence, residual_evidence_record
+from .lookalike import lookalike_tests
 from .report import Diagnosis, write_predictions, write_report
-from .search import MAX_DELAY_SAMPLES, MIN_GAIN, TRAIN_FRACTION, TRIAL_NFEV, diagnose, diagnose_record
+from .search import FOLDS, MAX_DELAY_SAMPLES, MIN_GAIN, TRIAL_NFEV, diagnose, diagnose_record
 from .unexplained import Unexplained, noise_level, unexplained
 
 __all__ = [
+    "FOLDS",
     "MAX_DELAY_SAMPLES",
     "MIN_GAIN",
-    "TRAIN_FRACTION",
     "TRIAL_NFEV",
     "Diagnosis",
     "Unexplained",
     "diagnose",
     "diagnose_record",
+    "lookalike_tests",
     "noise_level",
     "residual_evidence",
     "residual_evidence_record",

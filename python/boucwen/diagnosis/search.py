@@ -1,54 +1,204 @@
-"""The greedy search of the diagnosis: add the effect that best explains the held-out
-error, while it earns its parameters (procedure in :mod:`boucwen.diagnosis`)."""
+"""The greedy search of the diagnosis: add the effect that best explains the record's
+error under blocked cross-validation, while it earns its parameters (procedure in
+:mod:`boucwen.diagnosis`)."""
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._core import EffectSet
-from ..checks import FloatArray, check_int, check_number
-from ..effects import VOCABULARY, ZETA_BOUNDS, ExtendedFit, candidate_starts, fit_extended_record, simulate_chain
+from .._core import EffectSet, Params
+from ..checks import check_int, check_number
+from ..effects import (
+    FN_MAX_NYQUIST_FRACTION,
+    VOCABULARY,
+    ExtendedFit,
+    candidate_starts,
+    fit_extended_record,
+    jacobian_extended,
+    simulate_chain,
+)
 from ..fit import fit_record
 from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
 from .evidence import delay_evidence, residual_evidence_record
+from .lookalike import GROUPS, lookalike_tests
 from .report import Diagnosis, jsonable
 from .unexplained import unexplained
+from .validation import FOLDS, CrossValidation, blocked_cv
 
 __all__ = [
+    "FOLDS",
+    "LOCAL_MIN_GAIN",
     "MAX_DELAY_SAMPLES",
     "MIN_GAIN",
-    "TRAIN_FRACTION",
+    "SCREEN_RATE_HZ",
     "TRIAL_NFEV",
     "Round",
+    "candidates",
     "diagnose",
     "diagnose_record",
     "score_round",
 ]
 
-#: Default fraction of the record (from its start) used for fitting.
-TRAIN_FRACTION = 0.7
-#: Default least relative cut of the held-out RMS error an effect must bring.
+#: Default least relative cut of the cross-validated RMS error an effect must bring.
 MIN_GAIN = 0.10
+#: An effect whose evidence is local is also kept when it cuts the cross-validated
+#: error by this much where it acts (the LOCAL_SHARE of samples it changes most) and
+#: by LOCAL_FLOOR overall.
+LOCAL_MIN_GAIN = 0.30
+LOCAL_SHARE = 0.1
+LOCAL_FLOOR = 0.03
 #: Iteration limit of each trial fit (a trial only has to show what the effect explains).
-TRIAL_NFEV = 20
+TRIAL_NFEV = 12
+#: Tolerance of a trial fit (it stops once an iteration gains less than this share).
+TRIAL_TOL = 1e-5
+#: Records of more than SCREEN_MIN_SAMPLES samples, sampled faster than
+#: SCREEN_RATE_HZ [Hz], are screened on a copy decimated to about that rate; the best
+#: screened effects are then confirmed on the full record.
+SCREEN_RATE_HZ = 2500.0
+SCREEN_MIN_SAMPLES = 50_000
+#: Screened effects confirmed on the full record per round, and the iteration limit
+#: of a confirmation (it starts from the screened fit) and of the null trial beside it.
+CONFIRM = 2
+#: A screened effect other than the best is confirmed only if its cross-validated
+#: error is within this factor of the best one's.
+CONFIRM_RATIO = 1.25
+#: A resonance is also tried on the full record when the current residual's spectrum
+#: peaks, this many times over its median, above what the screened copy can hold.
+PEAK_OVER_MEDIAN = 10.0
+CONFIRM_NFEV = 6
+#: Iteration limit of the final refit of the kept effects on the whole record.
+FINAL_NFEV = 10
+#: Two trials of one look-alike group whose credited gains differ by less than this
+#: are told apart by the group's test (:mod:`boucwen.diagnosis.lookalike`).
+LOOKALIKE_MARGIN = 0.01
+#: A fitted resonance of at least this damping has no peak and is not a candidate.
+PEAK_ZETA = 1.0 / math.sqrt(2.0)
+#: Whole-sample delays whose shifted base fit a delay trial compares.
+DELAY_STARTS = 2
 #: Largest delay tried [samples].
 MAX_DELAY_SAMPLES = 8
 
 
-def _heldout(fr: ExtendedFit, record: Record, nt: int) -> tuple[float, FloatArray]:
-    """RMS error [µm] of a fit over the held-out samples ``nt …``, and its x̂ over the record."""
+def _cv(record: Record, fr: ExtendedFit, folds: int, workers: int | None) -> tuple[CrossValidation, Any]:
     xs = simulate_chain(fr.params, fr.effects, record.u, record.dt, fr.h0)
-    if xs is None:
-        return math.inf, np.full(len(record), np.nan)
-    return rms((record.x - xs)[nt:]), xs
+    if xs is None:  # pragma: no cover - a fitted model can be simulated
+        raise ValueError("the fitted model cannot be simulated")
+    return blocked_cv(jacobian_extended(record, fr, workers=workers), record.x - xs, folds), xs
+
+
+@dataclass(frozen=True, eq=False)
+class _Scored:
+    fit: ExtendedFit
+    cv: CrossValidation
+    x: Any
+
+
+def _trial_fit(
+    name: str,
+    record: Record,
+    current: ExtendedFit,
+    null_rms: float,
+    *,
+    seed: int,
+    workers: int | None,
+    trial_nfev: int,
+) -> ExtendedFit | str:
+    """Adds ``name`` to ``current`` from its best start and refits everything (at most
+    ``trial_nfev`` iterations, in two stages: a trial no better than the null trial
+    after the first third is stopped there). Returns the fit, or why there is none."""
+    starts = candidate_starts(name, record, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
+    if len(starts) > 1:
+        order = np.argsort([_cost(record, current, s) for s in starts])
+        starts = [starts[int(k)] for k in order[: DELAY_STARTS if name == "delay" else 1]]
+    p0, h0, start = current.params, current.h0, starts[0]
+    if name == "delay":
+        shift = _delay_shift(record, current, starts, workers=workers, nfev=trial_nfev)
+        if isinstance(shift, str):
+            return shift
+        p0, h0, start = shift
+    first = max(3, trial_nfev // 3)
+    try:
+        fr = fit_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
+        if fr.rms_um >= null_rms:
+            return "hopeless: no better than the null trial after a third of the effort"
+        if not fr.success:
+            fr = fit_extended_record(
+                record, fr.params, fr.effects, fr.h0, max_nfev=trial_nfev - first, tol=TRIAL_TOL, workers=workers
+            )
+    except ValueError as exc:
+        return str(exc)
+    mode = fr.effects.to_dict().get(name)
+    if isinstance(mode, dict) and "zeta" in mode and mode["zeta"] >= PEAK_ZETA:
+        # A second-order low-pass (either resonance mode) has a peak only for ζ < 1/√2:
+        # without one it is a lag shape the other effects describe; recorded, but not a
+        # candidate.
+        return f"no resonance peak: fitted zeta {mode['zeta']:.3g} ≥ 1/√2"
+    return fr
+
+
+def _delay_shift(
+    record: Record,
+    current: ExtendedFit,
+    starts: list[EffectSet],
+    *,
+    workers: int | None,
+    nfev: int,
+) -> tuple[Params, float, EffectSet] | str:
+    """The current model refitted to the record shifted by each delay of ``starts`` and,
+    as the null, not shifted (same effort): the base parameters, h0 and the start of the best shift, or why the delay
+    is hopeless (no shift beats the unshifted fit by :data:`LOCAL_FLOOR`).
+
+    The current fit has bent itself to follow the lag; a delay of d samples is the
+    model fitted to the record shifted by d, which starts the delay trial right."""
+    results = {}
+    for d, s in [(0, None), *((s.to_dict()["delay"]["samples"], s) for s in starts)]:
+        fitted = fit_extended_record(
+            record.realigned(d) if d else record,
+            current.params,
+            current.effects,
+            current.h0,
+            max_nfev=nfev,
+            tol=TRIAL_TOL,
+            workers=workers,
+        )
+        results[d] = (fitted, s)
+    best = min((d for d in results if d), key=lambda d: results[d][0].rms_um)
+    fitted, start = results[best]
+    if start is None or fitted.rms_um > (1.0 - LOCAL_FLOOR) * results[0][0].rms_um:
+        return f"hopeless: the best shift ({best} samples) fits no better than none"
+    return fitted.params, fitted.h0, start
+
+
+def _credit(trial: _Scored, reference: _Scored, ref_rms: float) -> dict[str, Any]:
+    """What a trial is credited with against the reference (the better of the current
+    model and the null trial): overall, per fold and where it acts."""
+    cv, ref = trial.cv, reference.cv
+    acts = np.abs(trial.x - reference.x)
+    k = max(1, round(LOCAL_SHARE * acts.size))
+    where = np.argpartition(acts, acts.size - k)[acts.size - k :]
+    local_ref = rms(ref.residual[where])
+    return {
+        "cv_rms_um": cv.rms_um,
+        "in_sample_rms_um": cv.in_sample_rms_um,
+        "gain_over_null": 1.0 - cv.rms_um / ref_rms if ref_rms > 0 else 0.0,
+        "fold_gains": [1.0 - a / b if b > 0 else 0.0 for a, b in zip(cv.fold_rms_um, ref.fold_rms_um)],
+        "local_gain": 1.0 - rms(cv.residual[where]) / local_ref if local_ref > 0 else 0.0,
+    }
+
+
+def _earns(c: dict[str, Any], min_gain: float) -> bool:
+    overall = bool(c["gain_over_null"] >= min_gain)
+    local = c["local_gain"] >= LOCAL_MIN_GAIN and c["gain_over_null"] >= LOCAL_FLOOR
+    return overall or bool(local)
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,110 +206,158 @@ class Round:
     """One round of the search (:func:`score_round`).
 
     Attributes:
-        evidence: the round's JSON evidence: ``heldout_rms_um`` of the current model,
-            ``null`` (the current model refitted with the trials' effort and nothing
-            added: ``train_rms_um``, ``heldout_rms_um``, ``heldout_gain``), ``reference_rms_um``
-            (the lower of the two held-out errors, the one each effect is credited
-            against), ``trials`` (per effect: ``heldout_gain`` against the current model,
-            ``gain_over_null`` against the reference, …), ``most_likely`` and ``kept``.
+        evidence: the round's JSON evidence: ``current`` and ``null`` (the current model,
+            and it refitted with the trials' effort and nothing added: their
+            cross-validated errors, ``cv_rms_um`` and ``fold_rms_um``), ``reference_rms_um``
+            (the lower of the two, the one each effect is credited against), ``trials``
+            (per effect: ``cv_rms_um``, ``gain_over_null``, ``fold_gains``, ``local_gain``,
+            ``fitted``, or why it is not a candidate), ``competing`` (the candidates,
+            best first, with their scores), ``lookalike`` (the tests of
+            :mod:`~boucwen.diagnosis.lookalike` on the current residual and, where
+            they decided, ``lookalike_decision``), ``most_likely`` and ``kept``.
         kept: the fit of the kept effect, or None.
+        ranked: the candidates' fits, best first (those that earn their parameters).
     """
 
     evidence: dict[str, Any]
     kept: ExtendedFit | None
+    ranked: list[tuple[str, ExtendedFit]]
+
+
+def candidates(present: Sequence[str]) -> tuple[str, ...]:
+    """The effects of the vocabulary a round tries beside those `present`: every one not
+    yet in the model, a second resonance mode only once a first is in."""
+    return tuple(n for n in VOCABULARY if n not in present and (n != "resonance2" or "resonance" in present))
 
 
 def score_round(
     record: Record,
-    nt: int,
     current: ExtendedFit,
     *,
+    names: tuple[str, ...] | None = None,
+    folds: int = FOLDS,
     min_gain: float = MIN_GAIN,
     seed: int = 0,
     workers: int | None = None,
     say: Callable[[str], None] | None = None,
-    cur_held: float | None = None,
     trial_nfev: int = TRIAL_NFEV,
+    starts: dict[str, ExtendedFit] | None = None,
 ) -> Round:
-    """Tries every effect not yet in ``current`` on the first ``nt`` samples of ``record``.
+    """Tries every effect of the vocabulary not yet in ``current`` (or those in
+    ``names``) on ``record``.
 
-    Each trial adds one effect and refits everything for at most ``trial_nfev``
-    iterations; the *null trial* refits ``current`` with the same budget and nothing
-    added. An effect is credited only with the cut of the held-out RMS error beyond
-    both the current model and the null trial (``gain_over_null``), so that the
-    convergence the extra iterations bring is not taken for the effect; it is kept
-    when that credit is at least ``min_gain``.
+    Each trial adds one effect and refits everything on the whole record for at most
+    ``trial_nfev`` iterations; the *null trial* refits ``current`` with the same
+    budget and nothing added. Every model is scored by blocked cross-validation
+    (:mod:`~boucwen.diagnosis.validation`), and an effect is credited only with the cut
+    of the cross-validated RMS error beyond both the current model and the null trial
+    (``gain_over_null``), overall and where it acts (``local_gain``); it earns its
+    parameters when the first is at least ``min_gain``, or the second at least
+    :data:`LOCAL_MIN_GAIN` with the first at least :data:`LOCAL_FLOOR`. ``starts``
+    gives, per effect, a fit to start its trial from instead of its own starts.
     """
     note = say if say is not None else (lambda _msg: None)
-    train = record.part(0, nt)
-    dt = record.dt
-    if cur_held is None:
-        cur_held, _ = _heldout(current, record, nt)
-    null = fit_extended_record(train, current.params, current.effects, current.h0, max_nfev=trial_nfev, workers=workers)
-    null_held, _ = _heldout(null, record, nt)
-    reference = min(cur_held, null_held)
-    note(f"  0 null     : held-out RMS {null_held:.4g} µm (gain {1.0 - null_held / cur_held:+.1%})")
+    cur_cv, cur_x = _cv(record, current, folds, workers)
+    null = fit_extended_record(
+        record, current.params, current.effects, current.h0, max_nfev=trial_nfev, workers=workers
+    )
+    null_cv, null_x = _cv(record, null, folds, workers)
+    scored_cur, scored_null = _Scored(current, cur_cv, cur_x), _Scored(null, null_cv, null_x)
+    reference = scored_cur if cur_cv.rms_um <= null_cv.rms_um else scored_null
+    ref_rms = reference.cv.rms_um
+    null_gain = 1.0 - null_cv.rms_um / cur_cv.rms_um if cur_cv.rms_um > 0 else 0.0
+    note(f"  0 null     : CV RMS {null_cv.rms_um:.4g} µm (current {cur_cv.rms_um:.4g} µm, gain {null_gain:+.1%})")
     trials: dict[str, dict[str, Any]] = {}
-    fits: dict[str, ExtendedFit] = {}
-    for name in VOCABULARY:
-        if name in current.effects.names:
+    fits: dict[str, _Scored] = {}
+    todo = names if names is not None else candidates(current.effects.names)
+    for name in todo:
+        t0 = time.perf_counter()
+        if starts is not None and name in starts:
+            s = starts[name]
+            fr: ExtendedFit | str = fit_extended_record(
+                record, s.params, s.effects, s.h0, max_nfev=trial_nfev, tol=TRIAL_TOL, workers=workers
+            )
+        else:
+            fr = _trial_fit(name, record, current, null.rms_um, seed=seed, workers=workers, trial_nfev=trial_nfev)
+        if isinstance(fr, str):
+            trials[name] = {"rejected": fr}
+            note(f"  - {name:9s}: {fr} ({time.perf_counter() - t0:.1f} s)")
             continue
-        starts = candidate_starts(name, train, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
-        if len(starts) > 1:
-            costs = []
-            for s in starts:
-                xs = simulate_chain(current.params, s, train.u, dt, current.h0)
-                costs.append(math.inf if xs is None else rms(xs - train.x))
-            starts = [starts[int(np.argmin(costs))]]
-        p0, h0 = current.params, current.h0
-        start_effects = starts[0]
-        delay = start_effects.to_dict().get("delay")
-        if name == "delay" and delay is not None:
-            # The base fit has bent itself to follow the lag; a delay of d samples is
-            # the base model fitted to the record shifted by d, which starts it right.
-            shifted = fit_record(train.realigned(delay["samples"]), init=current.params, seed=seed, workers=workers)
-            p0, h0 = shifted.params, shifted.h0
-        try:
-            fr = fit_extended_record(train, p0, start_effects, h0, max_nfev=trial_nfev, workers=workers)
-        except ValueError as exc:
-            trials[name] = {"error": str(exc)}
-            continue
-        held, _ = _heldout(fr, record, nt)
-        gain = 1.0 - held / cur_held if cur_held > 0 else 0.0
-        credited = 1.0 - held / reference if reference > 0 else 0.0
-        fitted = fr.effects.to_dict()
-        trials[name] = {
-            "train_rms_um": fr.rms_um,
-            "heldout_rms_um": held,
-            "heldout_gain": gain,
-            "gain_over_null": credited,
-            "fitted": dict(fitted).get(name),
-        }
-        resonance = fitted.get("resonance")
-        if name == "resonance" and resonance is not None and resonance["zeta"] >= 0.99 * ZETA_BOUNDS[1]:
-            # Critically damped or more: no peak, so not a resonance (a lag shape
-            # the other effects describe); recorded, but not a candidate.
-            trials[name]["rejected"] = "no resonance peak: fitted zeta at its bound of 1"
-            note(f"  - {name:9s}: fitted zeta at its bound (no peak): not a resonance")
-            continue
-        fits[name] = fr
-        note(f"  + {name:9s}: held-out RMS {held:.4g} µm (gain {gain:+.1%}, over the null {credited:+.1%})")
-    ranked = sorted(fits, key=lambda k: trials[k]["heldout_rms_um"])
-    best = ranked[0] if ranked else None
-    keep = best is not None and trials[best]["gain_over_null"] >= min_gain
+        cv, xs = _cv(record, fr, folds, workers)
+        fits[name] = _Scored(fr, cv, xs)
+        trials[name] = {**_credit(fits[name], reference, ref_rms), "fitted": fr.effects.to_dict().get(name)}
+        c = trials[name]
+        note(
+            f"  + {name:9s}: CV RMS {cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
+            f"where it acts {c['local_gain']:+.1%}; {time.perf_counter() - t0:.1f} s)"
+        )
+    ranked = sorted(fits, key=lambda k: trials[k]["cv_rms_um"])
+    earning = [k for k in ranked if _earns(trials[k], min_gain)]
+    lookalike = lookalike_tests(record, reference.x)
+    decision = None
+    if len(earning) >= 2:
+        a, b = earning[0], earning[1]
+        close = trials[a]["gain_over_null"] - trials[b]["gain_over_null"] < LOOKALIKE_MARGIN
+        for test, members in GROUPS.items():
+            said = lookalike[test].get("follows", lookalike[test].get("shape"))
+            if close and a in members and b in members and said == b:
+                earning[0], earning[1] = b, a
+                decision = {"test": test, "between": [a, b], "chose": b}
+    best = earning[0] if earning else (ranked[0] if ranked else None)
+    keep = bool(earning)
     evidence = {
-        "heldout_rms_um": cur_held,
-        "null": {
-            "train_rms_um": null.rms_um,
-            "heldout_rms_um": null_held,
-            "heldout_gain": 1.0 - null_held / cur_held if cur_held > 0 else 0.0,
-        },
-        "reference_rms_um": reference,
+        "current": cur_cv.to_dict(),
+        "null": {**null_cv.to_dict(), "gain": null_gain},
+        "reference_rms_um": ref_rms,
         "trials": trials,
+        "competing": [
+            {"effect": k, "cv_rms_um": trials[k]["cv_rms_um"], "gain_over_null": trials[k]["gain_over_null"]}
+            for k in ranked
+        ],
+        "lookalike": lookalike,
+        "lookalike_decision": decision,
         "most_likely": best,
-        "kept": bool(keep),
+        "kept": keep,
     }
-    return Round(evidence=evidence, kept=fits[best] if keep and best is not None else None)
+    return Round(
+        evidence=evidence,
+        kept=fits[best].fit if keep and best is not None else None,
+        ranked=[(k, fits[k].fit) for k in earning],
+    )
+
+
+def _delay_hopeless(record: Record, current: ExtendedFit, folds: int, workers: int | None) -> bool:
+    """A delay cannot earn its parameters: adding the model's rate ẋ̂ (the first-order
+    change a small delay makes) as one more column of its Jacobian cuts the
+    cross-validated error by less than :data:`LOCAL_FLOOR`."""
+    cv, xs = _cv(record, current, folds, workers)
+    jac = jacobian_extended(record, current, workers=workers)
+    with_rate = blocked_cv(np.column_stack([jac, np.gradient(xs)]), record.x - xs, folds)
+    return bool(with_rate.rms_um > (1.0 - LOCAL_FLOOR) * cv.rms_um)
+
+
+def _cost(record: Record, current: ExtendedFit, effects: EffectSet) -> float:
+    xs = simulate_chain(current.params, effects, record.u, record.dt, current.h0)
+    return math.inf if xs is None else rms(xs - record.x)
+
+
+def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool:
+    """The current model's residual has a spectral peak (:data:`PEAK_OVER_MEDIAN`) above
+    the highest resonance the screened copy (interval ``screen_dt``) can hold."""
+    xs = simulate_chain(current.params, current.effects, record.u, record.dt, current.h0)
+    if xs is None:  # pragma: no cover - a fitted model can be simulated
+        return False
+    peak = residual_evidence_record(record, xs)["resonance"]
+    return bool(peak["peak_hz"] > FN_MAX_NYQUIST_FRACTION / screen_dt and peak["peak_over_median"] > PEAK_OVER_MEDIAN)
+
+
+def _screen_copy(record: Record) -> tuple[Record, int]:
+    """The record decimated to about :data:`SCREEN_RATE_HZ` (every q-th sample), and q
+    (the record itself and 1 when it is not screened)."""
+    q = max(1, int(1.0 / (record.dt * SCREEN_RATE_HZ)))
+    if q == 1 or len(record) <= SCREEN_MIN_SAMPLES:
+        return record, 1
+    return validate_record(record.u[::q], record.x[::q], record.dt * q), q
 
 
 def diagnose(
@@ -168,7 +366,7 @@ def diagnose(
     dt: float,
     *,
     progress: Progress = False,
-    train_fraction: float = TRAIN_FRACTION,
+    folds: int = FOLDS,
     min_gain: float = MIN_GAIN,
     max_effects: int = 3,
     seed: int = 0,
@@ -181,10 +379,9 @@ def diagnose(
         x: measured displacement [µm], same length.
         dt: sampling interval [s] (> 0).
         progress: ``True`` prints progress lines to stderr; or a callable taking a str.
-        train_fraction: share of the record (from its start) used for fitting during
-            the search; the rest is held out (0.3 … 0.95).
-        min_gain: least relative cut of the held-out RMS error an effect must bring
-            to be kept (0 … 1).
+        folds: contiguous blocks of the cross-validation (2 … 10).
+        min_gain: least relative cut of the cross-validated RMS error an effect must
+            bring to be kept (0 … 1).
         max_effects: most effects added (0 … 5).
         seed: seed of :func:`boucwen.fit`'s random starts.
         workers: threads for the Jacobians (default: the number of CPUs).
@@ -199,7 +396,7 @@ def diagnose(
     return diagnose_record(
         validate_record(u, x, dt),
         progress=progress,
-        train_fraction=train_fraction,
+        folds=folds,
         min_gain=min_gain,
         max_effects=max_effects,
         seed=seed,
@@ -211,7 +408,7 @@ def diagnose_record(
     record: Record,
     *,
     progress: Progress = False,
-    train_fraction: float = TRAIN_FRACTION,
+    folds: int = FOLDS,
     min_gain: float = MIN_GAIN,
     max_effects: int = 3,
     seed: int = 0,
@@ -220,62 +417,87 @@ def diagnose_record(
     """:func:`diagnose` on a checked :class:`~boucwen.record.Record` (same options, same result)."""
     started = time.perf_counter()
     say = reporter(progress, "diagnose", started)
-    train_fraction = check_number("train_fraction", train_fraction, 0.3, 0.95)
+    folds = check_int("folds", folds, 2, 10)
     min_gain = check_number("min_gain", min_gain, 0.0, 1.0)
     max_effects = check_int("max_effects", max_effects, 0, 5)
     u, x, dt = record.u, record.x, record.dt
     n = u.size
-    nt = round(train_fraction * n)
-    if nt < 64 or n - nt < 16:
+    if n < 100:
         raise ValueError(f"diagnose needs at least 100 samples, got {n}")
-    if not np.ptp(u[:nt]) > 0:
-        raise ValueError("u is constant over the fitting part; the diagnosis needs a varying voltage")
-    train = record.part(0, nt)
+    if not np.ptp(u) > 0:
+        raise ValueError("u is constant; the diagnosis needs a varying voltage")
+    screen, q = _screen_copy(record)
 
-    def heldout(fr: ExtendedFit) -> tuple[float, FloatArray]:
-        return _heldout(fr, record, nt)
-
-    say(f"fitting the base model on the first {nt} of {n} samples")
-    base_tr = fit_record(train, seed=seed, workers=workers)
-    current = fit_extended_record(train, base_tr.params, EffectSet(), base_tr.h0, max_nfev=100, workers=workers)
-    cur_held, cur_x = heldout(current)
-    say(f"base model: fitting-part RMS {current.rms_um:.4g} µm, held-out RMS {cur_held:.4g} µm")
+    say(f"fitting the base model on {n} samples")
+    base = fit_record(record, seed=seed, workers=workers, decimate=q if q > 1 else None)
+    current = ExtendedFit(base.params, EffectSet(), base.h0, base.rms_um, base.max_um, base.nfev, base.success)
+    x_base = base.x_fit
+    say(
+        f"base model: RMS {base.rms_um:.4g} µm; {folds} folds"
+        + (f"; trials screened every {q}th sample" if q > 1 else "")
+    )
     evidence: dict[str, Any] = {
-        "train_samples": nt,
-        "heldout_samples": n - nt,
+        "folds": folds,
+        "screen_decimation": q,
         "min_gain": min_gain,
-        "residual": residual_evidence_record(record, cur_x),
+        "local_min_gain": LOCAL_MIN_GAIN,
+        "residual": residual_evidence_record(record, x_base),
         "rounds": [],
     }
     evidence["residual"]["delay"] = delay_evidence(record, current, MAX_DELAY_SAMPLES)
     added: list[str] = []
+    opts: dict[str, Any] = {"folds": folds, "min_gain": min_gain, "seed": seed, "workers": workers, "say": say}
 
     while len(added) < max_effects:
-        round_ = score_round(
-            record, nt, current, min_gain=min_gain, seed=seed, workers=workers, say=say, cur_held=cur_held
-        )
+        say(f"round {len(added) + 1}: trying {list(candidates(current.effects.names))}")
+        if q == 1 or simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is None:
+            # Not screened, or the model holds what the screened copy cannot (a
+            # resonance above its Nyquist frequency): every trial on the full record.
+            round_ = score_round(record, current, **opts)
+        else:
+            names = tuple(k for k in candidates(current.effects.names) if k != "delay")
+            screened = score_round(screen, current, names=names, **opts)
+            ranked = screened.ranked[:CONFIRM]
+            scores = screened.evidence["trials"]
+            confirm = {
+                k: f for k, f in ranked if scores[k]["cv_rms_um"] <= CONFIRM_RATIO * scores[ranked[0][0]]["cv_rms_um"]
+            }
+            full_only = [k for k in candidates(current.effects.names) if k not in names]
+            if "delay" in full_only and _delay_hopeless(record, current, folds, workers):
+                say("  - delay    : hopeless: the model's rate does not explain the residual")
+                full_only.remove("delay")
+            if "resonance" in names and _peak_beyond(record, current, screen.dt):
+                full_only.append("resonance")
+            todo = tuple(k for k in VOCABULARY if k in confirm or k in full_only)
+            say(f"confirming {list(todo)} on the full record")
+            round_ = (
+                score_round(record, current, names=todo, starts=confirm, trial_nfev=CONFIRM_NFEV, **opts)
+                if todo
+                else screened
+            )
+            if todo:
+                round_.evidence["screening"] = screened.evidence
         evidence["rounds"].append(round_.evidence)
         if round_.kept is None:
-            say("nothing left that earns its parameters on the held-out part")
+            say("nothing left that earns its parameters under cross-validation")
             break
         current = round_.kept
-        cur_held, cur_x = heldout(current)
         added.append(round_.evidence["most_likely"])
-        say(f"kept {added[-1]}: held-out RMS {cur_held:.4g} µm")
+        say(f"kept {added[-1]}: RMS {current.rms_um:.4g} µm")
 
-    say("refitting on the whole record")
-    base_all = fit_record(record, init=base_tr.params, n_candidates=0, n_starts=1, seed=seed, workers=workers)
-    x_base = base_all.x_fit
     if added:
-        ext = fit_extended_record(record, current.params, current.effects, current.h0, workers=workers)
+        say("refitting on the whole record")
+        ext = fit_extended_record(
+            record, current.params, current.effects, current.h0, workers=workers, max_nfev=FINAL_NFEV
+        )
         x_ext = ext.simulate(u, dt)
         params = ext.to_dict()
         effect_set = ext.effects
     else:
         x_ext = x_base.copy()
-        params = {"base": base_all.params.to_dict(), "h0_um": base_all.h0}
+        params = {"base": base.params.to_dict(), "h0_um": base.h0}
         effect_set = EffectSet()
-    params["base_only"] = {"base": base_all.params.to_dict(), "h0_um": base_all.h0}
+    params["base_only"] = {"base": base.params.to_dict(), "h0_um": base.h0}
     err_b, err_e = x - x_base, x - x_ext
     left = unexplained(record, x_ext)
     say(left.summary())

@@ -40,7 +40,7 @@ from .creep import Creep, creep_time_constants
 from .delay import Delay, best_delay
 from .drift import Drift
 from .electrostriction import Electrostriction
-from .fit import ExtendedFit, Layout, candidate_starts, fit_extended, fit_extended_record
+from .fit import ExtendedFit, Layout, candidate_starts, fit_extended, fit_extended_record, jacobian_extended
 from .gain_drift import GainDrift
 from .input_lag import InputLag
 from .pickup import LINE_FREQUENCIES_HZ, MAX_START_HARMONICS, Pickup
@@ -80,6 +80,7 @@ __all__ = [
     "fit_extended",
     "fit_extended_record",
     "from_json",
+    "jacobian_extended",
     "simulate_chain",
     "to_json",
 ]

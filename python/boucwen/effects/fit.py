@@ -34,7 +34,7 @@ from ..record import Record, validate_record
 from .base import Context, Effect, Start, simulate_chain, with_effect
 from .registry import effect_class, effect_set, effects_of
 
-__all__ = ["ExtendedFit", "Layout", "candidate_starts", "fit_extended", "fit_extended_record"]
+__all__ = ["ExtendedFit", "Layout", "candidate_starts", "fit_extended", "fit_extended_record", "jacobian_extended"]
 
 #: The base model's unknowns: the seven parameters and h0.
 _BASE = (*Params.names, "h0")
@@ -257,6 +257,18 @@ def fit_extended_record(
         nfev=prob.simulations,
         success=bool(res.success),
     )
+
+
+def jacobian_extended(record: Record, fitted: ExtendedFit, *, workers: int | None = None) -> FloatArray:
+    """∂x̂/∂z of the extended model ``fitted`` over ``record`` (one row per sample, one
+    column per unknown of its :class:`Layout`), by the fit's forward differences."""
+    u, x, dt = record.u, record.x, record.dt
+    layout = Layout.of(fitted.effects, dt, dt * max(u.size - 1, 1))
+    z = layout.pack(fitted.params, fitted.effects, fitted.h0)
+    _, upper = layout.bounds()
+    with jacobian_threads(workers) as pool:
+        prob = OutputErrorProblem(_Chain(layout, u, dt), x, typical=_typical(layout, z, u, x), upper=upper, pool=pool)
+        return prob.jacobian(z)
 
 
 def candidate_starts(

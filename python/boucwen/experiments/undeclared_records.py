@@ -2,8 +2,7 @@
 
 The input (:func:`test_input`) repeats a pattern three times with random levels: fast
 steps followed by holds, a full-range slow sweep, minor loops, sine bursts at
-2–60 Hz. The held-out last 30 % of a record thus holds the same kinds of motion as
-the fitting part.
+2–60 Hz. Every part of a record thus holds the same kinds of motion.
 
 Records are simulated with :func:`boucwen.simulate_extended` on a grid 8× finer than
 the sampling (the input interpolated linearly) and then sampled, with creep time
