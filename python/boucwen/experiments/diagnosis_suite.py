@@ -101,9 +101,10 @@ def cases(quick: bool = False) -> list[Case]:
     Full: clean records (3 per family); every effect of the vocabulary at each size of
     :data:`~boucwen.experiments.suite_records.SIZES_UM` under every family; every pair
     of them at 0.08 µm each; every effect outside the vocabulary at 0.08 and 0.3 µm
-    under four families; a second resonance mode always beside a first. Quick: two clean records, each effect of the vocabulary once at
-    0.08 µm, two pairs, three effects outside. Rates, noise levels and parameter sets
-    cycle with the record's index, which is also its seed.
+    under four families; a second resonance mode always beside a first; static
+    nonlinearities never under a single step. Quick: two clean records, each effect of
+    the vocabulary once at 0.08 µm, two pairs, three effects outside. Rates, noise
+    levels and parameter sets cycle with the record's index, which is also its seed.
     """
     specs: list[tuple[tuple[tuple[str, float], ...], str]] = []
     inside, outside = _inside_names(), _outside_names()
