@@ -57,6 +57,21 @@ impl LagStage {
     pub(crate) fn advance(&self, ua: f64, u0: f64, u1: f64, dt: f64) -> f64 {
         first_order_step(ua, u0, u1, self.tau, self.decay, dt)
     }
+
+    /// exp(−dt/τ): how a derivative of u_a carried into an interval leaves it.
+    #[inline]
+    pub(crate) fn decay(&self) -> f64 {
+        self.decay
+    }
+
+    /// ∂u_a/∂ln fc of [`Self::advance`] itself, from `ua` (u_a at the interval's
+    /// start) with u moving linearly from `u0` to `u1`.
+    #[inline]
+    pub(crate) fn ln_fc_slope(&self, ua: f64, u0: f64, u1: f64, dt: f64) -> f64 {
+        let r = self.tau * (u1 - u0) / dt;
+        // ∂τ/∂ln fc = −τ, so ∂r/∂ln fc = −r and ∂decay/∂ln fc = −decay·dt/τ.
+        r - r * self.decay - (ua - u0 + r) * self.decay * dt / self.tau
+    }
 }
 
 #[cfg(test)]

@@ -58,7 +58,8 @@ use alloc::vec::Vec;
 use nalgebra::{SMatrix, SVector};
 
 use super::OnlineIdentifier;
-use crate::effects::{first_order_coefficient, first_order_step, EffectSet, InputLag};
+use crate::effects::input_lag::LagStage;
+use crate::effects::{EffectSet, InputLag};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::math;
 use crate::model::integrator::advance_seeded;
@@ -93,38 +94,18 @@ struct Entry {
     dua: f64,
 }
 
-/// The input lag at one estimate of fc: τ = 1/(2π·fc) \[s\] and exp(−dt/τ).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct LagCoefficients {
-    tau: f64,
-    decay: f64,
+/// The input lag with corner `fc_hz` \[Hz\] for samples every `dt` \[s\].
+fn lag_of(fc_hz: f64, dt: f64) -> LagStage {
+    InputLag { fc_hz }.stage(dt)
 }
 
-impl LagCoefficients {
-    fn of(fc_hz: f64, dt: f64) -> Self {
-        let tau = 1.0 / (2.0 * core::f64::consts::PI * fc_hz);
-        LagCoefficients { tau, decay: first_order_coefficient(tau, dt) }
-    }
-
-    /// u_a after an interval in which u moves linearly from `u0` to `u1`, as
-    /// [`crate::effects::ExtendedModel`] steps it.
-    #[inline]
-    fn step(&self, ua: f64, u0: f64, u1: f64, dt: f64) -> f64 {
-        first_order_step(ua, u0, u1, self.tau, self.decay, dt)
-    }
-
-    /// [`Self::step`] on duals: all derivatives of `ua` pass through with the decay,
-    /// and slot `I_LN_FC − 2` gains ∂u_a/∂ln fc of the step itself.
-    #[inline]
-    fn step_dual(&self, ua: Dual<ND>, u0: f64, u1: f64, dt: f64) -> Dual<ND> {
-        let re = self.step(ua.re, u0, u1, dt);
-        let r = self.tau * (u1 - u0) / dt;
-        // ∂τ/∂ln fc = −τ, so ∂r/∂ln fc = −r and ∂decay/∂ln fc = −decay·dt/τ.
-        let own = r - r * self.decay - (ua.re - u0 + r) * self.decay * dt / self.tau;
-        let mut du = ua.du * self.decay;
-        du[I_LN_FC - 2] += own;
-        Dual::new(re, du)
-    }
+/// [`LagStage::advance`] on duals: every derivative of `ua` passes through with the
+/// decay, and the ln fc slot gains the step's own ∂u_a/∂ln fc.
+#[inline]
+fn lag_step_dual(lag: &LagStage, ua: Dual<ND>, u0: f64, u1: f64, dt: f64) -> Dual<ND> {
+    let mut du = ua.du * lag.decay();
+    du[I_LN_FC - 2] += lag.ln_fc_slope(ua.re, u0, u1, dt);
+    Dual::new(lag.advance(ua.re, u0, u1, dt), du)
 }
 
 /// A simulation of the window in progress.
@@ -143,7 +124,7 @@ struct Pass {
     /// u_a and its derivative over ln fc at the last simulated sample \[V\].
     ua: Dual<ND>,
     /// The lag the pass runs (unused without the lag).
-    lag: LagCoefficients,
+    lag: LagStage,
     jtj: Normal,
     jtr: Vector,
     sse: f64,
@@ -151,7 +132,7 @@ struct Pass {
 }
 
 impl Pass {
-    fn new(start: u64, params: Params, h_start: f64, ua: f64, dua: f64, lag: LagCoefficients) -> Self {
+    fn new(start: u64, params: Params, h_start: f64, ua: f64, dua: f64, lag: LagStage) -> Self {
         let mut ua_dual = Dual::cst(ua);
         ua_dual.du[I_LN_FC - 2] = dua;
         Pass {
@@ -261,7 +242,7 @@ pub struct HorizonIdentifier {
     /// The lag's starting ln fc (for `reset`).
     ln_fc0: Option<f64>,
     /// The lag at the current estimate.
-    lag: LagCoefficients,
+    lag: LagStage,
     /// The model's h at the last sample (the prediction's state).
     h: f64,
     /// The model's voltage on the stack at the last sample \[V\] (= u without the lag).
@@ -325,7 +306,7 @@ impl HorizonIdentifier {
         }
         let (lo, hi) = config.fc_bounds_hz;
         let ln_fc = effects.input_lag.map(|l| math::ln(l.fc_hz.clamp(lo, hi)));
-        let lag = LagCoefficients::of(ln_fc.map_or(hi, math::exp), dt);
+        let lag = lag_of(ln_fc.map_or(hi, math::exp), dt);
         let mut buffer = Vec::new();
         buffer.resize(config.max_window, Entry::default());
         Ok(HorizonIdentifier {
@@ -396,12 +377,13 @@ impl HorizonIdentifier {
         if k > self.pass.start {
             let u0 = self.buffer[before].u;
             let ua0 = self.pass.ua;
-            let ua1 =
-                if self.ln_fc.is_some() { self.pass.lag.step_dual(ua0, u0, e.u, self.dt) } else { Dual::cst(e.u) };
+            let ua1 = if self.ln_fc.is_some() {
+                lag_step_dual(&self.pass.lag, ua0, u0, e.u, self.dt)
+            } else {
+                Dual::cst(e.u)
+            };
             self.pass.h = advance_seeded::<ND, 0, { I_LN_FC - 2 }>(&p, self.pass.h, ua0, ua1, self.dt, None);
             self.pass.ua = ua1;
-        } else if self.ln_fc.is_none() {
-            self.pass.ua = Dual::cst(e.u);
         }
         let h = self.pass.h;
         let ua = self.pass.ua;
@@ -483,7 +465,7 @@ impl HorizonIdentifier {
                     let moved = (ln_fc + step[I_LN_FC] * LN_FC_SCALE).clamp(math::ln(lo), math::ln(hi));
                     delta[I_LN_FC] = moved - ln_fc;
                     self.ln_fc = Some(moved);
-                    self.lag = LagCoefficients::of(math::exp(moved), self.dt);
+                    self.lag = lag_of(math::exp(moved), self.dt);
                 }
                 self.params = projected;
                 status.updated = true;
@@ -526,7 +508,7 @@ impl OnlineIdentifier for HorizonIdentifier {
         // 1. Predict with the current estimates.
         match self.u_prev {
             Some(u0) => {
-                let ua = if self.ln_fc.is_some() { self.lag.step(self.ua, u0, u, self.dt) } else { u };
+                let ua = if self.ln_fc.is_some() { self.lag.advance(self.ua, u0, u, self.dt) } else { u };
                 self.h = advance_h(&self.params, self.h, self.ua, ua, self.dt);
                 self.ua = ua;
             }
@@ -599,7 +581,7 @@ impl OnlineIdentifier for HorizonIdentifier {
         let (mut h, mut ua, mut u_prev) = (self.h, self.ua, self.u_prev);
         for (o, &v) in out.iter_mut().zip(u) {
             let ua_next = match u_prev {
-                Some(u0) if self.ln_fc.is_some() => self.lag.step(ua, u0, v, self.dt),
+                Some(u0) if self.ln_fc.is_some() => self.lag.advance(ua, u0, v, self.dt),
                 _ => v,
             };
             if u_prev.is_some() {
@@ -624,7 +606,7 @@ impl OnlineIdentifier for HorizonIdentifier {
         let cfg = self.config;
         self.params = self.init;
         self.ln_fc = self.ln_fc0;
-        self.lag = LagCoefficients::of(self.ln_fc0.map_or(cfg.fc_bounds_hz.1, math::exp), self.dt);
+        self.lag = lag_of(self.ln_fc0.map_or(cfg.fc_bounds_hz.1, math::exp), self.dt);
         self.h = self.h0;
         self.ua = 0.0;
         self.u_prev = None;
@@ -648,19 +630,19 @@ mod tests {
     fn lag_derivative_matches_finite_differences() {
         let dt = 1e-4;
         for (fc, ua0, u0, u1) in [(650.0, 3.0, 4.0, 9.0), (80.0, 50.0, 49.0, 49.5), (5000.0, 0.0, 0.0, 95.0)] {
-            let lag = LagCoefficients::of(fc, dt);
+            let lag = lag_of(fc, dt);
             let mut ua = Dual::<ND>::cst(ua0);
             ua.du[I_LN_FC - 2] = 0.3; // a derivative carried in passes through with the decay
-            let got = lag.step_dual(ua, u0, u1, dt);
+            let got = lag_step_dual(&lag, ua, u0, u1, dt);
             let eps = 1e-6;
-            let at = |l: f64| LagCoefficients::of(fc * math::exp(l), dt).step(ua0 + 0.3 * l, u0, u1, dt);
+            let at = |l: f64| lag_of(fc * math::exp(l), dt).advance(ua0 + 0.3 * l, u0, u1, dt);
             let fd = (at(eps) - at(-eps)) / (2.0 * eps);
             assert!(
                 (got.du[I_LN_FC - 2] - fd).abs() <= 1e-6 * (1.0 + fd.abs()),
                 "fc {fc}: {} vs {fd}",
                 got.du[I_LN_FC - 2]
             );
-            assert_eq!(got.re, lag.step(ua0, u0, u1, dt));
+            assert_eq!(got.re, lag.advance(ua0, u0, u1, dt));
         }
     }
 

@@ -150,7 +150,7 @@ impl Snapshot for HorizonIdentifier {
         }
         id.ln_fc0 = ln_fc0;
         id.ln_fc = ln_fc;
-        id.lag = LagCoefficients::of(ln_fc.map_or(id.config.fc_bounds_hz.1, math::exp), dt);
+        id.lag = lag_of(ln_fc.map_or(id.config.fc_bounds_hz.1, math::exp), dt);
         id.ua = r.f64()?;
         let at = r.offset();
         id.next = r.u64()?;
