@@ -3,7 +3,7 @@
 //! run:
 //!
 //! ```text
-//! cargo bench --bench latency            # about two minutes
+//! cargo bench --bench latency            # a few minutes
 //! cargo bench --bench latency -- --quick # 10⁵ samples, a smoke test
 //! ```
 //!
@@ -18,6 +18,13 @@
 //! as a real-time loop would (`--no-rt` turns that off), so that other processes
 //! on that core do not preempt it; the kernel's real-time throttling still takes
 //! 50 ms of every second, which shows in the max column. Release build (`cargo bench`).
+//!
+//! Every row is replayed three times on fresh objects (the calls are deterministic):
+//! the columns p50 … mean are the first replay's calls as a loop meets them; the
+//! `work` columns are each call's minimum over the replays, its own cost without the
+//! interrupts and preemptions the machine adds (which hit one call of one replay, not
+//! the same call of all three). Two control rows of fixed work show what the machine
+//! adds to a call of constant cost.
 //!
 //! Rows: `Model::step`; `horizon` push without the input lag (`HorizonIdentifier::new`)
 //! and with it (`HorizonIdentifier::recommended`, the default online method); `rpem`
@@ -82,8 +89,8 @@ impl Timer {
         Timer { ns_per_tick, overhead: empty[empty.len() / 2] }
     }
 
-    /// Times `f(k)` for k in 0..n, one call at a time; returns the sorted ns.
-    fn each(&self, n: usize, mut f: impl FnMut(usize)) -> Vec<f64> {
+    /// Times `f(k)` for k in 0..n, one call at a time; returns the ticks of each call.
+    fn ticks_each(&self, n: usize, mut f: impl FnMut(usize)) -> Vec<u64> {
         let mut t = Vec::with_capacity(n);
         for k in 0..n {
             let a = ticks();
@@ -91,10 +98,40 @@ impl Timer {
             let b = ticks();
             t.push((b - a).saturating_sub(self.overhead));
         }
+        t
+    }
+
+    fn sorted_ns(&self, mut t: Vec<u64>) -> Vec<f64> {
         t.sort_unstable();
         t.into_iter().map(|v| v as f64 * self.ns_per_tick).collect()
     }
+
+    /// Times `f(k)` for k in 0..n, one call at a time; returns the sorted ns.
+    fn each(&self, n: usize, f: impl FnMut(usize)) -> Vec<f64> {
+        self.sorted_ns(self.ticks_each(n, f))
+    }
+
+    /// The same n calls on [`REPLAYS`] fresh objects from `make` (the calls are
+    /// deterministic, so every replay does the same work at call k): the sorted ns of
+    /// the first replay, as a loop meets them, and the sorted per-call minimum over
+    /// the replays, the work of each call without what the machine adds (an interrupt
+    /// or a preemption hits the same call of every replay with negligible probability).
+    fn replayed<T>(&self, n: usize, make: impl Fn() -> T, mut call: impl FnMut(&mut T, usize)) -> (Vec<f64>, Vec<f64>) {
+        let mut object = make();
+        let first = self.ticks_each(n, |k| call(&mut object, k));
+        let mut least = first.clone();
+        for _ in 1..REPLAYS {
+            let mut object = make();
+            for (m, t) in least.iter_mut().zip(self.ticks_each(n, |k| call(&mut object, k))) {
+                *m = (*m).min(t);
+            }
+        }
+        (self.sorted_ns(first), self.sorted_ns(least))
+    }
 }
+
+/// Replays of every identifier row (see [`Timer::replayed`]).
+const REPLAYS: usize = 3;
 
 #[cfg(target_os = "linux")]
 fn pin_to_one_core() -> String {
@@ -226,6 +263,8 @@ impl Floor {
 struct Row {
     name: String,
     sorted_ns: Vec<f64>,
+    /// Per-call minimum over the replays, sorted.
+    work_ns: Vec<f64>,
     target: &'static str,
 }
 
@@ -235,13 +274,16 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 }
 
 fn print_rows(rows: &[Row], floor_p50: f64) {
-    println!("| call | samples | p50 ns | p99 ns | p99.9 ns | max ns | mean ns | p50 / floor | target |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---|");
+    println!(
+        "| call | samples | p50 ns | p99 ns | p99.9 ns | max ns | mean ns | work p99 ns | work p99.9 ns | work max ns \
+         | p50 / floor | target |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     for r in rows {
-        let s = &r.sorted_ns;
+        let (s, w) = (&r.sorted_ns, &r.work_ns);
         let mean = s.iter().sum::<f64>() / s.len() as f64;
         println!(
-            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {} |",
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {} |",
             r.name,
             s.len(),
             quantile(s, 0.5),
@@ -249,10 +291,31 @@ fn print_rows(rows: &[Row], floor_p50: f64) {
             quantile(s, 0.999),
             s[s.len() - 1],
             mean,
+            quantile(w, 0.99),
+            quantile(w, 0.999),
+            w[w.len() - 1],
             quantile(s, 0.5) / floor_p50,
             r.target
         );
     }
+}
+
+/// A fixed amount of work: `steps` dependent multiply-adds (a control row: what the
+/// machine adds to a call of known, constant cost).
+#[inline(never)]
+fn fixed_work(seed: f64, steps: usize) -> f64 {
+    let mut v = seed;
+    for _ in 0..steps {
+        v = black_box(v * 0.999_999 + 1e-9);
+    }
+    v
+}
+
+/// [`Timer::replayed`] of `push` over the record, on identifiers from `make`.
+fn pushes<I: OnlineIdentifier>(timer: &Timer, u: &[f64], x: &[f64], make: impl Fn() -> I) -> (Vec<f64>, Vec<f64>) {
+    timer.replayed(u.len(), make, |id, k| {
+        black_box(id.push(black_box(u[k]), black_box(x[k])).expect("finite"));
+    })
 }
 
 fn main() {
@@ -262,54 +325,57 @@ fn main() {
     let timer = Timer::calibrate();
     println!(
         "latency per call over {len} samples (paper schedule repeated, 1–5 nm noise); {pinned}; \
-         timer {:.3} ns/tick, overhead {} ticks subtracted",
+         timer {:.3} ns/tick, overhead {} ticks subtracted; work = per-call minimum over {REPLAYS} replays",
         timer.ns_per_tick, timer.overhead
     );
     let (u, x) = record(len);
     let p = Params::paper_1hz();
     let mut rows = Vec::new();
+    let mut row = |name: String, (sorted_ns, work_ns): (Vec<f64>, Vec<f64>), target| {
+        rows.push(Row { name, sorted_ns, work_ns, target });
+    };
 
-    let mut floor = Floor::new(p);
-    let floor_ns = timer.each(len, |k| {
-        black_box(floor.push(black_box(u[k]), black_box(x[k])));
-    });
-    let floor_p50 = quantile(&floor_ns, 0.5);
-    rows.push(Row { name: "floor: RK4 + one powf + 7-parameter RLS".into(), sorted_ns: floor_ns, target: "" });
+    for steps in [60usize, 400] {
+        let times = timer.replayed(
+            len,
+            || (),
+            |_, k| {
+                black_box(fixed_work(black_box(k as f64), steps));
+            },
+        );
+        row(format!("control: fixed work, {steps} dependent multiply-adds"), times, "");
+    }
+    let times = timer.replayed(
+        len,
+        || Floor::new(p),
+        |f, k| {
+            black_box(f.push(black_box(u[k]), black_box(x[k])));
+        },
+    );
+    let floor_p50 = quantile(&times.0, 0.5);
+    row("floor: RK4 + one powf + 7-parameter RLS".into(), times, "");
 
-    let mut model = Model::new(p, DT, 0.0).expect("valid");
-    let ns = timer.each(len, |k| {
-        black_box(model.step(black_box(u[k])).expect("finite"));
-    });
-    rows.push(Row { name: "`Model::step`".into(), sorted_ns: ns, target: "p50 ≤ 60" });
+    let times = timer.replayed(
+        len,
+        || Model::new(p, DT, 0.0).expect("valid"),
+        |m, k| {
+            black_box(m.step(black_box(u[k])).expect("finite"));
+        },
+    );
+    row("`Model::step`".into(), times, "p50 ≤ 60");
 
-    let mut horizon = HorizonIdentifier::new(DT, p, 0.0, HorizonConfig::default()).expect("valid");
-    let ns = timer.each(len, |k| {
-        black_box(horizon.push(black_box(u[k]), black_box(x[k])).expect("finite"));
-    });
-    rows.push(Row { name: "`horizon` push, no lag".into(), sorted_ns: ns, target: "p99.9 ≤ 2000" });
-
-    let mut horizon = HorizonIdentifier::recommended(DT, p, 0.0, HorizonConfig::default()).expect("valid");
-    let ns = timer.each(len, |k| {
-        black_box(horizon.push(black_box(u[k]), black_box(x[k])).expect("finite"));
-    });
-    rows.push(Row {
-        name: "`horizon` push, `recommended` (default method)".into(),
-        sorted_ns: ns,
-        target: "p99.9 ≤ 2000",
-    });
-
-    let mut rpem = RpemIdentifier::new(DT, p, 0.0, RpemConfig::default()).expect("valid");
-    let ns = timer.each(len, |k| {
-        black_box(rpem.push(black_box(u[k]), black_box(x[k])).expect("finite"));
-    });
-    rows.push(Row { name: "`rpem` push".into(), sorted_ns: ns, target: "p50 ≤ 200, p99.9 ≤ 1000" });
-
+    let times = pushes(&timer, &u, &x, || HorizonIdentifier::new(DT, p, 0.0, HorizonConfig::default()).expect("valid"));
+    row("`horizon` push, no lag".into(), times, "p99.9 ≤ 2000");
+    let times =
+        pushes(&timer, &u, &x, || HorizonIdentifier::recommended(DT, p, 0.0, HorizonConfig::default()).expect("valid"));
+    row("`horizon` push, `recommended` (default method)".into(), times, "p99.9 ≤ 2000");
+    let times = pushes(&timer, &u, &x, || RpemIdentifier::new(DT, p, 0.0, RpemConfig::default()).expect("valid"));
+    row("`rpem` push".into(), times, "p50 ≤ 200, p99.9 ≤ 1000");
     for window in [100usize, 1_000, 10_000, 100_000] {
-        let mut id = PaperIdentifier::new(DT, p, 0.0, PaperConfig::with_window(window)).expect("valid");
-        let ns = timer.each(len, |k| {
-            black_box(id.push(black_box(u[k]), black_box(x[k])).expect("finite"));
+        let times = pushes(&timer, &u, &x, || {
+            PaperIdentifier::new(DT, p, 0.0, PaperConfig::with_window(window)).expect("valid")
         });
-        rows.push(Row { name: format!("`paper` push, N = {window}"), sorted_ns: ns, target: "p99.9 ≤ 1000" });
+        row(format!("`paper` push, N = {window}"), times, "p99.9 ≤ 1000");
     }
     print_rows(&rows, floor_p50);
 

@@ -13,7 +13,8 @@
 //! foreign or corrupt byte string; it never panics.
 //!
 //! Each type writes and reads itself with `Writer` and `Reader`, beside its own
-//! code: `model/mod.rs`, `identify/paper/snapshot.rs`, `identify/rpem/snapshot.rs`.
+//! code: `model/mod.rs`, `identify/paper/snapshot.rs`, `identify/rpem/snapshot.rs`,
+//! `identify/horizon/snapshot.rs`.
 
 use alloc::vec::Vec;
 
@@ -22,8 +23,9 @@ use crate::params::Params;
 
 /// First bytes of every snapshot.
 pub const MAGIC: [u8; 4] = *b"BWSN";
-/// Version of the layout written by this build.
-pub const VERSION: u8 = 1;
+/// Version of the layout written by this build (2: the horizon identifier's pending
+/// update; snapshots of version 1 are refused with a clear error).
+pub const VERSION: u8 = 2;
 
 /// Largest window \[samples\] a snapshot may declare (and the Python binding
 /// accepts): 10⁷ samples, about 0.6 GB of window points. A corrupt length must

@@ -42,6 +42,7 @@ pub use rpem::{RpemConfig, RpemIdentifier, RpemStatus};
 /// output-error methods keep their estimates in: n within `n_bounds`, and β + γ ≥
 /// `margin`, β − γ ≥ `margin` (h stays bounded for every input), each half-plane by the
 /// orthogonal projection in (β, γ).
+#[inline]
 pub(crate) fn project_well_posed(mut p: Params, n_bounds: (f64, f64), margin: f64) -> Params {
     p.n = p.n.clamp(n_bounds.0, n_bounds.1);
     let sum = p.beta + p.gamma;

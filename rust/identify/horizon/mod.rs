@@ -29,7 +29,9 @@
 //!    accumulating the Gauss–Newton normal equations JᵀJ, Jᵀr over the 8 unknowns (9
 //!    with the input lag).
 //!    When it has caught up with the newest sample (and spans at least
-//!    `min_pass_fraction` of the memory), one Levenberg–Marquardt step is taken in
+//!    `min_pass_fraction` of the memory), the next push runs it over the one new
+//!    sample and takes, instead of a further share of the pass, one
+//!    Levenberg–Marquardt step in
 //!    scaled coordinates, bounded by a trust region and projected onto the region
 //!    where the model is well posed (n within `n_bounds`, β ± γ ≥ `margin`); the
 //!    model's h is moved to first order with the step (∂h/∂θ of the pass), and a new
@@ -40,11 +42,13 @@
 //! the previous one's, ×½ otherwise. While the input holds the window's travel does not
 //! grow, no pass reaches the span it needs, and nothing changes.
 //!
-//! Worst case per push: one integration interval for the prediction and
-//! `samples_per_push` on 7-derivative duals (each bounded by the integrator's 32
-//! sub-steps), plus, on the push that ends a pass, a 9 × 9 Cholesky solve and up to
-//! three re-solves for the active bounds. The
-//! window buffer is the one allocation (at construction, `max_window` samples).
+//! Worst case per push, by construction: one integration interval for the prediction
+//! and either `samples_per_push` intervals on 7-derivative duals or one interval and
+//! the update (a 9 × 9 Cholesky solve and up to three re-solves for the active bounds),
+//! each interval bounded by the integrator's 32 sub-steps; the window's start moves by
+//! bisection over the stored travel (at most 24 probes at the largest `max_window`,
+//! however many samples leave at once). The window buffer is the one allocation (at
+//! construction, `max_window` samples).
 //! Starting values are used as given (n < 1 included; the sensitivities are
 //! regularised at h = 0, see [`crate::model::scalar::SLOPE_FLOOR_UM`]).
 
@@ -257,6 +261,10 @@ pub struct HorizonIdentifier {
     /// Absolute index of the first sample of the newest half of the memory's travel.
     mid: u64,
     pass: Pass,
+    /// The pass has caught up and spans enough: the next push ends it (one sample of
+    /// the pass, then the update), so that no push does both a full share of the pass
+    /// and the solve.
+    finish_due: bool,
     /// Mean squared error of the last finished pass \[µm²\] (∞ before the first).
     last_mse: f64,
     damping: f64,
@@ -326,6 +334,7 @@ impl HorizonIdentifier {
             start: 0,
             mid: 0,
             pass: Pass::new(0, init, h0, 0.0, 0.0, lag),
+            finish_due: false,
             last_mse: f64::INFINITY,
             damping: config.damping,
             status: HorizonStatus { damping: config.damping, ..HorizonStatus::default() },
@@ -408,6 +417,66 @@ impl HorizonIdentifier {
         entry.ua = ua.re;
         entry.dua = ua.du[I_LN_FC - 2];
         self.pass.cursor += 1;
+    }
+
+    /// Runs the pass at most `samples` samples on, not beyond the newest.
+    fn run_pass(&mut self, samples: usize) {
+        if self.pass.cursor >= self.next {
+            return;
+        }
+        let mut slot = self.slot(self.pass.cursor);
+        let mut before = if slot == 0 { self.buffer.len() - 1 } else { slot - 1 };
+        for _ in 0..samples {
+            if self.pass.cursor >= self.next {
+                break;
+            }
+            self.pass_step(slot, before);
+            before = slot;
+            slot = self.following(slot);
+        }
+    }
+
+    /// The first index in `lo..hi` whose travel is above `limit` \[V\] (`hi` if none):
+    /// the travel grows with the index, so a bisection (at most 24 probes for the
+    /// largest buffer).
+    fn first_travel_above(&self, mut lo: u64, mut hi: u64, limit: f64) -> u64 {
+        while lo < hi {
+            let m = lo + (hi - lo) / 2;
+            if self.entry(m).travel > limit {
+                hi = m;
+            } else {
+                lo = m + 1;
+            }
+        }
+        lo
+    }
+
+    /// Moves the window's start (and the start of its newest half) after a sample with
+    /// input travel `travel` \[V\] was stored: the start is the latest index that keeps
+    /// at least `memory_travel_v` of travel after the one following it, the window at
+    /// most `recent_factor` × the newest half's samples and at most the buffer. Found by
+    /// bisection, so a push's cost does not grow with how far the start moves (a switch
+    /// to a faster input drops thousands of samples at once).
+    fn move_window(&mut self, travel: f64) {
+        let cfg = &self.config;
+        let (next, cap) = (self.next, self.buffer.len() as u64);
+        // mid: the largest index m (≥ start) with travel − travel(m) ≥ half, i.e. the
+        // first index whose travel is above travel − half, less one; never beyond next − 1.
+        let half = 0.5 * cfg.memory_travel_v;
+        let above = self.first_travel_above(self.mid.max(self.start), next, travel - half);
+        self.mid = above.saturating_sub(1).max(self.mid).max(self.start).min(next - 1);
+        let mut start = self.start.max(next.saturating_sub(cap));
+        if next - start > 16 {
+            // Travel: the start s may move while travel − travel(s + 1) ≥ memory, i.e.
+            // up to the first index whose travel is above travel − memory, less one.
+            let by_travel = self.first_travel_above(start + 1, next, travel - cfg.memory_travel_v).saturating_sub(1);
+            // Recent: next − s ≤ recent_factor × (next − mid).
+            let recent = cfg.recent_factor * (next - self.mid) as f64;
+            let by_recent = if recent.is_finite() { next.saturating_sub(math::floor(recent) as u64) } else { 0 };
+            start = start.max(by_travel).max(by_recent).min(next - 16);
+        }
+        self.start = start;
+        self.mid = self.mid.max(self.start);
     }
 
     /// Ends the pass: one Levenberg–Marquardt step, then a new pass from the window's start.
@@ -525,45 +594,28 @@ impl OnlineIdentifier for HorizonIdentifier {
         let slot = self.slot(k);
         self.buffer[slot] = Entry { u, x, travel, h: self.h, dh: [0.0; ND], ua: self.ua, dua: 0.0 };
         self.next += 1;
-        let cap = self.buffer.len() as u64;
-        let half = 0.5 * self.config.memory_travel_v;
-        self.mid = self.mid.max(self.start);
-        while self.mid + 1 < self.next && travel - self.entry(self.mid + 1).travel >= half {
-            self.mid += 1;
-        }
-        let recent = self.config.recent_factor * (self.next - self.mid) as f64;
-        while self.next - self.start > cap
-            || (self.next - self.start > 16
-                && (travel - self.entry(self.start + 1).travel >= self.config.memory_travel_v
-                    || (self.next - self.start) as f64 > recent))
-        {
-            self.start += 1;
-        }
-        self.mid = self.mid.max(self.start);
-        // 3. Run the pass on; end it when it has caught up and spans enough.
+        self.move_window(travel);
+        // 3. Run the pass on; end it on the push after it has caught up and spans enough.
         self.status.updated = false;
+        let cap = self.buffer.len() as u64;
         if self.pass.start < self.next.saturating_sub(cap) {
             // The pass's start has left the buffer (a long hold filled it): restart.
             let e = *self.entry(self.start);
             self.pass = Pass::new(self.start, self.params, e.h, e.ua, e.dua, self.lag);
+            self.finish_due = false;
         }
-        if self.pass.cursor < self.next {
-            let mut slot = self.slot(self.pass.cursor);
-            let mut before = if slot == 0 { self.buffer.len() - 1 } else { slot - 1 };
-            for _ in 0..self.config.samples_per_push {
-                if self.pass.cursor >= self.next {
-                    break;
-                }
-                self.pass_step(slot, before);
-                before = slot;
-                slot = self.following(slot);
-            }
-        }
-        if self.pass.cursor >= self.next {
-            let span_travel = travel - self.entry(self.pass.start).travel;
-            let span = self.next - self.pass.start;
-            if span_travel >= self.config.min_pass_fraction * self.config.memory_travel_v || span >= cap / 2 {
-                self.finish_pass();
+        if self.finish_due {
+            // The one sample stored since, then the update.
+            self.run_pass(1);
+            self.finish_due = false;
+            self.finish_pass();
+        } else {
+            self.run_pass(self.config.samples_per_push);
+            if self.pass.cursor >= self.next {
+                let span_travel = travel - self.entry(self.pass.start).travel;
+                let span = self.next - self.pass.start;
+                self.finish_due =
+                    span_travel >= self.config.min_pass_fraction * self.config.memory_travel_v || span >= cap / 2;
             }
         }
         self.status.samples = self.next;
@@ -615,6 +667,7 @@ impl OnlineIdentifier for HorizonIdentifier {
         self.start = 0;
         self.mid = 0;
         self.pass = Pass::new(0, self.init, self.h0, 0.0, 0.0, self.lag);
+        self.finish_due = false;
         self.last_mse = f64::INFINITY;
         self.damping = cfg.damping;
         self.status = HorizonStatus { damping: cfg.damping, ..HorizonStatus::default() };

@@ -29,6 +29,7 @@ impl Snapshot for HorizonIdentifier {
             start,
             mid,
             pass,
+            finish_due,
             last_mse,
             damping,
             status,
@@ -85,6 +86,7 @@ impl Snapshot for HorizonIdentifier {
         w.f64s(jtr.as_slice());
         w.f64(*sse);
         w.u64(*count);
+        w.u8(*finish_due as u8);
         w.f64(*last_mse);
         w.f64(*damping);
         let HorizonStatus {
@@ -196,6 +198,7 @@ impl Snapshot for HorizonIdentifier {
             sse,
             count,
         };
+        id.finish_due = r.u8()? != 0;
         id.last_mse = r.f64()?;
         id.damping = r.f64()?;
         id.status.samples = r.u64()?;

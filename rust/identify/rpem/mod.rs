@@ -261,6 +261,7 @@ fn initial_covariance(active: &ParamVector, cfg: &RpemConfig) -> Covariance {
 }
 
 /// Projects `p` into the admissible region (n within `n_bounds`, β ± γ ≥ `margin`).
+#[inline]
 fn project_params(p: Params, cfg: &RpemConfig) -> Params {
     super::project_well_posed(p, cfg.n_bounds, cfg.margin)
 }
@@ -343,15 +344,13 @@ impl RpemIdentifier {
         }
         // psi ∘ jac ∘ active.
         let psi = SVector::<f64, M>::from_fn(|i, _| psi[i] * jac[i] * self.active[i]);
-        let mut p = SMatrix::<f64, M, M>::zeros();
-        for (col, full) in p.as_mut_slice().chunks_exact_mut(M).zip(self.p.as_slice().chunks_exact(NUM_PARAMS)) {
-            col.copy_from_slice(&full[..M]);
-        }
-        // p · psi, column by column as a matrix–vector product accumulates.
-        let mut p_psi = SVector::<f64, M>::from_fn(|i, _| p[(i, 0)] * psi[0]);
-        for j in 1..M {
+        // p · psi on the first M rows and columns of the covariance (column-major,
+        // NUM_PARAMS rows), column by column as a matrix–vector product accumulates.
+        let mut p_psi = SVector::<f64, M>::zeros();
+        for (j, col) in self.p.as_slice().chunks_exact(NUM_PARAMS).take(M).enumerate() {
+            let w = psi[j];
             for i in 0..M {
-                p_psi[i] += p[(i, j)] * psi[j];
+                p_psi[i] += col[i] * w;
             }
         }
         let noise = if self.status.samples == 0 { cfg.noise_um2 } else { self.status.noise_um2 };
@@ -362,7 +361,7 @@ impl RpemIdentifier {
             noise
         };
         let s = noise + dot_as_full(&psi, &p_psi);
-        let gain = p_psi / s;
+        let gain = p_psi * (1.0 / s);
         let mut step = gain * e;
         // Trust region: every parameter but the offset moves by at most
         // max_step of its scale (the step scaled down as a whole); the offset x0,
@@ -378,38 +377,41 @@ impl RpemIdentifier {
         status.step_limited |= offset_capped != offset_step;
         step[I_X0] = offset_capped / self.scales[I_X0];
         let lambda = cfg.forgetting * math::exp(-travel / cfg.memory_travel_v);
-        // (p − gain·p_psiᵀ) / λ, then (new_p + new_pᵀ) · 0.5.
-        let mut new_p = SMatrix::<f64, M, M>::zeros();
-        for ((col, p_col), &w) in
-            new_p.as_mut_slice().chunks_exact_mut(M).zip(p.as_slice().chunks_exact(M)).zip(p_psi.as_slice())
-        {
-            for ((v, &pv), &g) in col.iter_mut().zip(p_col).zip(gain.as_slice()) {
-                *v = (pv - g * w) / lambda;
-            }
-        }
+        // P ← (P − gain·p_psiᵀ) / λ, symmetrised (each entry of the lower triangle the
+        // mean of the two it stands for, mirrored), in place on the first M rows and
+        // columns: a step that fails below resets P anyway.
+        let half_over_lambda = 0.5 / lambda;
+        let p = self.p.as_mut_slice();
+        let at = |i: usize, j: usize| j * NUM_PARAMS + i;
+        let mut finite = true;
         for j in 0..M {
             for i in j..M {
-                let v = (new_p[(i, j)] + new_p[(j, i)]) * 0.5;
-                new_p[(i, j)] = v;
-                new_p[(j, i)] = v;
+                let v = ((p[at(i, j)] - gain[i] * p_psi[j]) + (p[at(j, i)] - gain[j] * p_psi[i])) * half_over_lambda;
+                finite &= v.is_finite();
+                p[at(i, j)] = v;
+                p[at(j, i)] = v;
             }
         }
-        new_p[(I_X0, I_X0)] += math::powi(cfg.offset_walk_um / self.scales[I_X0], 2);
+        p[at(I_X0, I_X0)] += math::powi(cfg.offset_walk_um / self.scales[I_X0], 2);
         let mut trace = 0.0;
         for i in 0..M {
-            trace += new_p[(i, i)];
+            trace += p[at(i, i)];
+            finite &= p[at(i, i)] >= 0.0;
         }
         if trace > cfg.max_trace {
-            new_p *= cfg.max_trace / trace;
+            let shrink = cfg.max_trace / trace;
+            for j in 0..M {
+                for v in &mut p[at(0, j)..at(M, j)] {
+                    *v *= shrink;
+                }
+            }
             status.trace_capped = true;
         }
         let mut theta = self.est.params.to_array();
         for (i, t) in theta.iter_mut().enumerate() {
             *t += step[i] * self.scales[i];
         }
-        let finite = step.as_slice().iter().all(|v| v.is_finite())
-            && new_p.as_slice().iter().all(|v| v.is_finite())
-            && (0..M).all(|i| new_p[(i, i)] >= 0.0);
+        let finite = finite && step.as_slice().iter().all(|v| v.is_finite());
         match Params::from_array(theta) {
             Ok(params) if finite => {
                 let mut raw = Estimates { params, ..self.est };
@@ -421,8 +423,8 @@ impl RpemIdentifier {
                     if candidate.fc_hz != raw.fc_hz {
                         for j in 0..M {
                             if j != I_LN_FC {
-                                new_p[(I_LN_FC, j)] = 0.0;
-                                new_p[(j, I_LN_FC)] = 0.0;
+                                self.p[(I_LN_FC, j)] = 0.0;
+                                self.p[(j, I_LN_FC)] = 0.0;
                             }
                         }
                     }
@@ -434,13 +436,8 @@ impl RpemIdentifier {
                     // Kept off the end points, where η would be infinite.
                     candidate.creep_gain[i] = g.clamp(GAIN_FLOOR * gmax, (1.0 - GAIN_FLOOR) * gmax);
                 }
-                status.projected = candidate != raw;
+                status.projected = if M == NUM_PARAMS { candidate != raw } else { candidate.params != raw.params };
                 self.est = candidate;
-                for (full, col) in
-                    self.p.as_mut_slice().chunks_exact_mut(NUM_PARAMS).zip(new_p.as_slice().chunks_exact(M))
-                {
-                    full[..M].copy_from_slice(col);
-                }
                 status.updated = true;
             }
             _ => {
