@@ -231,22 +231,31 @@ def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> int 
     return max(math.ceil(wanted), floor)
 
 
-#: Largest relative distance |ε| = ||h|/|h_ref| − 1| at which |h|^n is taken from its series.
+#: Largest relative distance |ε| = |(h − h_ref)/h_ref| at which |h|^n is taken from its series.
 NEAR_POWER_MAX_EPS = 0.01
 
 
-def _near_power(n: float, h_ref: float, hn_ref: float, h: float) -> float | None:
-    """|h|^n = |h_ref|^n·(1 + ε)^n to ε⁴, for h of the sign of h_ref and |ε| ≤ 0.01; else None."""
-    if h_ref == 0.0 or h * h_ref <= 0.0:
-        return None
-    e = (abs(h) * (1.0 / abs(h_ref))) - 1.0
-    if abs(e) > NEAR_POWER_MAX_EPS:
-        return None
-    c1 = n
-    c2 = c1 * (n - 1.0) / 2.0
-    c3 = c2 * (n - 2.0) / 3.0
-    c4 = c3 * (n - 3.0) / 4.0
-    return hn_ref * (1.0 + e * (c1 + e * (c2 + e * (c3 + e * c4))))
+class _NearPower:
+    """|h|^n = |h_ref|^n·(1 + ε)^n to ε⁴ with ε = (h − h_ref)/h_ref, as the Rust core
+    evaluates it: a stage's ε from its rate k as ε_start + k·(c/h_ref), the polynomial in
+    two halves |h_ref|^n + (ε·(a₁ + a₂ε) + ε³·(a₃ + a₄ε)), aₖ = |h_ref|^n·cₖ."""
+
+    def __init__(self, n: float, h_ref: float, hn_ref: float) -> None:
+        c1 = n
+        c2 = c1 * (n - 1.0) / 2.0
+        c3 = c2 * (n - 2.0) / 3.0
+        c4 = c3 * (n - 3.0) / 4.0
+        self.inv_ref = 1.0 / h_ref if h_ref != 0.0 else 0.0
+        self.hn_ref = hn_ref
+        self.a = (hn_ref * c1, hn_ref * c2, hn_ref * c3, hn_ref * c4)
+
+    def power(self, e: float) -> float | None:
+        """|h|^n for the ε `e` of h, or None where the series does not apply (|ε| > 0.01)."""
+        if self.inv_ref == 0.0 or abs(e) > NEAR_POWER_MAX_EPS:
+            return None
+        a1, a2, a3, a4 = self.a
+        e3 = (e * e) * e
+        return self.hn_ref + (e * (a1 + a2 * e) + e3 * (a3 + a4 * e))
 
 
 def _clamp_h(h: float) -> float:
@@ -268,26 +277,30 @@ def advance_h(p: RefParams, h: float, u0: float, u1: float, dt: float) -> float:
         return h
     step = dt / m
     half = 0.5 * step
-    h_ref, hn_ref = h, _abs_pow(h, p.n)
+    h_ref = h
+    near = _NearPower(p.n, h_ref, _abs_pow(h, p.n))
+    e_half, e_step = near.inv_ref * half, near.inv_ref * step
 
-    def rate(hh: float, uu: float) -> float:
+    def rate(hh: float, e: float, uu: float) -> float:
         # |h|^n by its binomial series around the interval's start where that is
         # close (as the Rust core does, to save pow calls), else directly.
-        hn = _near_power(p.n, h_ref, hn_ref, hh)
+        hn = near.power(e)
         if hn is None:
             hn = _abs_pow(hh, p.n)
         return p.A * udot - (p.beta * abs(udot) * _sgn(hh) + p.gamma * udot) * hn + p.delta * uu * _sgn(udot)
 
+    e = 0.0  # ε of the sub-step's start
     for i in range(m):
         ua = u0 + udot * (step * i)
         um = ua + udot * half
         ub = ua + udot * step
-        k1 = k1_first if i == 0 else rate(h, ua)
-        k2 = rate(h + half * k1, um)
-        k3 = rate(h + half * k2, um)
-        k4 = rate(h + step * k3, ub)
+        k1 = k1_first if i == 0 else rate(h, e, ua)
+        k2 = rate(h + half * k1, e + k1 * e_half, um)
+        k3 = rate(h + half * k2, e + k2 * e_half, um)
+        k4 = rate(h + step * k3, e + k3 * e_step, ub)
         nxt = h + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         h = _clamp_h(nxt) if math.isfinite(nxt) else h
+        e = (h - h_ref) * near.inv_ref
     return h
 
 

@@ -335,20 +335,28 @@ fn substeps(p: &Params, h: f64, k1: f64, hn: f64, udot: f64, dt: f64) -> Option<
 }
 
 /// |h|^n (and ln|h|) near a reference state h_ref by their series in
-/// ε = (|h| − |h_ref|)/|h_ref|: |h|^n = |h_ref|^n·(1 + ε)^n to ε⁴, ln|h| = ln|h_ref| + ln(1 + ε) to ε⁴.
+/// ε = (h − h_ref)/h_ref (= |h|/|h_ref| − 1 for h of the sign of h_ref):
+/// |h|^n = |h_ref|^n·(1 + ε)^n to ε⁴, ln|h| = ln|h_ref| + ln(1 + ε) to ε⁴.
 ///
 /// The RK4 stages of one interval sit close to its starting h, so one `powf`
 /// per interval serves all of them. The series is used only for |ε| ≤
-/// [`NearPower::MAX_EPS`] and the same sign of h, where the dropped ε⁵ term
-/// is below 1e-10·|c₅| relative (|c₅| < 1 for 0 < n < 5); elsewhere (near
+/// [`NearPower::MAX_EPS`] (where h has the sign of h_ref), where the dropped ε⁵
+/// term is below 1e-10·|c₅| relative (|c₅| < 1 for 0 < n < 5); elsewhere (near
 /// h = 0 in particular) the caller falls back to `powf` and `ln`.
+///
+/// Both are on the chain of dependent operations of every stage, so they are
+/// written for a short chain: a stage's ε comes from its rate k as εₛ + k·(c/h_ref)
+/// (the stage state is h + c·k, εₛ that of the sub-step's start h), without waiting
+/// for the state itself, and the polynomial is evaluated in two halves,
+/// |h_ref|^n + (ε·(a₁ + a₂ε) + ε³·(a₃ + a₄ε)) with aₖ = |h_ref|^n·cₖ (five dependent
+/// operations instead of Horner's nine).
 #[derive(Clone, Copy)]
 struct NearPower {
-    h_ref: f64,
-    inv_abs_ref: f64,
+    /// 1/h_ref (0 when h_ref = 0: the series never applies).
+    inv_ref: f64,
     hn_ref: f64,
     ln_ref: f64,
-    c: [f64; 4],
+    a: [f64; 4],
 }
 
 impl NearPower {
@@ -362,17 +370,18 @@ impl NearPower {
         let c4 = c3 * (n - 3.0) / 4.0;
         let a = h_ref.abs();
         let ln_ref = if with_ln && a > 0.0 { math::ln(a) } else { 0.0 };
-        NearPower { h_ref, inv_abs_ref: if a > 0.0 { 1.0 / a } else { 0.0 }, hn_ref, ln_ref, c: [c1, c2, c3, c4] }
+        NearPower {
+            inv_ref: if a > 0.0 { 1.0 / h_ref } else { 0.0 },
+            hn_ref,
+            ln_ref,
+            a: [hn_ref * c1, hn_ref * c2, hn_ref * c3, hn_ref * c4],
+        }
     }
 
-    /// ε of `h`, where the series applies.
+    /// ε of a state whose ε is `e`, where the series applies.
     #[inline(always)]
-    fn eps(&self, h: f64) -> Option<f64> {
-        if self.inv_abs_ref == 0.0 || h * self.h_ref <= 0.0 {
-            return None;
-        }
-        let e = (h.abs() * self.inv_abs_ref) - 1.0;
-        if e.abs() > Self::MAX_EPS {
+    fn valid(&self, e: f64) -> Option<f64> {
+        if self.inv_ref == 0.0 || e.abs() > Self::MAX_EPS {
             return None;
         }
         Some(e)
@@ -380,8 +389,9 @@ impl NearPower {
 
     #[inline(always)]
     fn power(&self, e: f64) -> f64 {
-        let [c1, c2, c3, c4] = self.c;
-        self.hn_ref * (1.0 + e * (c1 + e * (c2 + e * (c3 + e * c4))))
+        let [a1, a2, a3, a4] = self.a;
+        let e3 = (e * e) * e;
+        self.hn_ref + (e * (a1 + a2 * e) + e3 * (a3 + a4 * e))
     }
 
     #[inline(always)]
@@ -389,17 +399,17 @@ impl NearPower {
         self.ln_ref + e * (1.0 - e * (0.5 - e * (1.0 / 3.0 - e * 0.25)))
     }
 
-    /// |x|^n in the number type of `x` by `law`, n being `nv`.
+    /// |x|^n in the number type of `x` by `law`, n being `nv`, where `e` is the ε of x.
     #[inline(always)]
-    fn power_of<S: Scalar, L: Law<S>>(&self, law: &L, x: S, nv: f64) -> S {
-        let (hn, ln) = self.eval::<S>(x.re(), nv);
+    fn power_at<S: Scalar, L: Law<S>>(&self, law: &L, x: S, e: f64, nv: f64) -> S {
+        let (hn, ln) = self.eval::<S>(x.re(), e, nv);
         law.power(x, hn, ln)
     }
 
-    /// |h|^n and, when `S` carries derivatives, ln|h| (else 0).
+    /// |h|^n and, when `S` carries derivatives, ln|h| (else 0), `e` being the ε of h.
     #[inline(always)]
-    fn eval<S: Scalar>(&self, h: f64, n: f64) -> (f64, f64) {
-        match self.eps(h) {
+    fn eval<S: Scalar>(&self, h: f64, e: f64, n: f64) -> (f64, f64) {
+        match self.valid(e) {
             Some(e) => (self.power(e), if S::DERIVATIVES { self.ln(e) } else { 0.0 }),
             None => {
                 let a = h.abs();
@@ -496,7 +506,11 @@ pub(crate) fn advance_forced<S: Scalar, L: Law<S>>(
     };
     let half = 0.5 * step;
     let near = NearPower::new(p.n, hv, hn_v, S::DERIVATIVES);
+    // ε per unit rate of the stage states h + half·k and h + step·k.
+    let (e_half, e_step) = (near.inv_ref * half, near.inv_ref * step);
     let mut h = h;
+    // ε of the sub-step's start (0 for the first: it is the reference).
+    let mut e = 0.0;
     for i in 0..m {
         let ua = u0 + udot * (step * i as f64);
         let um = ua + udot * half;
@@ -504,20 +518,21 @@ pub(crate) fn advance_forced<S: Scalar, L: Law<S>>(
         let k1 = if i == 0 {
             c.rate(h, c.power(h, hn_v, near.ln_ref), u0, udot, su)
         } else {
-            c.rate(h, near.power_of(c, h, p.n), ua, udot, su)
+            c.rate(h, near.power_at(c, h, e, p.n), ua, udot, su)
         };
         let s2 = h + k1 * half;
-        let k2 = c.rate(s2, near.power_of(c, s2, p.n), um, udot, su);
+        let k2 = c.rate(s2, near.power_at(c, s2, e + k1.re() * e_half, p.n), um, udot, su);
         let s3 = h + k2 * half;
-        let k3 = c.rate(s3, near.power_of(c, s3, p.n), um, udot, su);
+        let k3 = c.rate(s3, near.power_at(c, s3, e + k2.re() * e_half, p.n), um, udot, su);
         let s4 = h + k3 * step;
-        let k4 = c.rate(s4, near.power_of(c, s4, p.n), ub, udot, su);
+        let k4 = c.rate(s4, near.power_at(c, s4, e + k3.re() * e_step, p.n), ub, udot, su);
         let next = h + (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (step / 6.0);
         let v = next.re();
         if v.is_finite() {
             let clamped = v.clamp(-H_LIMIT_UM, H_LIMIT_UM);
             h = if clamped == v { next } else { S::pinned(clamped) };
         }
+        e = (h.re() - hv) * near.inv_ref;
     }
     h
 }
@@ -531,16 +546,20 @@ mod tests {
         for n in [0.3, 1.0, 1.52, 2.7, 4.9] {
             for h_ref in [-3.0, -0.01, 1e-3, 0.7, 12.0] {
                 let near = NearPower::new(n, h_ref, abs_pow(h_ref, n), true);
+                let mut used = 0;
                 for k in -25..=25 {
                     let h = h_ref * (1.0 + 0.001 * k as f64);
-                    if let Some(e) = near.eps(h) {
+                    if let Some(e) = near.valid((h - h_ref) / h_ref) {
                         let exact = abs_pow(h, n);
                         let v = near.power(e);
                         assert!(((v - exact) / exact).abs() < 1e-9, "n={n} h={h}: {v} vs {exact}");
                         assert!((near.ln(e) - h.abs().ln()).abs() < 1e-10);
+                        used += 1;
                     }
                 }
-                assert!(near.eps(-h_ref).is_none());
+                // |ε| ≤ 0.01: k = −9 … 9, and ±10 where ε rounds to 0.01 or below.
+                assert!((19..=21).contains(&used), "n={n} h_ref={h_ref}: {used} states on the series");
+                assert!(near.valid((-h_ref - h_ref) / h_ref).is_none());
             }
         }
     }
