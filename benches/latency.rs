@@ -26,7 +26,8 @@
 //! the same call of all three). Two control rows of fixed work show what the machine
 //! adds to a call of constant cost.
 //!
-//! Rows: `Model::step`; `horizon` push without the input lag (`HorizonIdentifier::new`)
+//! Rows: `Model::step`; `Inverse::step` (the voltage for the model's own noise-free
+//! displacement, beside `Model::step`: the ratio of their p50 is printed); `horizon` push without the input lag (`HorizonIdentifier::new`)
 //! and with it (`HorizonIdentifier::recommended`, the default online method); `rpem`
 //! push; the paper's method at N = 100 … 100 000; `simulate` throughput; and a hand-written floor: one RK4
 //! step with one `powf` per sample (stage powers from its first-order expansion) and
@@ -40,7 +41,7 @@ use boucwen::identify::{
     HorizonConfig, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier,
 };
 use boucwen::model::paper_input;
-use boucwen::{simulate_into, Bank, Model, ModelBank, Params};
+use boucwen::{simulate_into, Bank, Inverse, Model, ModelBank, Params, VoltageLimits};
 
 const DT: f64 = 1e-4;
 
@@ -362,7 +363,21 @@ fn main() {
             black_box(m.step(black_box(u[k])).expect("finite"));
         },
     );
+    let step_p50 = quantile(&times.0, 0.5);
     row("`Model::step`".into(), times, "p50 ≤ 60");
+
+    // The inverse finds again the voltages of the model's own (noise-free) displacement.
+    let mut desired = vec![0.0; len];
+    simulate_into(&p, &u, DT, 0.0, None, &mut desired).expect("finite");
+    let times = timer.replayed(
+        len,
+        || Inverse::new(p, DT, 0.0, VoltageLimits::NONE).expect("valid"),
+        |inv, k| {
+            black_box(inv.step(black_box(desired[k])).expect("finite"));
+        },
+    );
+    let inverse_p50 = quantile(&times.0, 0.5);
+    row("`Inverse::step`".into(), times, "p50 ≤ 2 × `Model::step`");
 
     let times = pushes(&timer, &u, &x, || HorizonIdentifier::new(DT, p, 0.0, HorizonConfig::default()).expect("valid"));
     row("`horizon` push, no lag".into(), times, "p99.9 ≤ 2000");
@@ -378,6 +393,7 @@ fn main() {
         row(format!("`paper` push, N = {window}"), times, "p99.9 ≤ 1000");
     }
     print_rows(&rows, floor_p50);
+    println!("\n`Inverse::step` / `Model::step` at p50: {:.2} (target ≤ 2)", inverse_p50 / step_p50);
 
     let mut out = vec![0.0; len];
     let best = (0..5)

@@ -197,7 +197,7 @@ impl ExtendedInverse {
                             linear += g * step.w1;
                             offset += step.decay * c + g * step.w0 * s.ua_prev;
                         }
-                        let eq = IntervalEquation { p, h: s.h, w_prev: s.ua_prev, dt: self.dt, linear, offset };
+                        let eq = IntervalEquation::new(p, s.h, s.ua_prev, self.dt, linear, offset);
                         solve(&eq, w_lo, w_hi, tol)
                     }
                     Some(e) => {
@@ -348,7 +348,7 @@ impl Stroke {
         let mut passes = 0;
         loop {
             let target_s = self.electro.invert(-self.rest - self.creep_linear * w);
-            let eq = IntervalEquation { p, h, w_prev, dt, linear: self.kv, offset: -target_s };
+            let eq = IntervalEquation::new(p, h, w_prev, dt, self.kv, -target_s);
             let mut sol = solve(&eq, range.0, range.1, tol);
             evaluations += sol.evaluations;
             passes += 1;

@@ -54,7 +54,8 @@
 //! x0 + h0 is solved directly (as [`crate::Model::step`] on its first sample).
 
 use crate::error::{finite_sample, positive_dt, Error, Result};
-use crate::model::{advance_h, sgn, ModelState};
+use crate::model::integrator::{abs_pow, advance_h_from_power};
+use crate::model::{sgn, ModelState};
 use crate::params::Params;
 use alloc::vec;
 use alloc::vec::Vec;
@@ -198,12 +199,20 @@ pub(crate) struct IntervalEquation<'a> {
     pub linear: f64,
     /// The rest of x − h, minus the target \[µm\].
     pub offset: f64,
+    /// |h|^n at the start of the interval (one `powf` for every evaluation).
+    hn: f64,
 }
 
-impl IntervalEquation<'_> {
+impl<'a> IntervalEquation<'a> {
+    /// The equation of the interval from state `h` \[µm\] and voltage `w_prev` \[V\]
+    /// over `dt` \[s\], with `linear` \[µm/V\] and `offset` \[µm\] as the fields say.
+    pub fn new(p: &'a Params, h: f64, w_prev: f64, dt: f64, linear: f64, offset: f64) -> Self {
+        IntervalEquation { p, h, w_prev, dt, linear, offset, hn: abs_pow(h, p.n) }
+    }
+
     #[inline]
     fn eval(&self, w: f64) -> (f64, f64) {
-        let h = advance_h(self.p, self.h, self.w_prev, w, self.dt);
+        let h = advance_h_from_power(self.p, self.h, self.hn, self.w_prev, w, self.dt);
         (self.linear * w + self.offset + h, h)
     }
 }
@@ -391,7 +400,7 @@ pub(crate) fn solve(eq: &IntervalEquation<'_>, lo: f64, hi: f64, tol: f64) -> So
     }
     let p = eq.p;
     let jump = p.delta * w0 * eq.dt;
-    let hn = if eq.h == 0.0 { 0.0 } else { crate::math::powf(eq.h.abs(), p.n) };
+    let hn = eq.hn;
     let sh = sgn(eq.h);
     let slope_up = eq.linear + p.a - (p.beta * sh + p.gamma) * hn;
     let slope_down = eq.linear + p.a - (-p.beta * sh + p.gamma) * hn;
@@ -476,14 +485,7 @@ impl Inverse {
                 (u, self.state.h, residual, clip, 0)
             }
             Some(u_prev) => {
-                let eq = IntervalEquation {
-                    p,
-                    h: self.state.h,
-                    w_prev: u_prev,
-                    dt: self.dt,
-                    linear: p.kv,
-                    offset: p.x0 - x_d,
-                };
+                let eq = IntervalEquation::new(p, self.state.h, u_prev, self.dt, p.kv, p.x0 - x_d);
                 let s = solve(&eq, self.limits.min_v, self.limits.max_v, tol);
                 (s.w, s.h, s.residual, s.clip, s.evaluations)
             }

@@ -456,6 +456,14 @@ pub(crate) fn advance_seeded<const M: usize, const FIRST: usize, const INPUT: us
     }
 }
 
+/// [`advance_h`] given `hn` = |h|^n (as `abs_pow` computes it): the same result
+/// without the `powf`, for callers that advance from one state to many voltages (the
+/// inverse's root search).
+#[inline]
+pub(crate) fn advance_h_from_power(p: &Params, h: f64, hn: f64, u0: f64, u1: f64, dt: f64) -> f64 {
+    advance_from_power(p, &Coefficients::of(p), h, Some(hn), u0, u1, dt, None)
+}
+
 /// [`advance`] with the number of RK4 sub-steps optionally forced (for finite-difference
 /// checks of the derivatives, where the rule's jumps would spoil the quotient).
 #[inline(always)]
@@ -468,6 +476,22 @@ pub(crate) fn advance_forced<S: Scalar, L: Law<S>>(
     dt: f64,
     forced: Option<u32>,
 ) -> S {
+    advance_from_power(p, c, h, None, u0, u1, dt, forced)
+}
+
+/// [`advance_forced`] with |h|^n at the start given (`hn`) or computed (`None`).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn advance_from_power<S: Scalar, L: Law<S>>(
+    p: &Params,
+    c: &L,
+    h: S,
+    hn: Option<f64>,
+    u0: S,
+    u1: S,
+    dt: f64,
+    forced: Option<u32>,
+) -> S {
     let du = u1 - u0;
     if du.re() == 0.0 {
         return h;
@@ -475,7 +499,10 @@ pub(crate) fn advance_forced<S: Scalar, L: Law<S>>(
     let udot = c.per_second(du, dt);
     let (hv, udv) = (h.re(), udot.re());
     let su = sgn(udv);
-    let hn_v = abs_pow(hv, p.n);
+    let hn_v = match hn {
+        Some(hn) => hn,
+        None => abs_pow(hv, p.n),
+    };
     let k1_v = rate(&Coefficients::of(p), hv, hn_v, u0.re(), udv, su);
     let Some(m) = forced.or_else(|| substeps(p, hv, k1_v, hn_v, udv, dt)) else {
         let step = dt / IMPLICIT_SUBSTEPS as f64;
