@@ -82,6 +82,14 @@ FINAL_NFEV = 10
 LOOKALIKE_MARGIN = 0.01
 #: A fitted resonance of at least this damping has no peak and is not a candidate.
 PEAK_ZETA = 1.0 / math.sqrt(2.0)
+#: Groups of look-alikes (:data:`~boucwen.diagnosis.lookalike.GROUPS`) whose member
+#: already in the model bars another unless the group's test on the current residual
+#: names that other: what the first member leaves resembles the others.
+FOLLOWS_GUARDED = ("follows",)
+#: Effects that leave a residual not consistent with noise are named only when they
+#: remove at least this share of the base model's mean-square error beyond the noise
+#: (:func:`_explained_share`); otherwise they are a partial fit of something else.
+PARTIAL_SHARE = 0.75
 #: Whole-sample delays whose shifted base fit a delay trial compares.
 DELAY_STARTS = 2
 #: Largest delay tried [samples].
@@ -320,6 +328,14 @@ def score_round(
     ranked = sorted(fits, key=lambda k: trials[k]["cv_rms_um"])
     earning = [k for k in ranked if _earns(trials[k], min_gain)]
     lookalike = lookalike_tests(record, reference.x)
+    present = set(current.effects.names)
+    refused = {}
+    for test in FOLLOWS_GUARDED:
+        members, said = GROUPS[test], lookalike[test].get("follows", lookalike[test].get("shape"))
+        if present & set(members):
+            for k in [k for k in earning if k in members and k != said]:
+                earning.remove(k)
+                refused[k] = f"a look-alike is in the model and the {test!r} test names {said!r}"
     decision = None
     if len(earning) >= 2:
         a, b = earning[0], earning[1]
@@ -342,6 +358,7 @@ def score_round(
         ],
         "lookalike": lookalike,
         "lookalike_decision": decision,
+        "lookalike_refused": refused,
         "most_likely": best,
         "kept": keep,
     }
@@ -374,6 +391,16 @@ def _cost(record: Record, current: ExtendedFit, effects: EffectSet, basis: Any =
     if basis is not None:
         r = r - basis @ (basis.T @ r)
     return rms(r)
+
+
+def _explained_share(before_um: float, after_um: float, noise_um: float) -> float:
+    """Share of the base model's mean-square error beyond the noise that the effects
+    remove: 1 − (after² − σ²)/(before² − σ²), RMS errors and noise σ in µm (1 when the
+    base model already leaves no more than the noise)."""
+    excess = before_um**2 - noise_um**2
+    if not excess > 0:
+        return 1.0
+    return 1.0 - max(after_um**2 - noise_um**2, 0.0) / excess
 
 
 def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool:
@@ -484,6 +511,11 @@ def diagnose_record(
     opts: dict[str, Any] = {"folds": folds, "min_gain": min_gain, "seed": seed, "workers": workers, "say": say}
 
     while len(added) < max_effects:
+        if added and unexplained(record, current.simulate(u, dt)).consistent_with_noise:
+            # What the effects kept leave is noise: nothing is left for another to explain.
+            say("the residual is consistent with noise: nothing left to explain")
+            evidence["stopped"] = "the residual of the effects kept is consistent with noise"
+            break
         say(f"round {len(added) + 1}: trying {list(candidates(current.effects.names))}")
         if q == 1 or simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is None:
             # Not screened, or the model holds what the screened copy cannot (a
@@ -532,9 +564,20 @@ def diagnose_record(
         x_ext = x_base.copy()
         params = {"base": base.params.to_dict(), "h0_um": base.h0}
         effect_set = EffectSet()
+    left = unexplained(record, x_ext)
+    share = _explained_share(rms(x - x_base), rms(x - x_ext), left.noise_um)
+    if added and not left.consistent_with_noise and share < PARTIAL_SHARE:
+        # The effects kept explain too little of the error beyond the noise for their
+        # names to be the explanation: the record is reported as unexplained instead.
+        say(f"{', '.join(added)}: {share:.0%} of the error beyond the noise explained; not named")
+        evidence["partial"] = {"effects": list(added), "explained_share": share, "params": params}
+        added = []
+        x_ext = x_base.copy()
+        params = {"base": base.params.to_dict(), "h0_um": base.h0}
+        effect_set = EffectSet()
+        left = unexplained(record, x_ext)
     params["base_only"] = {"base": base.params.to_dict(), "h0_um": base.h0}
     err_b, err_e = x - x_base, x - x_ext
-    left = unexplained(record, x_ext)
     say(left.summary())
     evidence["elapsed_s"] = time.perf_counter() - started
     result = Diagnosis(

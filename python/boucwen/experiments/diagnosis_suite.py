@@ -193,6 +193,9 @@ def run_case(case: Case) -> dict[str, Any]:
         "truth_rms_before_um": before,
         "truth_rms_after_um": after,
         "cut": before / after if after > 0 else float("inf"),
+        "rms_before_um": d.rms_before,
+        "rms_after_um": d.rms_after,
+        "noise_est_um": d.unexplained.noise_um if d.unexplained is not None else float("nan"),
         "samples": int(rec.u.size),
         "elapsed_s": elapsed,
     }
