@@ -14,13 +14,10 @@ import pytest
 from boucwen.experiments.diagnosis_suite import TARGETS, cases, confusion_table, figures, run_suite
 
 # Measured on the quick subset (17 records, seeds = indices): 10 of the 12 records
-# holding effects of the vocabulary are named exactly (saturation at 0.08 µm gets nothing
-# named; the pair creep + drift gets creep only), and 2 of the 3 effects outside the
-# vocabulary are given a name (backlash is called saturation, a drift settling within
-# the record is called creep), though all three are flagged as unexplained.
+# holding effects of the vocabulary are named exactly (saturation at 0.08 µm under a
+# staircase gets nothing named; the pair creep + drift gets creep only).
 SHORT = {
     "inside_named": "measured 10/12 = 0.833 on the quick subset (saturation: nothing named; creep+drift: creep)",
-    "outside_wrong_name": "measured 2/3 on the quick subset (backlash named saturation, settling drift named creep)",
 }
 
 

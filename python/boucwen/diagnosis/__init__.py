@@ -11,7 +11,9 @@ not told what it contains, and:
    in time (drift), the whole-sample lag that best aligns model and data (delay);
 3. tries each effect of the vocabulary (:data:`boucwen.effects.VOCABULARY`, read from
    the registry at run time) not yet in the model: adds it and refits everything on
-   the whole record with a small iteration budget (a *trial*);
+   the whole record with a small iteration budget (a *trial*), from the start of the
+   effect's that fits best once the current model's unknowns are refitted to first
+   order (the current fit has bent itself to follow what the effect describes);
 4. scores every model by **blocked cross-validation** over the whole record
    (:mod:`~boucwen.diagnosis.validation`): the record is cut into ``folds`` contiguous
    blocks (4 by default), each held out in turn from a refit on the others, so that
@@ -29,14 +31,20 @@ not told what it contains, and:
    drift; delay / input lag / resonance) and their credits differ by less than
    1 point, the group's test decides (:mod:`~boucwen.diagnosis.lookalike`: creep
    follows u, a drift follows time; a delay has a flat group delay, a lag does not).
-   Then it repeats from 3 until nothing earns its parameters;
+   Once creep, drift or gain drift is in the model, another of the three is kept only
+   when that test on the current residual names it. Then it repeats from 3 until
+   nothing earns its parameters, or what the effects kept leave is consistent with
+   noise (step 8's test);
 7. refits the base model and the kept effects on the whole record and reports the
    errors, before (base model) and after (with the effects);
 8. tests what the final model leaves against the noise estimated from the record and
    against what could explain it (:func:`~boucwen.diagnosis.unexplained.unexplained`):
    ``Diagnosis.unexplained`` says whether the residual is consistent with noise and,
    if not, which signals, spectral lines and time spans it follows — also when no
-   effect of the vocabulary accounts for it.
+   effect of the vocabulary accounts for it. Effects that leave a residual not
+   consistent with noise and remove less than 3/4 of the base model's mean-square
+   error beyond the noise are not named (``evidence["partial"]`` lists them): they
+   fit part of something the vocabulary does not hold.
 
 Long records (more than 50 000 samples) sampled faster than 5 kHz are *screened* (for
 speed): the trials of step 3 run on a copy holding every q-th sample (about 2.5 kHz),

@@ -82,17 +82,37 @@ FINAL_NFEV = 10
 LOOKALIKE_MARGIN = 0.01
 #: A fitted resonance of at least this damping has no peak and is not a candidate.
 PEAK_ZETA = 1.0 / math.sqrt(2.0)
+#: Groups of look-alikes (:data:`~boucwen.diagnosis.lookalike.GROUPS`) whose member
+#: already in the model bars another unless the group's test on the current residual
+#: names that other: what the first member leaves resembles the others.
+FOLLOWS_GUARDED = ("follows",)
+#: Effects that leave a residual not consistent with noise are named only when they
+#: remove at least this share of the base model's mean-square error beyond the noise
+#: (:func:`_explained_share`); otherwise they are a partial fit of something else.
+PARTIAL_SHARE = 0.75
 #: Whole-sample delays whose shifted base fit a delay trial compares.
 DELAY_STARTS = 2
 #: Largest delay tried [samples].
 MAX_DELAY_SAMPLES = 8
 
 
-def _cv(record: Record, fr: ExtendedFit, folds: int, workers: int | None) -> tuple[CrossValidation, Any]:
+def _cv(
+    record: Record, fr: ExtendedFit, folds: int, workers: int | None, jacobian: Any = None
+) -> tuple[CrossValidation, Any]:
     xs = simulate_chain(fr.params, fr.effects, record.u, record.dt, fr.h0)
     if xs is None:  # pragma: no cover - a fitted model can be simulated
         raise ValueError("the fitted model cannot be simulated")
-    return blocked_cv(jacobian_extended(record, fr, workers=workers), record.x - xs, folds), xs
+    jac = jacobian_extended(record, fr, workers=workers) if jacobian is None else jacobian
+    return blocked_cv(jac, record.x - xs, folds), xs
+
+
+def _refit_basis(jacobian: Any) -> Any:
+    """An orthonormal basis of the span of the current model's Jacobian (its columns
+    scaled to unit norm): the first-order refit of the current model's unknowns."""
+    norms = np.linalg.norm(jacobian, axis=0)
+    keep = norms > 0
+    q, _ = np.linalg.qr(jacobian[:, keep] / norms[keep])
+    return q
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,13 +131,17 @@ def _trial_fit(
     seed: int,
     workers: int | None,
     trial_nfev: int,
+    basis: Any = None,
 ) -> ExtendedFit | str:
-    """Adds ``name`` to ``current`` from its best start and refits everything (at most
-    ``trial_nfev`` iterations, in two stages: a trial no better than the null trial
-    after the first third is stopped there). Returns the fit, or why there is none."""
+    """Adds ``name`` to ``current`` from its best start and refits everything, in two
+    stages: a trial no better than the null trial after a third of ``trial_nfev``
+    evaluations is stopped there, the others go on for ``trial_nfev`` more (the second
+    stage restarts the optimiser's trust region, which spends evaluations). The best start is the one of least
+    :func:`_cost` (beyond the first-order refit of ``basis``, when given). Returns the
+    fit, or why there is none."""
     starts = candidate_starts(name, record, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
     if len(starts) > 1:
-        order = np.argsort([_cost(record, current, s) for s in starts])
+        order = np.argsort([_cost(record, current, s, basis) for s in starts])
         starts = [starts[int(k)] for k in order[: DELAY_STARTS if name == "delay" else 1]]
     p0, h0, start = current.params, current.h0, starts[0]
     if name == "delay":
@@ -125,14 +149,14 @@ def _trial_fit(
         if isinstance(shift, str):
             return shift
         p0, h0, start = shift
-    first = max(3, trial_nfev // 3)
+    first = _first_stage(trial_nfev)
     try:
         fr = fit_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
         if fr.rms_um >= null_rms:
             return "hopeless: no better than the null trial after a third of the effort"
         if not fr.success:
             fr = fit_extended_record(
-                record, fr.params, fr.effects, fr.h0, max_nfev=trial_nfev - first, tol=TRIAL_TOL, workers=workers
+                record, fr.params, fr.effects, fr.h0, max_nfev=trial_nfev, tol=TRIAL_TOL, workers=workers
             )
     except ValueError as exc:
         return str(exc)
@@ -143,6 +167,12 @@ def _trial_fit(
         # candidate.
         return f"no resonance peak: fitted zeta {mode['zeta']:.3g} ≥ 1/√2"
     return fr
+
+
+def _first_stage(trial_nfev: int) -> int:
+    """Evaluations of a trial's first stage (:func:`_trial_fit`); the null trial gets
+    both stages' (this plus ``trial_nfev``)."""
+    return max(3, trial_nfev // 3)
 
 
 def _delay_shift(
@@ -246,9 +276,10 @@ def score_round(
     """Tries every effect of the vocabulary not yet in ``current`` (or those in
     ``names``) on ``record``.
 
-    Each trial adds one effect and refits everything on the whole record for at most
-    ``trial_nfev`` iterations; the *null trial* refits ``current`` with the same
-    budget and nothing added. Every model is scored by blocked cross-validation
+    Each trial adds one effect and refits everything on the whole record (in the two
+    stages of :func:`_trial_fit`, or from ``starts`` in one of as many evaluations);
+    the *null trial* refits ``current`` with the most a trial gets and nothing added.
+    Every model is scored by blocked cross-validation
     (:mod:`~boucwen.diagnosis.validation`), and an effect is credited only with the cut
     of the cross-validated RMS error beyond both the current model and the null trial
     (``gain_over_null``), overall and where it acts (``local_gain``); it earns its
@@ -257,10 +288,11 @@ def score_round(
     gives, per effect, a fit to start its trial from instead of its own starts.
     """
     note = say if say is not None else (lambda _msg: None)
-    cur_cv, cur_x = _cv(record, current, folds, workers)
-    null = fit_extended_record(
-        record, current.params, current.effects, current.h0, max_nfev=trial_nfev, workers=workers
-    )
+    cur_jac = jacobian_extended(record, current, workers=workers)
+    cur_cv, cur_x = _cv(record, current, folds, workers, cur_jac)
+    basis = _refit_basis(cur_jac)
+    null_nfev = _first_stage(trial_nfev) + trial_nfev
+    null = fit_extended_record(record, current.params, current.effects, current.h0, max_nfev=null_nfev, workers=workers)
     null_cv, null_x = _cv(record, null, folds, workers)
     scored_cur, scored_null = _Scored(current, cur_cv, cur_x), _Scored(null, null_cv, null_x)
     reference = scored_cur if cur_cv.rms_um <= null_cv.rms_um else scored_null
@@ -275,10 +307,12 @@ def score_round(
         if starts is not None and name in starts:
             s = starts[name]
             fr: ExtendedFit | str = fit_extended_record(
-                record, s.params, s.effects, s.h0, max_nfev=trial_nfev, tol=TRIAL_TOL, workers=workers
+                record, s.params, s.effects, s.h0, max_nfev=null_nfev, tol=TRIAL_TOL, workers=workers
             )
         else:
-            fr = _trial_fit(name, record, current, null.rms_um, seed=seed, workers=workers, trial_nfev=trial_nfev)
+            fr = _trial_fit(
+                name, record, current, null.rms_um, seed=seed, workers=workers, trial_nfev=trial_nfev, basis=basis
+            )
         if isinstance(fr, str):
             trials[name] = {"rejected": fr}
             note(f"  - {name:9s}: {fr} ({time.perf_counter() - t0:.1f} s)")
@@ -294,6 +328,14 @@ def score_round(
     ranked = sorted(fits, key=lambda k: trials[k]["cv_rms_um"])
     earning = [k for k in ranked if _earns(trials[k], min_gain)]
     lookalike = lookalike_tests(record, reference.x)
+    present = set(current.effects.names)
+    refused = {}
+    for test in FOLLOWS_GUARDED:
+        members, said = GROUPS[test], lookalike[test].get("follows", lookalike[test].get("shape"))
+        if present & set(members):
+            for k in [k for k in earning if k in members and k != said]:
+                earning.remove(k)
+                refused[k] = f"a look-alike is in the model and the {test!r} test names {said!r}"
     decision = None
     if len(earning) >= 2:
         a, b = earning[0], earning[1]
@@ -316,6 +358,7 @@ def score_round(
         ],
         "lookalike": lookalike,
         "lookalike_decision": decision,
+        "lookalike_refused": refused,
         "most_likely": best,
         "kept": keep,
     }
@@ -336,9 +379,28 @@ def _delay_hopeless(record: Record, current: ExtendedFit, folds: int, workers: i
     return bool(with_rate.rms_um > (1.0 - LOCAL_FLOOR) * cv.rms_um)
 
 
-def _cost(record: Record, current: ExtendedFit, effects: EffectSet) -> float:
+def _cost(record: Record, current: ExtendedFit, effects: EffectSet, basis: Any = None) -> float:
+    """RMS error [µm] of the current model with ``effects``; with ``basis`` (of
+    :func:`_refit_basis`), what is left of it beyond the first-order refit of the
+    current model's unknowns (the current fit has bent itself to follow what the
+    effect describes; the refit undoes that to first order)."""
     xs = simulate_chain(current.params, effects, record.u, record.dt, current.h0)
-    return math.inf if xs is None else rms(xs - record.x)
+    if xs is None:
+        return math.inf
+    r = record.x - xs
+    if basis is not None:
+        r = r - basis @ (basis.T @ r)
+    return rms(r)
+
+
+def _explained_share(before_um: float, after_um: float, noise_um: float) -> float:
+    """Share of the base model's mean-square error beyond the noise that the effects
+    remove: 1 − (after² − σ²)/(before² − σ²), RMS errors and noise σ in µm (1 when the
+    base model already leaves no more than the noise)."""
+    excess = before_um**2 - noise_um**2
+    if not excess > 0:
+        return 1.0
+    return 1.0 - max(after_um**2 - noise_um**2, 0.0) / excess
 
 
 def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool:
@@ -449,6 +511,11 @@ def diagnose_record(
     opts: dict[str, Any] = {"folds": folds, "min_gain": min_gain, "seed": seed, "workers": workers, "say": say}
 
     while len(added) < max_effects:
+        if added and unexplained(record, current.simulate(u, dt)).consistent_with_noise:
+            # What the effects kept leave is noise: nothing is left for another to explain.
+            say("the residual is consistent with noise: nothing left to explain")
+            evidence["stopped"] = "the residual of the effects kept is consistent with noise"
+            break
         say(f"round {len(added) + 1}: trying {list(candidates(current.effects.names))}")
         if q == 1 or simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is None:
             # Not screened, or the model holds what the screened copy cannot (a
@@ -497,9 +564,20 @@ def diagnose_record(
         x_ext = x_base.copy()
         params = {"base": base.params.to_dict(), "h0_um": base.h0}
         effect_set = EffectSet()
+    left = unexplained(record, x_ext)
+    share = _explained_share(rms(x - x_base), rms(x - x_ext), left.noise_um)
+    if added and not left.consistent_with_noise and share < PARTIAL_SHARE:
+        # The effects kept explain too little of the error beyond the noise for their
+        # names to be the explanation: the record is reported as unexplained instead.
+        say(f"{', '.join(added)}: {share:.0%} of the error beyond the noise explained; not named")
+        evidence["partial"] = {"effects": list(added), "explained_share": share, "params": params}
+        added = []
+        x_ext = x_base.copy()
+        params = {"base": base.params.to_dict(), "h0_um": base.h0}
+        effect_set = EffectSet()
+        left = unexplained(record, x_ext)
     params["base_only"] = {"base": base.params.to_dict(), "h0_um": base.h0}
     err_b, err_e = x - x_base, x - x_ext
-    left = unexplained(record, x_ext)
     say(left.summary())
     evidence["elapsed_s"] = time.perf_counter() - started
     result = Diagnosis(

@@ -61,7 +61,7 @@ class Resonance(Effect):
     @classmethod
     def starts(cls, at: Start) -> list[Resonance]:
         dt, duration = at.record.dt, at.record.duration_s
-        fns = np.geomspace(max(5.0 / duration, 0.02 / dt), FN_MAX_NYQUIST_FRACTION * 0.9 / dt, 8)
+        fns = np.geomspace(5.0 / duration, FN_MAX_NYQUIST_FRACTION * 0.9 / dt, 16)
         pairs = [(float(f), z) for f in fns for z in (0.03, 0.15, 0.5)]
         pairs.append((FN_MAX_NYQUIST_FRACTION * 0.98 / dt, 0.7))  # the mildest resonance
         return [cls(fn_hz=f, zeta=z) for f, z in pairs]

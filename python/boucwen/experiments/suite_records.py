@@ -219,13 +219,31 @@ def size_um(with_effect: FloatArray, without: FloatArray) -> float:
     return float(np.sqrt(np.mean((d - basis @ coef) ** 2)))
 
 
+#: Points of the log-spaced grid of strengths scanned when the size at the top of a
+#: maker's range is below the one asked (a size that falls again at large strengths:
+#: play wider than the stroke leaves the stage still, a size of 0).
+_SCAN = 25
+
+
 def _strength(size_of: Callable[[float], float], lo: float, hi: float, target: float) -> tuple[float, float]:
     """The strength in [lo, hi] whose size is nearest ``target`` (bisection in log s),
-    and that size."""
+    and that size.
+
+    When the size at ``hi`` is below ``target``, a grid of :data:`_SCAN` strengths is
+    scanned: the bisection runs between the first that reaches ``target`` and the one
+    before it, and without one the strength of largest size is returned."""
     a, b = math.log(lo), math.log(hi)
     best = (hi, size_of(hi))
     if best[1] <= target:
-        return best
+        grid = [(s, size_of(s)) for s in np.geomspace(lo, hi, _SCAN).tolist()]
+        above = [k for k, (_, v) in enumerate(grid) if v > target]
+        if not above:
+            return max([best, *grid], key=lambda sv: sv[1])
+        k = above[0]
+        if k == 0:
+            return grid[0]
+        a, b = math.log(grid[k - 1][0]), math.log(grid[k][0])
+        best = grid[k]
     for _ in range(24):
         m = 0.5 * (a + b)
         s = size_of(math.exp(m))
