@@ -173,6 +173,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"effects: {', '.join(result.effects) if result.effects else 'none'}")
     print(f"error before (base model): rms {result.rms_before:.4g} um, max {result.max_before:.4g} um")
     print(f"error after (with effects): rms {result.rms_after:.4g} um, max {result.max_after:.4g} um")
+    partial = result.evidence.get("partial")
+    if isinstance(partial, dict):
+        print(
+            f"partial, not named: {', '.join(partial['effects'])} would leave rms {partial['rms_um']:.4g} um, "
+            f"{partial['explained_share']:.0%} of the error beyond the noise explained"
+        )
     if result.unexplained is not None:
         print(result.unexplained.summary())
     write_report(result, args.json, data={**source, "samples": len(rec), "dt_s": rec.dt})

@@ -570,7 +570,12 @@ def diagnose_record(
         # The effects kept explain too little of the error beyond the noise for their
         # names to be the explanation: the record is reported as unexplained instead.
         say(f"{', '.join(added)}: {share:.0%} of the error beyond the noise explained; not named")
-        evidence["partial"] = {"effects": list(added), "explained_share": share, "params": params}
+        evidence["partial"] = {
+            "effects": list(added),
+            "explained_share": share,
+            "rms_um": rms(x - x_ext),
+            "params": params,
+        }
         added = []
         x_ext = x_base.copy()
         params = {"base": base.params.to_dict(), "h0_um": base.h0}
