@@ -223,7 +223,7 @@ class _HorizonStatus(TypedDict):
     samples: int
     """Samples pushed since construction or reset."""
     updated: bool
-    """A pass over the window ended in this push and the estimates were updated."""
+    """The estimates were updated in this push (the push after a pass over the window caught up)."""
     updates: int
     """Updates since construction or reset."""
     window_samples: int

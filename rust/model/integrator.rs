@@ -378,7 +378,7 @@ impl NearPower {
         }
     }
 
-    /// ε of a state whose ε is `e`, where the series applies.
+    /// `e` where the series applies (h_ref ≠ 0 and |e| ≤ [`Self::MAX_EPS`]), else `None`.
     #[inline(always)]
     fn valid(&self, e: f64) -> Option<f64> {
         if self.inv_ref == 0.0 || e.abs() > Self::MAX_EPS {

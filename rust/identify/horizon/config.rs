@@ -76,6 +76,8 @@ impl Default for HorizonConfig {
 impl HorizonConfig {
     /// Largest accepted `max_window` \[samples\].
     pub const MAX_WINDOW: usize = 10_000_000;
+    /// Fewest samples the window keeps (and the least `max_window`).
+    pub const MIN_WINDOW: usize = 16;
 
     /// Checks every value; the error names the offending option.
     pub fn validate(&self) -> Result<()> {
@@ -86,7 +88,7 @@ impl HorizonConfig {
         if self.recent_factor.is_nan() || self.recent_factor < 1.0 {
             return bad("recent_factor", self.recent_factor, "must be >= 1 (inf: no limit)");
         }
-        if !(16..=Self::MAX_WINDOW).contains(&self.max_window) {
+        if !(Self::MIN_WINDOW..=Self::MAX_WINDOW).contains(&self.max_window) {
             return bad("max_window", self.max_window as f64, "must be between 16 and 10 000 000 samples");
         }
         if !(2..=64).contains(&self.samples_per_push) {
@@ -125,7 +127,8 @@ impl HorizonConfig {
 pub struct HorizonStatus {
     /// Samples pushed since construction or reset.
     pub samples: u64,
-    /// A pass over the window ended in this push and the estimates were updated.
+    /// The estimates were updated in this push (the push after a pass over the window
+    /// caught up with the newest sample).
     pub updated: bool,
     /// Updates since construction or reset.
     pub updates: u64,

@@ -461,19 +461,20 @@ impl HorizonIdentifier {
         let cfg = &self.config;
         let (next, cap) = (self.next, self.buffer.len() as u64);
         // mid: the largest index m (≥ start) with travel − travel(m) ≥ half, i.e. the
-        // first index whose travel is above travel − half, less one; never beyond next − 1.
+        // first index whose travel is above travel − half, less one.
         let half = 0.5 * cfg.memory_travel_v;
         let above = self.first_travel_above(self.mid.max(self.start), next, travel - half);
-        self.mid = above.saturating_sub(1).max(self.mid).max(self.start).min(next - 1);
+        self.mid = above.saturating_sub(1).max(self.mid).max(self.start);
+        let least = HorizonConfig::MIN_WINDOW as u64;
         let mut start = self.start.max(next.saturating_sub(cap));
-        if next - start > 16 {
+        if next - start > least {
             // Travel: the start s may move while travel − travel(s + 1) ≥ memory, i.e.
             // up to the first index whose travel is above travel − memory, less one.
             let by_travel = self.first_travel_above(start + 1, next, travel - cfg.memory_travel_v).saturating_sub(1);
             // Recent: next − s ≤ recent_factor × (next − mid).
             let recent = cfg.recent_factor * (next - self.mid) as f64;
             let by_recent = if recent.is_finite() { next.saturating_sub(math::floor(recent) as u64) } else { 0 };
-            start = start.max(by_travel).max(by_recent).min(next - 16);
+            start = start.max(by_travel).max(by_recent).min(next - least);
         }
         self.start = start;
         self.mid = self.mid.max(self.start);

@@ -436,6 +436,7 @@ impl RpemIdentifier {
                     // Kept off the end points, where η would be infinite.
                     candidate.creep_gain[i] = g.clamp(GAIN_FLOOR * gmax, (1.0 - GAIN_FLOOR) * gmax);
                 }
+                // Without effects only the base parameters can have moved.
                 status.projected = if M == NUM_PARAMS { candidate != raw } else { candidate.params != raw.params };
                 self.est = candidate;
                 status.updated = true;
