@@ -30,7 +30,8 @@ use alloc::vec::Vec;
 use crate::compensate::{admissible, Inverse, VoltageLimits};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::identify::OnlineIdentifier;
-use crate::model::{advance_h, Model};
+use crate::model::integrator::{abs_pow, advance_h_carrying};
+use crate::model::Model;
 use crate::params::Params;
 
 /// C per-sample models in structure-of-arrays layout; channel c behaves as a
@@ -48,6 +49,8 @@ pub struct ModelBank {
     delta: Vec<f64>,
     /// Hysteresis state h \[µm\] per channel.
     h: Vec<f64>,
+    /// |h|^n per channel, carried as by the [`Model`].
+    hn: Vec<f64>,
     /// Last voltage \[V\] per channel (meaningful once `started`).
     u_prev: Vec<f64>,
     /// A frame was stepped since construction or reset (all channels start together).
@@ -91,6 +94,7 @@ impl ModelBank {
             n: fill(params.n),
             delta: fill(params.delta),
             h: fill(h0),
+            hn: fill(abs_pow(h0, params.n)),
             u_prev: fill(0.0),
             started: false,
             h0,
@@ -132,6 +136,9 @@ impl ModelBank {
         self.a[c] = p.a;
         self.beta[c] = p.beta;
         self.gamma[c] = p.gamma;
+        if p.n != self.n[c] {
+            self.hn[c] = abs_pow(self.h[c], p.n);
+        }
         self.n[c] = p.n;
         self.delta[c] = p.delta;
         Ok(())
@@ -155,7 +162,16 @@ impl ModelBank {
             // Indexed: each channel reads its parameters from seven arrays.
             #[allow(clippy::needless_range_loop)]
             for c in 0..channels {
-                self.h[c] = advance_h(&self.params(c), self.h[c], self.u_prev[c], u[c], self.dt);
+                let (h, carried) =
+                    advance_h_carrying(&self.params(c), self.h[c], self.hn[c], self.u_prev[c], u[c], self.dt);
+                self.h[c] = h;
+                self.hn[c] = carried.unwrap_or(f64::NAN);
+            }
+            // The powers the series did not give, in a pass of their own.
+            for ((hn, &h), &n) in self.hn.iter_mut().zip(&self.h).zip(&self.n) {
+                if hn.is_nan() {
+                    *hn = abs_pow(h, n);
+                }
             }
         }
         self.started = true;
@@ -169,6 +185,9 @@ impl ModelBank {
     /// Forgets the past: h = h0 on every channel, no previous frame.
     pub fn reset(&mut self) {
         self.h.iter_mut().for_each(|h| *h = self.h0);
+        for (hn, &n) in self.hn.iter_mut().zip(&self.n) {
+            *hn = abs_pow(self.h0, n);
+        }
         self.started = false;
     }
 
@@ -176,6 +195,7 @@ impl ModelBank {
     pub fn channel_model(&self, c: usize) -> Result<Model> {
         let mut m = Model::new(self.params(c), self.dt, self.h[c])?;
         m.set_state(crate::model::ModelState { h: self.h[c], u_prev: self.started.then(|| self.u_prev[c]) })?;
+        m.set_carried_power(self.hn[c]);
         Ok(m)
     }
 }

@@ -128,8 +128,10 @@ def simulate(
     kv·u[k] + x0 + h[k]`` [µm]; ``h_final`` is h after the last sample [µm].
     With ``u_prev=None``, h[0] = ``h0`` [µm]; with ``u_prev=v`` [V] the first
     interval runs from v to u[0], so ``simulate(p, u[k:], dt, h0=h_final,
-    u_prev=u[k-1])`` continues a record split at k exactly as one call would
-    (as ``scipy.signal.lfilter(..., zi)``). A non-finite sample raises
+    u_prev=u[k-1])`` continues a record split at k as one call would (as
+    ``scipy.signal.lfilter(..., zi)``), to the last bits: |h|^n, carried from
+    sample to sample, is computed afresh at the cut (:class:`Model` continues bit
+    for bit). A non-finite sample raises
     ``ValueError`` before anything is computed. Releases the GIL.
     """
 

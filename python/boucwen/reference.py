@@ -47,6 +47,7 @@ __all__ = [
     "PaperIdentifier",
     "RefParams",
     "advance_h",
+    "advance_h_carried",
     "hysteresis_rate",
     "simulate",
     "simulate_fine",
@@ -169,9 +170,11 @@ def _samples(values: ArrayLike, name: str) -> NDArray[np.float64]:
 # The model.
 
 
-def hysteresis_rate(p: RefParams, h: float, u: float, udot: float) -> float:
-    """dh/dt of eq. (5) [µm/s] at state h [µm], voltage u [V] and rate u̇ [V/s]."""
-    hn = _abs_pow(h, p.n)
+def hysteresis_rate(p: RefParams, h: float, u: float, udot: float, hn: float | None = None) -> float:
+    """dh/dt of eq. (5) [µm/s] at state h [µm], voltage u [V] and rate u̇ [V/s]; ``hn`` = |h|^n
+    where it is known (carried), else computed."""
+    if hn is None:
+        hn = _abs_pow(h, p.n)
     return p.A * udot - (p.beta * abs(udot) * _sgn(h) + p.gamma * udot) * hn + p.delta * u * _sgn(udot)
 
 
@@ -199,7 +202,7 @@ def _implicit_step(p: RefParams, h0: float, u_end: float, udot: float, step: flo
     return h
 
 
-def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> int | None:
+def _substeps(p: RefParams, h: float, hn: float, k1: float, dt: float, udot: float) -> int | None:
     """RK4 sub-steps for one interval (None: more than MAX_SUBSTEPS).
 
     Enough that |∂ḣ/∂h|·Δt ≤ STIFFNESS_STEP, with |∂ḣ/∂h| ≤ n·(|β|+|γ|)·|u̇|·|h|^(n−1)
@@ -211,7 +214,7 @@ def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> int 
     a = abs(h)
     slope_weight = p.n * (abs(p.beta) + abs(p.gamma)) * abs(udot) * dt
     if a > 0.0:
-        stiffness_dt = slope_weight * (_abs_pow(h, p.n) / a)
+        stiffness_dt = slope_weight * (hn / a)
     elif p.n < 1.0:
         stiffness_dt = math.inf
     elif p.n == 1.0:
@@ -233,6 +236,9 @@ def _substeps(p: RefParams, h: float, k1: float, dt: float, udot: float) -> int 
 
 #: Largest relative distance |ε| = |(h − h_ref)/h_ref| at which |h|^n is taken from its series.
 NEAR_POWER_MAX_EPS = 0.01
+#: Largest |ε| of an interval's end at which its |h|^n is taken from the series and carried
+#: to the next interval (the dropped ε⁵ term is then at the level of rounding).
+NEAR_POWER_CARRY_EPS = 1e-3
 
 
 class _NearPower:
@@ -264,30 +270,34 @@ def _clamp_h(h: float) -> float:
 
 def advance_h(p: RefParams, h: float, u0: float, u1: float, dt: float) -> float:
     """h [µm] after one sample interval dt [s] in which u goes linearly from u0 to u1 [V]."""
+    return advance_h_carried(p, h, _abs_pow(h, p.n), u0, u1, dt)[0]
+
+
+def advance_h_carried(p: RefParams, h: float, hn: float, u0: float, u1: float, dt: float) -> tuple[float, float]:
+    """:func:`advance_h` given hn = |h|^n at the start; returns h and |h|^n at the end, the
+    latter from the interval's series where h moved by at most 0.1 % of itself (carried
+    from sample to sample, as the Rust core does), else computed."""
     du = u1 - u0
     if du == 0.0:
-        return h  # sgn(u̇) = 0 and u̇ = 0: h stands still
+        return h, hn  # sgn(u̇) = 0 and u̇ = 0: h stands still
     udot = du / dt
-    k1_first = hysteresis_rate(p, h, u0, udot)
-    m = _substeps(p, h, k1_first, dt, udot)
+    k1_first = hysteresis_rate(p, h, u0, udot, hn)
+    m = _substeps(p, h, hn, k1_first, dt, udot)
     if m is None:
         step = dt / IMPLICIT_SUBSTEPS
         for i in range(1, IMPLICIT_SUBSTEPS + 1):
             h = _clamp_h(_implicit_step(p, h, u0 + udot * step * i, udot, step))
-        return h
+        return h, _abs_pow(h, p.n)
     step = dt / m
     half = 0.5 * step
     h_ref = h
-    near = _NearPower(p.n, h_ref, _abs_pow(h, p.n))
+    near = _NearPower(p.n, h_ref, hn)
     e_half, e_step = near.inv_ref * half, near.inv_ref * step
 
     def rate(hh: float, e: float, uu: float) -> float:
         # |h|^n by its binomial series around the interval's start where that is
         # close (as the Rust core does, to save pow calls), else directly.
-        hn = near.power(e)
-        if hn is None:
-            hn = _abs_pow(hh, p.n)
-        return p.A * udot - (p.beta * abs(udot) * _sgn(hh) + p.gamma * udot) * hn + p.delta * uu * _sgn(udot)
+        return hysteresis_rate(p, hh, uu, udot, near.power(e))
 
     e = 0.0  # ε of the sub-step's start
     for i in range(m):
@@ -301,7 +311,8 @@ def advance_h(p: RefParams, h: float, u0: float, u1: float, dt: float) -> float:
         nxt = h + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         h = _clamp_h(nxt) if math.isfinite(nxt) else h
         e = (h - h_ref) * near.inv_ref
-    return h
+    carried = near.power(e) if abs(e) <= NEAR_POWER_CARRY_EPS else None
+    return h, _abs_pow(h, p.n) if carried is None else carried
 
 
 def simulate(
@@ -320,9 +331,10 @@ def simulate(
         u_prev = _finite("u_prev", u_prev)
     u_arr = _samples(u, "u")
     x = np.empty_like(u_arr)
+    hn = _abs_pow(h, p.n)
     for k, uk in enumerate(u_arr.tolist()):
         if u_prev is not None:
-            h = advance_h(p, h, u_prev, uk, dt)
+            h, hn = advance_h_carried(p, h, hn, u_prev, uk, dt)
         x[k] = p.kv * uk + p.x0 + h
         u_prev = uk
     return x, h

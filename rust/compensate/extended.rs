@@ -50,7 +50,7 @@ use super::inverse::{first_sample_voltage, solve, tolerance, Clip, IntervalEquat
 use crate::effects::electrostriction::quadratic_root;
 use crate::effects::{first_order_coefficient, first_order_step, stack_output, EffectSet, Electrostriction};
 use crate::error::{finite_sample, positive_dt, Error, Result};
-use crate::model::advance_h;
+use crate::model::integrator::{abs_pow, advance_h_carried};
 use crate::params::Params;
 use alloc::vec;
 use alloc::vec::Vec;
@@ -105,6 +105,8 @@ pub struct ExtendedInverse {
     lag: Option<AffineStep>,
     creep_steps: Vec<AffineStep>,
     state: ExtendedInverseState,
+    /// |h|^n for the state's h, carried as by the [`crate::ExtendedModel`].
+    hn: f64,
     status: InverseStatus,
 }
 
@@ -141,6 +143,7 @@ impl ExtendedInverse {
             lag,
             creep_steps,
             state,
+            hn: abs_pow(h0, params.n),
             status: InverseStatus::default(),
         })
     }
@@ -163,6 +166,7 @@ impl ExtendedInverse {
         let kv = self.effects.gain_drift.map_or(p.kv, |g| p.kv * g.factor(t));
         let electro = self.effects.electrostriction;
         let s = &mut self.state;
+        let hn = &mut self.hn;
         let (u, clip, evaluations) = match s.u_prev {
             None => {
                 // As ExtendedModel's first sample: u_a = u, cᵢ = gᵢ·u, h = h0.
@@ -197,7 +201,7 @@ impl ExtendedInverse {
                             linear += g * step.w1;
                             offset += step.decay * c + g * step.w0 * s.ua_prev;
                         }
-                        let eq = IntervalEquation::new(p, s.h, s.ua_prev, self.dt, linear, offset);
+                        let eq = IntervalEquation::new(p, s.h, *hn, s.ua_prev, self.dt, linear, offset);
                         solve(&eq, w_lo, w_hi, tol)
                     }
                     Some(e) => {
@@ -207,7 +211,7 @@ impl ExtendedInverse {
                             creep_rest += step.decay * c + g * step.w0 * s.ua_prev;
                         }
                         let stroke = Stroke { kv, electro: e, rest: p.x0 + creep_rest - target, creep_linear };
-                        stroke.solve(p, s.h, s.ua_prev, self.dt, (w_lo, w_hi), tol)
+                        stroke.solve(p, (s.h, *hn), s.ua_prev, self.dt, (w_lo, w_hi), tol)
                     }
                 };
                 // A hold of a settled lag (u_a = u) is the command held: exact, no rounding.
@@ -220,7 +224,7 @@ impl ExtendedInverse {
                     Some(l) => l.advance(s.ua_prev, u_prev, u, self.dt),
                     None => u,
                 };
-                s.h = advance_h(p, s.h, s.ua_prev, ua, self.dt);
+                (s.h, *hn) = advance_h_carried(p, s.h, *hn, s.ua_prev, ua, self.dt);
                 for ((c, g), step) in s.creep.iter_mut().zip(gains).zip(&self.creep_steps) {
                     *c = step.advance(*c, g * s.ua_prev, g * ua, self.dt);
                 }
@@ -256,6 +260,9 @@ impl ExtendedInverse {
     /// Replaces the base parameters (validated); the state is kept.
     pub fn set_params(&mut self, params: Params) -> Result<()> {
         params.validate()?;
+        if params.n != self.params.n {
+            self.hn = abs_pow(self.state.h, params.n);
+        }
         self.params = params;
         Ok(())
     }
@@ -307,6 +314,7 @@ impl ExtendedInverse {
         for &c in &state.creep {
             finite_sample("creep", c)?;
         }
+        self.hn = abs_pow(state.h, self.params.n);
         self.state = state;
         Ok(())
     }
@@ -322,6 +330,7 @@ impl ExtendedInverse {
         self.state.u_prev = None;
         self.state.ua_prev = 0.0;
         self.state.h = self.h0;
+        self.hn = abs_pow(self.h0, self.params.n);
         self.state.creep.iter_mut().for_each(|c| *c = 0.0);
         self.status = InverseStatus::default();
     }
@@ -342,13 +351,14 @@ struct Stroke {
 impl Stroke {
     /// Solves for w within `range`: the base equation kv·w + h(w) = Q⁻¹(−rest −
     /// creep_linear·w), w held at the last pass's value until it settles.
-    fn solve(&self, p: &Params, h: f64, w_prev: f64, dt: f64, range: (f64, f64), tol: f64) -> Solution {
+    /// `(h, hn)`: h \[µm\] at the start of the interval and its |h|^n.
+    fn solve(&self, p: &Params, (h, hn): (f64, f64), w_prev: f64, dt: f64, range: (f64, f64), tol: f64) -> Solution {
         let mut w = w_prev;
         let mut evaluations = 0;
         let mut passes = 0;
         loop {
             let target_s = self.electro.invert(-self.rest - self.creep_linear * w);
-            let eq = IntervalEquation::new(p, h, w_prev, dt, self.kv, -target_s);
+            let eq = IntervalEquation::new(p, h, hn, w_prev, dt, self.kv, -target_s);
             let mut sol = solve(&eq, range.0, range.1, tol);
             evaluations += sol.evaluations;
             passes += 1;

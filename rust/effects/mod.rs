@@ -56,7 +56,8 @@ pub use resonance2::Resonance2;
 pub use saturation::Saturation;
 
 use crate::error::{finite_sample, positive_dt, Error, Result};
-use crate::model::{advance_h, output};
+use crate::model::integrator::{abs_pow, advance_h_carried};
+use crate::model::output;
 use crate::params::Params;
 
 use delay::DelayLine;
@@ -203,6 +204,8 @@ pub struct ExtendedModel {
     u_prev: f64,
     ua_prev: f64,
     h: f64,
+    /// |h|^n for the current h (carried, as by the [`crate::Model`]).
+    hn: f64,
     creep_states: Vec<f64>,
     y_prev: f64,
     z: Vector2<f64>,
@@ -255,6 +258,7 @@ impl ExtendedModel {
             u_prev: 0.0,
             ua_prev: 0.0,
             h: h0,
+            hn: abs_pow(h0, params.n),
             y_prev: 0.0,
             z: Vector2::zeros(),
             z2: Vector2::zeros(),
@@ -290,7 +294,7 @@ impl ExtendedModel {
                     Some(lag) => lag.advance(self.ua_prev, u0, u1, dt_sub),
                     None => u1,
                 };
-                self.h = advance_h(&self.params, self.h, self.ua_prev, ua, dt_sub);
+                (self.h, self.hn) = advance_h_carried(&self.params, self.h, self.hn, self.ua_prev, ua, dt_sub);
                 let c = match &self.effects.creep {
                     Some(creep) => creep.advance(&mut self.creep_states, &self.creep_decays, self.ua_prev, ua, dt_sub),
                     None => 0.0,
@@ -345,6 +349,7 @@ impl ExtendedModel {
         self.started = false;
         self.samples = 0;
         self.h = self.h0;
+        self.hn = abs_pow(self.h0, self.params.n);
         self.creep_states.iter_mut().for_each(|c| *c = 0.0);
         self.delay.reset();
     }

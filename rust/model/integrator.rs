@@ -338,8 +338,9 @@ fn substeps(p: &Params, h: f64, k1: f64, hn: f64, udot: f64, dt: f64) -> Option<
 /// ε = (h − h_ref)/h_ref (= |h|/|h_ref| − 1 for h of the sign of h_ref):
 /// |h|^n = |h_ref|^n·(1 + ε)^n to ε⁴, ln|h| = ln|h_ref| + ln(1 + ε) to ε⁴.
 ///
-/// The RK4 stages of one interval sit close to its starting h, so one `powf`
-/// per interval serves all of them. The series is used only for |ε| ≤
+/// The RK4 stages of one interval sit close to its starting h, so one |h|^n per
+/// interval (carried from the interval before, see [`advance_h_carried`], or one
+/// `powf`) serves all of them. The series is used only for |ε| ≤
 /// [`NearPower::MAX_EPS`] (where h has the sign of h_ref), where the dropped ε⁵
 /// term is below 1e-10·|c₅| relative (|c₅| < 1 for 0 < n < 5); elsewhere (near
 /// h = 0 in particular) the caller falls back to `powf` and `ln`.
@@ -361,6 +362,10 @@ struct NearPower {
 
 impl NearPower {
     const MAX_EPS: f64 = 0.01;
+    /// Largest |ε| at which an interval's end takes its |h|^n from the series to carry
+    /// it to the next interval: the dropped ε⁵ term is then below 1e-15·|c₅| relative,
+    /// at the level of rounding, so carried values do not drift from |h|^n.
+    const CARRY_EPS: f64 = 1e-3;
 
     #[inline(always)]
     fn new(n: f64, h_ref: f64, hn_ref: f64, with_ln: bool) -> Self {
@@ -456,11 +461,26 @@ pub(crate) fn advance_seeded<const M: usize, const FIRST: usize, const INPUT: us
     }
 }
 
-/// [`advance_h`] given `hn` = |h|^n (as `abs_pow` computes it): the same result
-/// without the `powf`, for callers that advance from one state to many voltages (the
-/// inverse's root search).
+/// [`advance_h`] given `hn` = |h|^n at the start, also returning |h|^n at the end: the
+/// per-sample paths (the [`Model`](super::Model), [`simulate`](super::simulate), the
+/// inverse, the banks) carry |h|^n from one interval to the next instead of calling
+/// `powf` at every sample.
+///
+/// The end's |h|^n comes from the interval's series ([`NearPower`]) where h moved by at
+/// most [`NearPower::CARRY_EPS`] (0.1 %) of itself, else from `powf`: there the series'
+/// dropped ε⁵ term is at the level of rounding, so the carried value stays within
+/// rounding of |h|^n over holds and slow motion, and is computed afresh wherever h
+/// moves fast or near zero (every crossing).
 #[inline]
-pub(crate) fn advance_h_from_power(p: &Params, h: f64, hn: f64, u0: f64, u1: f64, dt: f64) -> f64 {
+pub(crate) fn advance_h_carried(p: &Params, h: f64, hn: f64, u0: f64, u1: f64, dt: f64) -> (f64, f64) {
+    let (next, carried) = advance_h_carrying(p, h, hn, u0, u1, dt);
+    (next, carried.unwrap_or_else(|| abs_pow(next, p.n)))
+}
+
+/// [`advance_h_carried`] with the end's |h|^n left to the caller (`None`) where the
+/// series does not give it: a bank computes those after all its channels have moved.
+#[inline]
+pub(crate) fn advance_h_carrying(p: &Params, h: f64, hn: f64, u0: f64, u1: f64, dt: f64) -> (f64, Option<f64>) {
     advance_from_power(p, &Coefficients::of(p), h, Some(hn), u0, u1, dt, None)
 }
 
@@ -476,10 +496,12 @@ pub(crate) fn advance_forced<S: Scalar, L: Law<S>>(
     dt: f64,
     forced: Option<u32>,
 ) -> S {
-    advance_from_power(p, c, h, None, u0, u1, dt, forced)
+    advance_from_power(p, c, h, None, u0, u1, dt, forced).0
 }
 
 /// [`advance_forced`] with |h|^n at the start given (`hn`) or computed (`None`).
+/// Returns h at the end and, where the interval's series applies there, its |h|^n
+/// (`None`: compute it; the start's own when h did not move).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn advance_from_power<S: Scalar, L: Law<S>>(
@@ -491,10 +513,10 @@ fn advance_from_power<S: Scalar, L: Law<S>>(
     u1: S,
     dt: f64,
     forced: Option<u32>,
-) -> S {
+) -> (S, Option<f64>) {
     let du = u1 - u0;
     if du.re() == 0.0 {
-        return h;
+        return (h, hn);
     }
     let udot = c.per_second(du, dt);
     let (hv, udv) = (h.re(), udot.re());
@@ -523,7 +545,7 @@ fn advance_from_power<S: Scalar, L: Law<S>>(
                 S::cst(star)
             };
         }
-        return h;
+        return (h, None);
     };
     // dt/1 and dt/2 are exact: skip the division on the usual intervals.
     let step = match m {
@@ -561,7 +583,7 @@ fn advance_from_power<S: Scalar, L: Law<S>>(
         }
         e = (h.re() - hv) * near.inv_ref;
     }
-    h
+    (h, (near.inv_ref != 0.0 && e.abs() <= NearPower::CARRY_EPS).then(|| near.power(e)))
 }
 
 #[cfg(test)]

@@ -2,11 +2,13 @@
 
 use numpy::PyArray1;
 use pyo3::prelude::*;
+use pyo3::types::PyBytes;
 
 use super::params::PyParams;
 use super::{finite, samples, value_error};
 use crate::error::positive_dt;
-use crate::{Model, ModelState};
+use crate::format::Snapshot;
+use crate::Model;
 
 /// Simulates the asymmetric Bouc–Wen model over a record.
 ///
@@ -14,7 +16,9 @@ use crate::{Model, ModelState};
 /// `(x, h_final)`: x[k] = kv·u[k] + x0 + h[k] \[µm\] and h after the last sample \[µm\].
 /// With `u_prev=None`, h\[0\] = h0; with `u_prev=v`, the first interval runs from v
 /// to u\[0\], so `simulate(p, u[k:], dt, h0=h_final, u_prev=u[k-1])` continues a
-/// record split at k exactly as one call would. The GIL is released while it runs.
+/// record split at k as one call would, to the last bits (|h|^n, carried from sample to
+/// sample, is computed afresh at the cut; `Model` continues bit for bit). The GIL is
+/// released while it runs.
 #[pyfunction]
 #[pyo3(signature = (params, u, dt, h0 = 0.0, u_prev = None))]
 pub fn simulate<'py>(
@@ -92,16 +96,12 @@ impl PyModel {
         self.inner.reset(h0).map_err(value_error)
     }
 
-    fn __getstate__(&self) -> (PyParams, f64, f64, Option<f64>) {
-        let s = self.inner.state();
-        (PyParams { inner: *self.inner.params() }, self.inner.dt(), s.h, s.u_prev)
+    fn __getstate__<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        PyBytes::new(py, &self.inner.to_bytes())
     }
 
-    fn __setstate__(&mut self, state: (Bound<'_, PyParams>, f64, f64, Option<f64>)) -> PyResult<()> {
-        let (p, dt, h, u_prev) = state;
-        let mut m = Model::new(p.get().inner, dt, h).map_err(value_error)?;
-        m.set_state(ModelState { h, u_prev }).map_err(value_error)?;
-        self.inner = m;
+    fn __setstate__(&mut self, state: &[u8]) -> PyResult<()> {
+        self.inner = Model::from_bytes(state).map_err(value_error)?;
         Ok(())
     }
 
