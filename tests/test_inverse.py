@@ -13,7 +13,11 @@ import boucwen
 from boucwen import Compensator, EffectSet, Inverse, Params, invert, simulate, simulate_extended
 
 DT = 1e-4
-ROUND_TRIP_UM = 1e-9
+
+
+def tolerance(x_d):
+    """The inverse's tolerance [µm] for targets x_d [µm], plus the rounding of the output sum."""
+    return boucwen.INVERSE_TOLERANCE_UM * np.maximum(1.0, np.abs(x_d)) + 1e-12
 
 
 @st.composite
@@ -56,13 +60,13 @@ def test_round_trip_reproduces_x_d(p, u_true, h0):
     x_d, _ = simulate(p, u_true, DT, h0=h0)
     u, h_final = invert(p, x_d, DT, h0=h0)
     x, h_sim = simulate(p, u, DT, h0=h0)
-    assert np.max(np.abs(x - x_d)) <= ROUND_TRIP_UM
+    assert np.all(np.abs(x - x_d) <= tolerance(x_d))
     assert h_final == h_sim
     # With δ·u < 0 the step at the kink goes down and a target near it may have a root
     # on each side; with n < 1, h = 0 is not Lipschitz and paths through it are not
     # unique. Otherwise the root is unique and the voltages are u_true's.
     if p.delta >= 0 and p.n >= 1:
-        np.testing.assert_allclose(u, u_true, atol=1e-5)
+        np.testing.assert_allclose(u, u_true, atol=1e-3)
 
 
 def test_round_trip_with_small_n():
@@ -72,8 +76,8 @@ def test_round_trip_with_small_n():
     x_d, _ = simulate(p, u_true, DT)
     u, _ = invert(p, x_d, DT)
     x, _ = simulate(p, u, DT)
-    assert np.max(np.abs(x - x_d)) <= ROUND_TRIP_UM
-    np.testing.assert_allclose(u, u_true, atol=1e-6)
+    assert np.all(np.abs(x - x_d) <= tolerance(x_d))
+    np.testing.assert_allclose(u, u_true, atol=1e-4)
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -97,18 +101,19 @@ def test_limits_clip_report_and_h_follows_the_clipped_voltage(p, u_true, lo, wid
     assert inv.status["clipped_samples"] == int(np.sum(clip != "none"))
     # A clipped sample sits on its limit, and the model falls short of x_d on that side.
     assert np.all(u[clip == "low"] == lo) and np.all(u[clip == "high"] == hi)
-    assert np.all(x[clip == "high"] <= x_d[clip == "high"] + ROUND_TRIP_UM)
-    assert np.all(x[clip == "low"] >= x_d[clip == "low"] - ROUND_TRIP_UM)
+    tol = tolerance(x_d)
+    assert np.all(x[clip == "high"] <= (x_d + tol)[clip == "high"])
+    assert np.all(x[clip == "low"] >= (x_d - tol)[clip == "low"])
     # The reported residual is the simulator's error, sample by sample.
     np.testing.assert_allclose(np.array(residual), x - x_d, atol=1e-9)
     free = clip == "none"
     exact = np.array(exact)
-    assert np.max(np.abs(x - x_d)[free & exact], initial=0.0) <= ROUND_TRIP_UM
+    assert np.all((np.abs(x - x_d) <= tol)[free & exact])
     # Where no limit binds and the root is missed, x_d sat inside the step |δ·u|·dt at a
     # kink, or inside a jump of x(u) itself: where the integrator's number of sub-steps
     # changes (stiff intervals, n < 1 near h = 0) x(u) jumps by the difference of two
     # discretisations, and the solver has narrowed the sign change of x(u) − x_d onto it.
-    kink = 2 * abs(p.delta) * np.max(np.abs(u)) * DT + ROUND_TRIP_UM
+    kink = 2 * abs(p.delta) * np.max(np.abs(u)) * DT + tol
     for k in np.flatnonzero(free & ~exact & (np.abs(x - x_d) > kink)):
         below, _ = simulate(p, u[: k + 1] - np.eye(k + 1)[k] * 1e-6 * max(1.0, abs(u[k])), DT)
         above, _ = simulate(p, u[: k + 1] + np.eye(k + 1)[k] * 1e-6 * max(1.0, abs(u[k])), DT)
@@ -122,8 +127,9 @@ def test_reversal_of_a_slow_sine_costs_at_most_the_step_at_the_kink():
     u = inv.step_many(x_d)
     x, _ = simulate(p, u, DT)
     err = np.abs(x - x_d)
-    assert err.max() <= p.delta * np.abs(u).max() * DT + ROUND_TRIP_UM
-    assert 0 < np.sum(err > ROUND_TRIP_UM) < 200  # only around the two turns
+    tol = tolerance(x_d)
+    assert np.all(err <= p.delta * np.abs(u).max() * DT + tol)
+    assert 0 < np.sum(err > tol) < 200  # only around the two turns
 
 
 def test_holds_are_exact():
@@ -131,7 +137,7 @@ def test_holds_are_exact():
     x_d = np.concatenate([np.linspace(0.0, 8.0, 300), np.full(500, 8.0), np.linspace(8.0, 3.0, 300), np.full(500, 3.0)])
     u, _ = invert(p, x_d, DT)
     x, _ = simulate(p, u, DT)
-    assert np.max(np.abs(x - x_d)) <= ROUND_TRIP_UM
+    assert np.all(np.abs(x - x_d) <= tolerance(x_d))
     assert np.all(np.diff(u[300:800]) == 0.0) and np.all(np.diff(u[1100:]) == 0.0)
 
 
@@ -187,7 +193,7 @@ def test_extended_inverse_round_trip_through_lag_creep_drift_and_delay():
     x_d = simulate_extended(p, effects, u_true, DT)
     u, _ = invert(p, x_d, DT, effects=effects)
     x = simulate_extended(p, effects, u, DT)
-    assert np.max(np.abs(x - x_d)[3:-3]) <= ROUND_TRIP_UM
+    assert np.all((np.abs(x - x_d) <= tolerance(x_d))[3:-3])
     inv = Inverse(p, DT, effects=effects)
     assert inv.preview_samples == 3
 

@@ -22,6 +22,7 @@ Precision Engineering 38 (2014) 921–927).
 
 from . import _threads  # noqa: F401  (first: before NumPy loads)
 from ._core import (
+    INVERSE_TOLERANCE_UM,
     Bank,
     Compensator,
     EffectSet,
@@ -54,6 +55,7 @@ from .effects import (
 from .fit import FitResult, fit
 
 __all__ = [
+    "INVERSE_TOLERANCE_UM",
     "Bank",
     "Compensator",
     "Creep",

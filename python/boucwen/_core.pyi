@@ -35,6 +35,7 @@ if TYPE_CHECKING:  # type-only: the compiled core does not import the config mod
     from .config import HorizonConfig, PaperConfig, RpemConfig
 
 __all__ = [
+    "INVERSE_TOLERANCE_UM",
     "Bank",
     "Compensator",
     "EffectSet",
@@ -55,6 +56,10 @@ __all__ = [
 
 __version__: str
 """Version of the compiled core (the crate version)."""
+
+INVERSE_TOLERANCE_UM: float
+"""The inverse's tolerance on |model x − x_d| [µm] per µm of max(1 µm, |x_d|): 1e-7, a
+tenth of a picometre, a thousand times below the best capacitive sensors' resolution."""
 
 # ---------------------------------------------------------------- parameters
 
@@ -545,7 +550,7 @@ class _InverseStatus(TypedDict):
     residual_um: float
     """Model displacement minus x_d after the step [µm]."""
     exact: bool
-    """|residual| ≤ 1e-12·max(1, |x_d|) µm."""
+    """|residual| ≤ INVERSE_TOLERANCE_UM·max(1, |x_d|) µm."""
     samples: int
     """Samples since construction or reset."""
     clipped_samples: int
@@ -556,12 +561,13 @@ class Inverse:
     """The inverse of the asymmetric Bouc–Wen model, one sample at a time: ``step(x_d) -> u``.
 
     Solves kv·u + x0 + Φ(h, u_prev → u) = x_d [µm] for u [V] with the model's own
-    integrator Φ, so ``simulate`` on the voltages returns x_d (to 1e-12·max(1, |x_d|)
-    µm) wherever the root lies within [``u_min``, ``u_max``] [V]; where a limit binds
-    the sample is clipped, ``status["clip"]`` says which, and h [µm] follows the
-    clipped u. Where x_d turns by less than |δ·u|·dt in a sample, no voltage reaches
-    it exactly and the residual (at most that step) is reported. Newton with a secant
-    slope, then Illinois inside a bracket: at most 40 evaluations of Φ per sample.
+    integrator Φ, so ``simulate`` on the voltages returns x_d (to
+    ``INVERSE_TOLERANCE_UM``·max(1, |x_d|) µm) wherever the root lies within
+    [``u_min``, ``u_max``] [V]; where a limit binds the sample is clipped,
+    ``status["clip"]`` says which, and h [µm] follows the clipped u. Where x_d turns
+    by less than |δ·u|·dt in a sample, no voltage reaches it exactly and the residual
+    (at most that step) is reported. Newton with a secant slope, then Illinois inside
+    a bracket: at most 40 evaluations of Φ per sample.
 
     ``effects``: an :class:`EffectSet` whose ``input_lag`` (exact one-sample lead),
     ``creep``, ``gain_drift`` (kv(t)), ``electrostriction`` (the quadratic stroke),

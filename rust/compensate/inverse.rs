@@ -64,8 +64,12 @@ use alloc::vec::Vec;
 pub const MAX_EVALUATIONS: u32 = 40;
 /// Most secant steps on one side of the previous voltage before a bracket is found.
 pub const MAX_SEARCH_STEPS: u32 = 12;
-/// Tolerance on |model x − x_d| \[µm\], relative to max(1, |x_d| / 1 µm).
-pub const TOLERANCE_UM: f64 = 1e-12;
+/// Tolerance on |model x − x_d| \[µm\], relative to max(1, |x_d| / 1 µm): a tenth of
+/// a picometre per micrometre, a thousand times below the resolution of the best
+/// capacitive sensors. Solving further only adds evaluations: from the branch's
+/// linearisation the first secant step lands within it on most samples (85 % on the
+/// paper's record at 10 kHz; within 1e-12 µm only after a second or third step).
+pub const TOLERANCE_UM: f64 = 1e-7;
 
 /// Voltage limits of the amplifier \[V\]; `-∞`/`+∞` = no limit on that side.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -675,6 +679,13 @@ pub fn invert(
     Ok((u, summary))
 }
 
+/// The largest excess of |x − x_d| \[µm\] over the solver's tolerance for x_d (≤ 0
+/// where every sample is within it; rounding of the output sum aside).
+#[cfg(test)]
+pub(crate) fn beyond_tolerance(x: &[f64], x_d: &[f64]) -> f64 {
+    x.iter().zip(x_d).map(|(a, b)| (a - b).abs() - tolerance(*b)).fold(f64::NEG_INFINITY, f64::max)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -694,13 +705,14 @@ mod tests {
         let (x, h) = simulate(&p, &u, dt, 0.0, None).unwrap();
         let err = max_diff(&x, &x_d);
         eprintln!("round trip {err:.2e} µm, {summary:?}");
-        assert!(err <= 1e-9, "{err}");
+        assert!(beyond_tolerance(&x, &x_d) <= 1e-12, "{err}");
         assert_eq!(h, summary.h_final);
         assert_eq!(summary.inexact_samples, 0);
         assert!(summary.max_evaluations <= MAX_EVALUATIONS);
         assert!(summary.mean_evaluations < 4.0, "{}", summary.mean_evaluations);
-        // The voltages are the ones the record was made with, up to the tolerance.
-        assert!(max_diff(&u, &u_true) < 1e-6, "{}", max_diff(&u, &u_true));
+        // The voltages are the ones the record was made with, up to the tolerance
+        // over the branch slope (≥ 0.1 µm/V here away from holds).
+        assert!(max_diff(&u, &u_true) < 1e-4, "{}", max_diff(&u, &u_true));
     }
 
     #[test]
@@ -712,7 +724,7 @@ mod tests {
         let (x_d, _) = simulate(&p, &u_true, dt, 0.3, None).unwrap();
         let (u, summary) = invert(&p, &x_d, dt, 0.3, None, VoltageLimits::NONE).unwrap();
         let (x, _) = simulate(&p, &u, dt, 0.3, None).unwrap();
-        assert!(max_diff(&x, &x_d) <= 1e-9, "{} {summary:?}", max_diff(&x, &x_d));
+        assert!(beyond_tolerance(&x, &x_d) <= 1e-12, "{} {summary:?}", max_diff(&x, &x_d));
     }
 
     #[test]
@@ -739,10 +751,11 @@ mod tests {
         for k in 0..x.len() {
             if clipped[k] {
                 assert!(u[k] == 10.0 || u[k] == 80.0);
-                let wrong_way = if u[k] == 10.0 { x[k] < x_d[k] - 1e-9 } else { x[k] > x_d[k] + 1e-9 };
+                let tol = tolerance(x_d[k]);
+                let wrong_way = if u[k] == 10.0 { x[k] < x_d[k] - tol } else { x[k] > x_d[k] + tol };
                 assert!(!wrong_way, "sample {k}: clipped on the wrong side");
             } else {
-                assert!((x[k] - x_d[k]).abs() <= 1e-9, "sample {k}: {} vs {}", x[k], x_d[k]);
+                assert!((x[k] - x_d[k]).abs() <= tolerance(x_d[k]) + 1e-12, "sample {k}: {} vs {}", x[k], x_d[k]);
             }
         }
     }
