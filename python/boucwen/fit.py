@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from ._core import Params, simulate_extended
+from ._core import Params, simulate
 from .checks import FloatArray, check_finite, check_int
 from .lsq import OutputErrorProblem, Ridge, finite_or_none, jacobian_threads
 from .metrics import max_abs, rms
@@ -144,15 +144,11 @@ class _Hysteresis:
         return th
 
     def __call__(self, z: FloatArray) -> FloatArray | None:
-        """h [µm] simulated for the unknowns z, or None if they cannot be simulated.
-
-        By the extended model without effects: |h|^n by ``pow`` at every interval (the
-        model and ``simulate`` carry it from sample to sample, which moves it by rounding
-        where a parameter moves), so that the Jacobian's finite differences see a smooth
-        function of the unknowns."""
+        """h [µm] simulated for the unknowns z, or None if they cannot be simulated."""
         th = self.theta(z)
-        params = Params(0.0, 0.0, th[0], th[1], th[2], th[3], th[4])
-        return finite_or_none(lambda: simulate_extended(params, None, self.u, self.dt, float(th[5])))
+        return finite_or_none(
+            lambda: simulate(Params(0.0, 0.0, th[0], th[1], th[2], th[3], th[4]), self.u, self.dt, float(th[5]))[0]
+        )
 
 
 def _problem(
