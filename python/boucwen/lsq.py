@@ -168,26 +168,30 @@ class OutputErrorProblem:
         return r
 
     def jacobian(self, z: FloatArray) -> FloatArray:
-        """∂r/∂z by forward differences (zeros where z cannot be simulated)."""
+        """∂r/∂z by forward differences (zeros where z cannot be simulated); each column
+        is simulated, differenced and projected in the pool's threads."""
         base = self._simulated(z)
         steps = FD_STEP * np.maximum(np.abs(z), self.typical)
         upper = self.upper
+        jac = np.zeros((self._rows, z.size), order="F")  # filled column by column
+        n = self.target.size
 
-        def column(i: int) -> tuple[FloatArray | None, float]:
+        def column(i: int) -> None:
             step = float(steps[i]) if upper is None or z[i] + steps[i] <= upper[i] else -float(steps[i])
             zi = z.copy()
             zi[i] += step
-            return self.simulate(zi), step
+            si = self.simulate(zi)
+            if si is not None and base is not None:
+                jac[:n, i] = self._project((si - base) / step)
 
         idx = range(z.size)
-        cols = list(self.pool.map(column, idx)) if self.pool is not None else [column(i) for i in idx]
-        jac = np.zeros((self._rows, z.size))
+        if self.pool is not None:
+            list(self.pool.map(column, idx))
+        else:
+            for i in idx:
+                column(i)
         if base is None:
-            return jac
-        n = self.target.size
-        for i, (si, step) in enumerate(cols):
-            if si is not None:
-                jac[:n, i] = self._project((si - base) / step)
+            return np.zeros((self._rows, z.size))
         if self.ridge is not None:
             jac[-1, self.ridge.index] = self.ridge.weight * self.ridge.scale
         return jac
