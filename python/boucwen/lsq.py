@@ -106,6 +106,8 @@ class OutputErrorProblem:
             projection), or None.
         ridge: an extra residual row, or None.
         pool: threads for the Jacobian columns, or None to run them in turn.
+        constant: ``{i: c}``: the unknowns z_i whose column of ∂s/∂z is the constant c at
+            every sample (an offset of the output: c = 1), taken as such, not simulated.
     """
 
     def __init__(
@@ -118,6 +120,7 @@ class OutputErrorProblem:
         basis: FloatArray | None = None,
         ridge: Ridge | None = None,
         pool: ThreadPoolExecutor | None = None,
+        constant: dict[int, float] | None = None,
     ):
         self._simulate = simulate
         self.target = target
@@ -125,6 +128,7 @@ class OutputErrorProblem:
         self.upper = upper
         self.ridge = ridge
         self.pool = pool
+        self.constant = dict(constant or {})
         self._q: FloatArray | None = np.linalg.qr(basis)[0] if basis is not None else None
         self._rows = target.size + (1 if ridge is not None else 0)
         self._lock = threading.Lock()
@@ -177,6 +181,9 @@ class OutputErrorProblem:
         n = self.target.size
 
         def column(i: int) -> None:
+            if i in self.constant:
+                jac[:n, i] = self._project(np.full(n, self.constant[i]))
+                return
             step = float(steps[i]) if upper is None or z[i] + steps[i] <= upper[i] else -float(steps[i])
             zi = z.copy()
             zi[i] += step

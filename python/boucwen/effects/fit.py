@@ -104,6 +104,13 @@ class Layout:
             i += k
         return params, effect_set(*fitted), h0
 
+    def constant_columns(self) -> dict[int, float]:
+        """``{index of x0: 1.0}``: x0 is an offset of x̂ (∂x̂/∂x0 = 1 at every sample)
+        through every effect but a saturation (the resonances have unit static gain and
+        start at rest, the delay line starts full of the first value); ``{}`` with a
+        saturation."""
+        return {} if "saturation" in self.names else {_BASE.index("x0"): 1.0}
+
     def bounds(self) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bounds of the unknowns (the difference steps respect them)."""
         base = [(-np.inf, np.inf)] * len(_BASE)
@@ -280,7 +287,9 @@ def solve_extended_record(
     v0 = np.clip(v0, lo + margin, hi - margin)
     typ = _typical(layout, v0, u, x)
     with jacobian_threads(workers) as pool:
-        prob = OutputErrorProblem(_Chain(layout, u, dt), x, typical=typ, upper=step_upper, pool=pool)
+        prob = OutputErrorProblem(
+            _Chain(layout, u, dt), x, typical=typ, upper=step_upper, pool=pool, constant=layout.constant_columns()
+        )
         if prob.simulate(v0) is None:
             raise ValueError("the starting point of fit_extended cannot be simulated")
         res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev)
@@ -309,7 +318,14 @@ def jacobian_extended(record: Record, fitted: ExtendedFit, *, workers: int | Non
     z = layout.pack(fitted.params, fitted.effects, fitted.h0)
     _, upper = layout.bounds()
     with jacobian_threads(workers) as pool:
-        prob = OutputErrorProblem(_Chain(layout, u, dt), x, typical=_typical(layout, z, u, x), upper=upper, pool=pool)
+        prob = OutputErrorProblem(
+            _Chain(layout, u, dt),
+            x,
+            typical=_typical(layout, z, u, x),
+            upper=upper,
+            pool=pool,
+            constant=layout.constant_columns(),
+        )
         return prob.jacobian(z)
 
 
