@@ -26,11 +26,11 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Optional, TypeVar
 
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
@@ -45,6 +45,7 @@ __all__ = [
     "Simulator",
     "finite_or_none",
     "jacobian_threads",
+    "thread_map",
 ]
 
 #: Forward-difference step, relative to max(|z_i|, typical_i) (the simulators are
@@ -55,6 +56,9 @@ FAIL_RESIDUAL_UM = 1e6
 
 #: Unknowns → simulated signal [µm], or None when they cannot be simulated.
 Simulator = Callable[[FloatArray], Optional[FloatArray]]
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 
 def finite_or_none(run: Callable[[], Any]) -> FloatArray | None:
@@ -69,9 +73,10 @@ def finite_or_none(run: Callable[[], Any]) -> FloatArray | None:
 
 @contextmanager
 def jacobian_threads(workers: int | None) -> Iterator[ThreadPoolExecutor | None]:
-    """A thread pool for the Jacobian columns: ``workers`` threads (default: the number
-    of CPUs), or None when that is one; shut down on exit. ValueError if ``workers`` is
-    not None or an integer >= 1."""
+    """A thread pool for the Jacobian columns (or other independent simulations:
+    :func:`thread_map`, the diagnosis's trials): ``workers`` threads (default: the
+    number of CPUs), or None when that is one; shut down on exit. ValueError if
+    ``workers`` is not None or an integer >= 1."""
     count = (os.cpu_count() or 1) if workers is None else check_int("workers", workers, 1)
     pool = ThreadPoolExecutor(max_workers=count) if count > 1 else None
     try:
@@ -79,6 +84,14 @@ def jacobian_threads(workers: int | None) -> Iterator[ThreadPoolExecutor | None]
     finally:
         if pool is not None:
             pool.shutdown()
+
+
+def thread_map(fn: Callable[[T], R], items: Sequence[T], workers: int | None) -> list[R]:
+    """``[fn(item) for item in items]``, run in a pool of :func:`jacobian_threads`
+    (``workers`` threads; in turn for one): for independent work whose simulations
+    release the GIL."""
+    with jacobian_threads(workers) as pool:
+        return list(pool.map(fn, items)) if pool is not None else [fn(item) for item in items]
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from ..effects import (
     solve_extended_record,
 )
 from ..fit import fit_record
-from ..lsq import jacobian_threads
+from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
@@ -150,12 +150,13 @@ def _trial_fit(
     stages: a trial no better than the null trial after a third of ``trial_nfev``
     evaluations is stopped there, the others go on for ``trial_nfev`` more (the second
     stage restarts the optimiser's trust region, which spends evaluations). The best start is the one of least
-    :func:`_cost` (beyond the first-order refit of ``basis``, when given). ``null_rms``
+    :func:`_cost` (beyond the first-order refit of ``basis``, when given; the starts are
+    simulated side by side when there is more than one worker). ``null_rms``
     gives the null trial's RMS error [µm] (it waits for the null trial when that runs
     beside this one). Returns the fit, or why there is none."""
     starts = candidate_starts(name, record, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
     if len(starts) > 1:
-        order = np.argsort([_cost(record, current, s, basis) for s in starts])
+        order = np.argsort(thread_map(lambda s: _cost(record, current, s, basis), starts, workers))
         starts = [starts[int(k)] for k in order[: DELAY_STARTS if name == "delay" else 1]]
     p0, h0, start = current.params, current.h0, starts[0]
     if name == "delay":
@@ -217,8 +218,7 @@ def _delay_shift(
             shifted, current.params, current.effects, current.h0, max_nfev=nfev, tol=TRIAL_TOL, workers=workers
         )
 
-    with jacobian_threads(workers) as pool:
-        refits = list(pool.map(refit, [d for d, _ in shifts])) if pool is not None else [refit(d) for d, _ in shifts]
+    refits = thread_map(refit, [d for d, _ in shifts], workers)
     results = {d: (f, s) for (d, s), f in zip(shifts, refits)}
     best = min((d for d in results if d), key=lambda d: results[d][0].rms_um)
     fitted, start = results[best]
