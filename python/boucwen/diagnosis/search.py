@@ -518,13 +518,15 @@ def diagnose(
         u: voltage [V], 1-D, finite, not constant, uniformly sampled.
         x: measured displacement [µm], same length.
         dt: sampling interval [s] (> 0).
-        progress: ``True`` prints progress lines to stderr; or a callable taking a str.
+        progress: ``True`` prints progress lines to stderr; or a callable taking a str
+            (the trials' lines come from the threads that run them, one at a time).
         folds: contiguous blocks of the cross-validation (2 … 10).
         min_gain: least relative cut of the cross-validated RMS error an effect must
             bring to be kept (0 … 1).
         max_effects: most effects added (0 … 5).
         seed: seed of :func:`boucwen.fit`'s random starts.
-        workers: threads for the Jacobians (default: the number of CPUs).
+        workers: threads for the trials of a round and for each fit's Jacobian
+            (default: the number of CPUs; 1 runs everything in turn).
 
     Returns:
         A :class:`~boucwen.diagnosis.Diagnosis`; the procedure is described in
