@@ -52,6 +52,23 @@ def test_names_the_undeclared_effect_and_cuts_the_error(effect, seed, pset, nois
         assert d.rms_after < d.rms_before
 
 
+def test_trials_side_by_side_give_the_result_of_trials_in_turn():
+    # The trials of a round run in threads with workers > 1; the evidence is the same
+    # whatever order they end in.
+    rec = make_record("input_lag", 1, "paper_100hz", 0.005)
+    progress = []
+    one = diagnose(rec.u, rec.x, rec.dt, workers=1)
+    two = diagnose(rec.u, rec.x, rec.dt, workers=2, progress=progress.append)
+    assert one.effects == two.effects == ["input_lag"]
+    strip = ("elapsed_s",)
+    first = {k: v for k, v in one.evidence.items() if k not in strip}
+    second = {k: v for k, v in two.evidence.items() if k not in strip}
+    assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
+    np.testing.assert_array_equal(one.x_extended, two.x_extended)
+    trial_lines = [m for m in progress if m.startswith(("  + ", "  - "))]
+    assert len(trial_lines) == sum(len(r["trials"]) for r in two.evidence["rounds"])
+
+
 def test_result_fields_and_json():
     rec = make_record("drift", 0, "paper_1hz", 0.005)
     d = diagnose(rec.u, rec.x, rec.dt)

@@ -26,11 +26,11 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Optional, TypeVar
 
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
@@ -45,6 +45,7 @@ __all__ = [
     "Simulator",
     "finite_or_none",
     "jacobian_threads",
+    "thread_map",
 ]
 
 #: Forward-difference step, relative to max(|z_i|, typical_i) (the simulators are
@@ -55,6 +56,9 @@ FAIL_RESIDUAL_UM = 1e6
 
 #: Unknowns → simulated signal [µm], or None when they cannot be simulated.
 Simulator = Callable[[FloatArray], Optional[FloatArray]]
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 
 def finite_or_none(run: Callable[[], Any]) -> FloatArray | None:
@@ -69,9 +73,10 @@ def finite_or_none(run: Callable[[], Any]) -> FloatArray | None:
 
 @contextmanager
 def jacobian_threads(workers: int | None) -> Iterator[ThreadPoolExecutor | None]:
-    """A thread pool for the Jacobian columns: ``workers`` threads (default: the number
-    of CPUs), or None when that is one; shut down on exit. ValueError if ``workers`` is
-    not None or an integer >= 1."""
+    """A thread pool for the Jacobian columns (or other independent simulations:
+    :func:`thread_map`, the diagnosis's trials): ``workers`` threads (default: the
+    number of CPUs), or None when that is one; shut down on exit. ValueError if
+    ``workers`` is not None or an integer >= 1."""
     count = (os.cpu_count() or 1) if workers is None else check_int("workers", workers, 1)
     pool = ThreadPoolExecutor(max_workers=count) if count > 1 else None
     try:
@@ -79,6 +84,14 @@ def jacobian_threads(workers: int | None) -> Iterator[ThreadPoolExecutor | None]
     finally:
         if pool is not None:
             pool.shutdown()
+
+
+def thread_map(fn: Callable[[T], R], items: Sequence[T], workers: int | None) -> list[R]:
+    """``[fn(item) for item in items]``, run in a pool of :func:`jacobian_threads`
+    (``workers`` threads; in turn for one): for independent work whose simulations
+    release the GIL."""
+    with jacobian_threads(workers) as pool:
+        return list(pool.map(fn, items)) if pool is not None else [fn(item) for item in items]
 
 
 @dataclass(frozen=True)
@@ -106,6 +119,8 @@ class OutputErrorProblem:
             projection), or None.
         ridge: an extra residual row, or None.
         pool: threads for the Jacobian columns, or None to run them in turn.
+        constant: ``{i: c}``: the unknowns z_i whose column of ∂s/∂z is the constant c at
+            every sample (an offset of the output: c = 1), taken as such, not simulated.
     """
 
     def __init__(
@@ -118,6 +133,7 @@ class OutputErrorProblem:
         basis: FloatArray | None = None,
         ridge: Ridge | None = None,
         pool: ThreadPoolExecutor | None = None,
+        constant: dict[int, float] | None = None,
     ):
         self._simulate = simulate
         self.target = target
@@ -125,6 +141,7 @@ class OutputErrorProblem:
         self.upper = upper
         self.ridge = ridge
         self.pool = pool
+        self.constant = dict(constant or {})
         self._q: FloatArray | None = np.linalg.qr(basis)[0] if basis is not None else None
         self._rows = target.size + (1 if ridge is not None else 0)
         self._lock = threading.Lock()
@@ -168,26 +185,33 @@ class OutputErrorProblem:
         return r
 
     def jacobian(self, z: FloatArray) -> FloatArray:
-        """∂r/∂z by forward differences (zeros where z cannot be simulated)."""
+        """∂r/∂z by forward differences (zeros where z cannot be simulated); each column
+        is simulated, differenced and projected in the pool's threads."""
         base = self._simulated(z)
         steps = FD_STEP * np.maximum(np.abs(z), self.typical)
         upper = self.upper
+        jac = np.zeros((self._rows, z.size), order="F")  # filled column by column
+        n = self.target.size
 
-        def column(i: int) -> tuple[FloatArray | None, float]:
+        def column(i: int) -> None:
+            if i in self.constant:
+                jac[:n, i] = self._project(np.full(n, self.constant[i]))
+                return
             step = float(steps[i]) if upper is None or z[i] + steps[i] <= upper[i] else -float(steps[i])
             zi = z.copy()
             zi[i] += step
-            return self.simulate(zi), step
+            si = self.simulate(zi)
+            if si is not None and base is not None:
+                jac[:n, i] = self._project((si - base) / step)
 
         idx = range(z.size)
-        cols = list(self.pool.map(column, idx)) if self.pool is not None else [column(i) for i in idx]
-        jac = np.zeros((self._rows, z.size))
+        if self.pool is not None:
+            list(self.pool.map(column, idx))
+        else:
+            for i in idx:
+                column(i)
         if base is None:
-            return jac
-        n = self.target.size
-        for i, (si, step) in enumerate(cols):
-            if si is not None:
-                jac[:n, i] = self._project((si - base) / step)
+            return np.zeros((self._rows, z.size))
         if self.ridge is not None:
             jac[-1, self.ridge.index] = self.ridge.weight * self.ridge.scale
         return jac

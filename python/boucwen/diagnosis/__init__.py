@@ -51,8 +51,13 @@ speed): the trials of step 3 run on a copy holding every q-th sample (about 2.5 
 and the best screened effect
 — with the second when its cross-validated error is within 25 % of the best's —
 is tried again, with its own null trial, on the full record, where the decision is
-taken; so are ``delay`` (whole samples of the full rate) and, when the residual's
-spectrum peaks above what the copy can hold, ``resonance``.
+taken; so are ``delay`` (whole samples of the full rate; the refits that compare its
+shifts run on the shifted record's screened copy) and, when the residual's spectrum
+peaks above what the copy can hold, ``resonance``.
+
+The null trial and the trials of a round are independent: they run side by side on
+``workers`` threads (the simulations release the GIL), each printing its progress line
+when it ends; the result does not depend on the order they end in.
 
 Each round of the report (``evidence["rounds"]``) lists the competing explanations with
 their scores (overall, per fold, where they act), the null trial, the look-alike

@@ -5,8 +5,10 @@ error under blocked cross-validation, while it earns its parameters (procedure i
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -19,12 +21,15 @@ from ..effects import (
     FN_MAX_NYQUIST_FRACTION,
     VOCABULARY,
     ExtendedFit,
+    Solved,
     candidate_starts,
     fit_extended_record,
     jacobian_extended,
     simulate_chain,
+    solve_extended_record,
 )
 from ..fit import fit_record
+from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
@@ -96,14 +101,15 @@ DELAY_STARTS = 2
 MAX_DELAY_SAMPLES = 8
 
 
-def _cv(
-    record: Record, fr: ExtendedFit, folds: int, workers: int | None, jacobian: Any = None
-) -> tuple[CrossValidation, Any]:
+def _solved_at(record: Record, fr: ExtendedFit, workers: int | None, jacobian: Any = None) -> Solved:
+    """``fr`` with its simulated displacement and Jacobian over ``record`` (a fit made
+    elsewhere, or on another copy of the record); ``jacobian``, when given, is that
+    Jacobian, already known."""
     xs = simulate_chain(fr.params, fr.effects, record.u, record.dt, fr.h0)
     if xs is None:  # pragma: no cover - a fitted model can be simulated
         raise ValueError("the fitted model cannot be simulated")
     jac = jacobian_extended(record, fr, workers=workers) if jacobian is None else jacobian
-    return blocked_cv(jac, record.x - xs, folds), xs
+    return Solved(fit=fr, x=xs, jacobian=jac)
 
 
 def _refit_basis(jacobian: Any) -> Any:
@@ -120,28 +126,37 @@ class _Scored:
     fit: ExtendedFit
     cv: CrossValidation
     x: Any
+    jacobian: Any
+
+
+def _scored(record: Record, solved: Solved, folds: int) -> _Scored:
+    """A fit over ``record`` and its blocked cross-validation."""
+    cv = blocked_cv(solved.jacobian, record.x - solved.x, folds)
+    return _Scored(solved.fit, cv, solved.x, solved.jacobian)
 
 
 def _trial_fit(
     name: str,
     record: Record,
     current: ExtendedFit,
-    null_rms: float,
+    null_rms: Callable[[], float],
     *,
     seed: int,
     workers: int | None,
     trial_nfev: int,
     basis: Any = None,
-) -> ExtendedFit | str:
+) -> Solved | str:
     """Adds ``name`` to ``current`` from its best start and refits everything, in two
     stages: a trial no better than the null trial after a third of ``trial_nfev``
     evaluations is stopped there, the others go on for ``trial_nfev`` more (the second
     stage restarts the optimiser's trust region, which spends evaluations). The best start is the one of least
-    :func:`_cost` (beyond the first-order refit of ``basis``, when given). Returns the
-    fit, or why there is none."""
+    :func:`_cost` (beyond the first-order refit of ``basis``, when given; the starts are
+    simulated side by side when there is more than one worker). ``null_rms``
+    gives the null trial's RMS error [µm] (it waits for the null trial when that runs
+    beside this one). Returns the fit, or why there is none."""
     starts = candidate_starts(name, record, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
     if len(starts) > 1:
-        order = np.argsort([_cost(record, current, s, basis) for s in starts])
+        order = np.argsort(thread_map(lambda s: _cost(record, current, s, basis), starts, workers))
         starts = [starts[int(k)] for k in order[: DELAY_STARTS if name == "delay" else 1]]
     p0, h0, start = current.params, current.h0, starts[0]
     if name == "delay":
@@ -151,22 +166,23 @@ def _trial_fit(
         p0, h0, start = shift
     first = _first_stage(trial_nfev)
     try:
-        fr = fit_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
-        if fr.rms_um >= null_rms:
+        solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
+        fr = solved.fit
+        if fr.rms_um >= null_rms():
             return "hopeless: no better than the null trial after a third of the effort"
         if not fr.success:
-            fr = fit_extended_record(
+            solved = solve_extended_record(
                 record, fr.params, fr.effects, fr.h0, max_nfev=trial_nfev, tol=TRIAL_TOL, workers=workers
             )
     except ValueError as exc:
         return str(exc)
-    mode = fr.effects.to_dict().get(name)
+    mode = solved.fit.effects.to_dict().get(name)
     if isinstance(mode, dict) and "zeta" in mode and mode["zeta"] >= PEAK_ZETA:
         # A second-order low-pass (either resonance mode) has a peak only for ζ < 1/√2:
         # without one it is a lag shape the other effects describe; recorded, but not a
         # candidate.
         return f"no resonance peak: fitted zeta {mode['zeta']:.3g} ≥ 1/√2"
-    return fr
+    return solved
 
 
 def _first_stage(trial_nfev: int) -> int:
@@ -185,22 +201,25 @@ def _delay_shift(
 ) -> tuple[Params, float, EffectSet] | str:
     """The current model refitted to the record shifted by each delay of ``starts`` and,
     as the null, not shifted (same effort): the base parameters, h0 and the start of the best shift, or why the delay
-    is hopeless (no shift beats the unshifted fit by :data:`LOCAL_FLOOR`).
+    is hopeless (no shift beats the unshifted fit by :data:`LOCAL_FLOOR`). The refits
+    are independent and run side by side when there is more than one worker.
 
     The current fit has bent itself to follow the lag; a delay of d samples is the
-    model fitted to the record shifted by d, which starts the delay trial right."""
-    results = {}
-    for d, s in [(0, None), *((s.to_dict()["delay"]["samples"], s) for s in starts)]:
-        fitted = fit_extended_record(
-            record.realigned(d) if d else record,
-            current.params,
-            current.effects,
-            current.h0,
-            max_nfev=nfev,
-            tol=TRIAL_TOL,
-            workers=workers,
+    model fitted to the record shifted by d, which starts the delay trial right. A
+    record that is screened (:func:`_screen_copy`) is shifted first and then decimated
+    as its screened copy is: the refits (of a model without the delay, to a record
+    shifted in time by whole samples) are compared there."""
+    shifts: list[tuple[int, EffectSet | None]] = [(0, None), *((s.to_dict()["delay"]["samples"], s) for s in starts)]
+    q = _screen_copy(record)[1]
+
+    def refit(d: int) -> ExtendedFit:
+        shifted = _decimated(record.realigned(d) if d else record, q)
+        return fit_extended_record(
+            shifted, current.params, current.effects, current.h0, max_nfev=nfev, tol=TRIAL_TOL, workers=workers
         )
-        results[d] = (fitted, s)
+
+    refits = thread_map(refit, [d for d, _ in shifts], workers)
+    results = {d: (f, s) for (d, s), f in zip(shifts, refits)}
     best = min((d for d in results if d), key=lambda d: results[d][0].rms_um)
     fitted, start = results[best]
     if start is None or fitted.rms_um > (1.0 - LOCAL_FLOOR) * results[0][0].rms_um:
@@ -247,11 +266,14 @@ class Round:
             they decided, ``lookalike_decision``), ``most_likely`` and ``kept``.
         kept: the fit of the kept effect, or None.
         ranked: the candidates' fits, best first (those that earn their parameters).
+        kept_jacobian: ∂x̂/∂z of ``kept`` over the round's record (µm per unit of each
+            unknown of its :class:`~boucwen.effects.Layout`), or None.
     """
 
     evidence: dict[str, Any]
     kept: ExtendedFit | None
     ranked: list[tuple[str, ExtendedFit]]
+    kept_jacobian: Any = None
 
 
 def candidates(present: Sequence[str]) -> tuple[str, ...]:
@@ -272,6 +294,7 @@ def score_round(
     say: Callable[[str], None] | None = None,
     trial_nfev: int = TRIAL_NFEV,
     starts: dict[str, ExtendedFit] | None = None,
+    current_jacobian: Any = None,
 ) -> Round:
     """Tries every effect of the vocabulary not yet in ``current`` (or those in
     ``names``) on ``record``.
@@ -285,49 +308,98 @@ def score_round(
     (``gain_over_null``), overall and where it acts (``local_gain``); it earns its
     parameters when the first is at least ``min_gain``, or the second at least
     :data:`LOCAL_MIN_GAIN` with the first at least :data:`LOCAL_FLOOR`. ``starts``
-    gives, per effect, a fit to start its trial from instead of its own starts.
+    gives, per effect, a fit to start its trial from instead of its own starts;
+    ``current_jacobian``, ∂x̂/∂z of ``current`` over ``record`` when already known
+    (:attr:`Round.kept_jacobian` of the round that kept it on the same record).
+
+    The null trial and the trials are independent (a trial only waits for the null
+    trial's error at the end of its first stage): with more than one worker they run
+    side by side, as many at a time as ``workers``, each with its own Jacobian threads
+    (the simulations release the GIL), each printing its progress line when it ends.
+    The result does not depend on their order.
     """
     note = say if say is not None else (lambda _msg: None)
-    cur_jac = jacobian_extended(record, current, workers=workers)
-    cur_cv, cur_x = _cv(record, current, folds, workers, cur_jac)
-    basis = _refit_basis(cur_jac)
+    lock = threading.Lock()
+
+    def tell(message: str) -> None:
+        with lock:
+            note(message)
+
+    scored_cur = _scored(record, _solved_at(record, current, workers, current_jacobian), folds)
+    cur_cv = scored_cur.cv
+    basis = _refit_basis(scored_cur.jacobian)
     null_nfev = _first_stage(trial_nfev) + trial_nfev
-    null = fit_extended_record(record, current.params, current.effects, current.h0, max_nfev=null_nfev, workers=workers)
-    null_cv, null_x = _cv(record, null, folds, workers)
-    scored_cur, scored_null = _Scored(current, cur_cv, cur_x), _Scored(null, null_cv, null_x)
-    reference = scored_cur if cur_cv.rms_um <= null_cv.rms_um else scored_null
-    ref_rms = reference.cv.rms_um
-    null_gain = 1.0 - null_cv.rms_um / cur_cv.rms_um if cur_cv.rms_um > 0 else 0.0
-    note(f"  0 null     : CV RMS {null_cv.rms_um:.4g} µm (current {cur_cv.rms_um:.4g} µm, gain {null_gain:+.1%})")
-    trials: dict[str, dict[str, Any]] = {}
-    fits: dict[str, _Scored] = {}
-    todo = names if names is not None else candidates(current.effects.names)
-    for name in todo:
+
+    def null_trial() -> _Scored:
+        null = solve_extended_record(
+            record, current.params, current.effects, current.h0, max_nfev=null_nfev, workers=workers
+        )
+        scored = _scored(record, null, folds)
+        gain = 1.0 - scored.cv.rms_um / cur_cv.rms_um if cur_cv.rms_um > 0 else 0.0
+        tell(f"  0 null     : CV RMS {scored.cv.rms_um:.4g} µm (current {cur_cv.rms_um:.4g} µm, gain {gain:+.1%})")
+        return scored
+
+    def reference() -> _Scored:
+        """The better of the current model and the null trial (waits for the latter)."""
+        scored_null = null_run.result()
+        return scored_cur if cur_cv.rms_um <= scored_null.cv.rms_um else scored_null
+
+    def trial(name: str) -> _Scored | str:
         t0 = time.perf_counter()
         if starts is not None and name in starts:
             s = starts[name]
-            fr: ExtendedFit | str = fit_extended_record(
+            fr: Solved | str = solve_extended_record(
                 record, s.params, s.effects, s.h0, max_nfev=null_nfev, tol=TRIAL_TOL, workers=workers
             )
         else:
             fr = _trial_fit(
-                name, record, current, null.rms_um, seed=seed, workers=workers, trial_nfev=trial_nfev, basis=basis
+                name,
+                record,
+                current,
+                lambda: null_run.result().fit.rms_um,
+                seed=seed,
+                workers=workers,
+                trial_nfev=trial_nfev,
+                basis=basis,
             )
         if isinstance(fr, str):
-            trials[name] = {"rejected": fr}
-            note(f"  - {name:9s}: {fr} ({time.perf_counter() - t0:.1f} s)")
-            continue
-        cv, xs = _cv(record, fr, folds, workers)
-        fits[name] = _Scored(fr, cv, xs)
-        trials[name] = {**_credit(fits[name], reference, ref_rms), "fitted": fr.effects.to_dict().get(name)}
-        c = trials[name]
-        note(
-            f"  + {name:9s}: CV RMS {cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
+            tell(f"  - {name:9s}: {fr} ({time.perf_counter() - t0:.1f} s)")
+            return fr
+        scored = _scored(record, fr, folds)
+        ref = reference()
+        c = _credit(scored, ref, ref.cv.rms_um)
+        tell(
+            f"  + {name:9s}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
             f"where it acts {c['local_gain']:+.1%}; {time.perf_counter() - t0:.1f} s)"
         )
+        return scored
+
+    todo = names if names is not None else candidates(current.effects.names)
+    null_run: Future[_Scored]
+    with jacobian_threads(workers) as pool:
+        if pool is None:
+            null_run = Future()
+            null_run.set_result(null_trial())
+            outcomes = [trial(name) for name in todo]
+        else:
+            null_run = pool.submit(null_trial)  # first in the queue: started before any trial waits for it
+            outcomes = list(pool.map(trial, todo))
+    scored_null = null_run.result()
+    null_cv = scored_null.cv
+    null_gain = 1.0 - null_cv.rms_um / cur_cv.rms_um if cur_cv.rms_um > 0 else 0.0
+    reference_fit = reference()
+    ref_rms = reference_fit.cv.rms_um
+    trials: dict[str, dict[str, Any]] = {}
+    fits: dict[str, _Scored] = {}
+    for name, outcome in zip(todo, outcomes):
+        if isinstance(outcome, str):
+            trials[name] = {"rejected": outcome}
+            continue
+        fits[name] = outcome
+        trials[name] = {**_credit(outcome, reference_fit, ref_rms), "fitted": outcome.fit.effects.to_dict().get(name)}
     ranked = sorted(fits, key=lambda k: trials[k]["cv_rms_um"])
     earning = [k for k in ranked if _earns(trials[k], min_gain)]
-    lookalike = lookalike_tests(record, reference.x)
+    lookalike = lookalike_tests(record, reference_fit.x)
     present = set(current.effects.names)
     refused = {}
     for test in FOLLOWS_GUARDED:
@@ -366,16 +438,17 @@ def score_round(
         evidence=evidence,
         kept=fits[best].fit if keep and best is not None else None,
         ranked=[(k, fits[k].fit) for k in earning],
+        kept_jacobian=fits[best].jacobian if keep and best is not None else None,
     )
 
 
-def _delay_hopeless(record: Record, current: ExtendedFit, folds: int, workers: int | None) -> bool:
+def _delay_hopeless(record: Record, current: Solved, folds: int) -> bool:
     """A delay cannot earn its parameters: adding the model's rate ẋ̂ (the first-order
-    change a small delay makes) as one more column of its Jacobian cuts the
-    cross-validated error by less than :data:`LOCAL_FLOOR`."""
-    cv, xs = _cv(record, current, folds, workers)
-    jac = jacobian_extended(record, current, workers=workers)
-    with_rate = blocked_cv(np.column_stack([jac, np.gradient(xs)]), record.x - xs, folds)
+    change a small delay makes) as one more column of the Jacobian of ``current`` (over
+    ``record``) cuts the cross-validated error by less than :data:`LOCAL_FLOOR`."""
+    cv = _scored(record, current, folds).cv
+    xs = current.x
+    with_rate = blocked_cv(np.column_stack([current.jacobian, np.gradient(xs)]), record.x - xs, folds)
     return bool(with_rate.rms_um > (1.0 - LOCAL_FLOOR) * cv.rms_um)
 
 
@@ -419,7 +492,12 @@ def _screen_copy(record: Record) -> tuple[Record, int]:
     q = max(1, int(1.0 / (record.dt * SCREEN_RATE_HZ)))
     if q == 1 or len(record) <= SCREEN_MIN_SAMPLES:
         return record, 1
-    return validate_record(record.u[::q], record.x[::q], record.dt * q), q
+    return _decimated(record, q), q
+
+
+def _decimated(record: Record, q: int) -> Record:
+    """Every ``q``-th sample of the record, from the first (the record itself for q = 1)."""
+    return record if q == 1 else validate_record(record.u[::q], record.x[::q], record.dt * q)
 
 
 def diagnose(
@@ -440,13 +518,15 @@ def diagnose(
         u: voltage [V], 1-D, finite, not constant, uniformly sampled.
         x: measured displacement [µm], same length.
         dt: sampling interval [s] (> 0).
-        progress: ``True`` prints progress lines to stderr; or a callable taking a str.
+        progress: ``True`` prints progress lines to stderr; or a callable taking a str
+            (the trials' lines come from the threads that run them, one at a time).
         folds: contiguous blocks of the cross-validation (2 … 10).
         min_gain: least relative cut of the cross-validated RMS error an effect must
             bring to be kept (0 … 1).
         max_effects: most effects added (0 … 5).
         seed: seed of :func:`boucwen.fit`'s random starts.
-        workers: threads for the Jacobians (default: the number of CPUs).
+        workers: threads for the trials of a round and for each fit's Jacobian
+            (default: the number of CPUs; 1 runs everything in turn).
 
     Returns:
         A :class:`~boucwen.diagnosis.Diagnosis`; the procedure is described in
@@ -509,6 +589,9 @@ def diagnose_record(
     evidence["residual"]["delay"] = delay_evidence(record, current, MAX_DELAY_SAMPLES)
     added: list[str] = []
     opts: dict[str, Any] = {"folds": folds, "min_gain": min_gain, "seed": seed, "workers": workers, "say": say}
+    # ∂x̂/∂z of the current model over the full record, once known (a round on the
+    # full record that keeps an effect has it).
+    current_jac: Any = None
 
     while len(added) < max_effects:
         if added and unexplained(record, current.simulate(u, dt)).consistent_with_noise:
@@ -517,10 +600,11 @@ def diagnose_record(
             evidence["stopped"] = "the residual of the effects kept is consistent with noise"
             break
         say(f"round {len(added) + 1}: trying {list(candidates(current.effects.names))}")
+        screened: Round | None = None
         if q == 1 or simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is None:
             # Not screened, or the model holds what the screened copy cannot (a
             # resonance above its Nyquist frequency): every trial on the full record.
-            round_ = score_round(record, current, **opts)
+            round_ = score_round(record, current, current_jacobian=current_jac, **opts)
         else:
             names = tuple(k for k in candidates(current.effects.names) if k != "delay")
             screened = score_round(screen, current, names=names, **opts)
@@ -530,15 +614,26 @@ def diagnose_record(
                 k: f for k, f in ranked if scores[k]["cv_rms_um"] <= CONFIRM_RATIO * scores[ranked[0][0]]["cv_rms_um"]
             }
             full_only = [k for k in candidates(current.effects.names) if k not in names]
-            if "delay" in full_only and _delay_hopeless(record, current, folds, workers):
-                say("  - delay    : hopeless: the model's rate does not explain the residual")
-                full_only.remove("delay")
+            if "delay" in full_only:
+                solved = _solved_at(record, current, workers, current_jac)
+                current_jac = solved.jacobian
+                if _delay_hopeless(record, solved, folds):
+                    say("  - delay    : hopeless: the model's rate does not explain the residual")
+                    full_only.remove("delay")
             if "resonance" in names and _peak_beyond(record, current, screen.dt):
                 full_only.append("resonance")
             todo = tuple(k for k in VOCABULARY if k in confirm or k in full_only)
             say(f"confirming {list(todo)} on the full record")
             round_ = (
-                score_round(record, current, names=todo, starts=confirm, trial_nfev=CONFIRM_NFEV, **opts)
+                score_round(
+                    record,
+                    current,
+                    names=todo,
+                    starts=confirm,
+                    trial_nfev=CONFIRM_NFEV,
+                    current_jacobian=current_jac,
+                    **opts,
+                )
                 if todo
                 else screened
             )
@@ -549,6 +644,8 @@ def diagnose_record(
             say("nothing left that earns its parameters under cross-validation")
             break
         current = round_.kept
+        # The kept fit's Jacobian is over the full record unless the screened round is the result.
+        current_jac = None if round_ is screened else round_.kept_jacobian
         added.append(round_.evidence["most_likely"])
         say(f"kept {added[-1]}: RMS {current.rms_um:.4g} µm")
 

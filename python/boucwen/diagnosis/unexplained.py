@@ -209,14 +209,23 @@ def _welch_dof(segments: int, overlap_corr: float = 0.167) -> float:
 
 def _local_floor(pxx: FloatArray, df: float) -> FloatArray:
     """Median of each bin's neighbours within ±2 Hz (at least ±8 bins), the bin and its
-    two neighbours on each side left out (0 where too few neighbours)."""
+    two neighbours on each side left out (0 where too few neighbours).
+
+    The bins whose whole neighbourhood lies inside the spectrum are taken together
+    (one median per row of a sliding window); the few near either end one by one."""
     half = max(8, round(2.0 / df)) if df > 0 else 8
+    m = pxx.size
     out = np.zeros_like(pxx)
-    for i in range(pxx.size):
-        lo, hi = max(0, i - half), min(pxx.size, i + half + 1)
-        neigh = np.concatenate([pxx[lo : max(lo, i - 2)], pxx[min(hi, i + 3) : hi]])
-        if neigh.size >= 4:
-            out[i] = float(np.median(neigh))
+    inner = np.arange(half, m - half)
+    if inner.size:
+        win = np.lib.stride_tricks.sliding_window_view(pxx, 2 * half + 1)
+        neigh = np.concatenate([win[:, : half - 2], win[:, half + 3 :]], axis=1)
+        out[inner] = np.median(neigh, axis=1)
+    for i in (i for i in range(m) if i < half or i >= m - half):
+        lo, hi = max(0, i - half), min(m, i + half + 1)
+        edge = np.concatenate([pxx[lo : max(lo, i - 2)], pxx[min(hi, i + 3) : hi]])
+        if edge.size >= 4:
+            out[i] = float(np.median(edge))
     return out
 
 
@@ -303,16 +312,19 @@ def _lines(
         ratio_u = np.where(floor_u > 0, pu / floor_u, 0.0)
     input_line = stats.chi2.sf(nu * ratio_u, nu) * tested < alpha
     input_line[:first] = False
+    # Candidates: local maxima above a positive floor; their p-values in one call.
+    peak = np.zeros(f.size, dtype=bool)
+    peak[first:] = floor_r[first:] > 0
+    peak[first:] &= pxx[first:] >= pxx[first - 1 : -1]
+    peak[first:-1] &= pxx[first:-1] >= pxx[first + 1 :]
+    cand = np.flatnonzero(peak)
+    ratios = pxx[cand] / floor_r[cand]
+    p_values = stats.chi2.sf(nu * ratios, nu)
     out: list[dict[str, Any]] = []
-    for i in range(first, f.size):
+    for i, ratio_i, p_i in zip(cand.tolist(), ratios, p_values):
         floor = float(floor_r[i])
-        if not floor > 0:
-            continue
-        if pxx[i] < pxx[i - 1] or (i + 1 < f.size and pxx[i] < pxx[i + 1]):
-            continue
-        ratio = float(pxx[i] / floor)
-        p = float(stats.chi2.sf(nu * ratio, nu))
-        p_adj = min(1.0, p * tested)
+        ratio = float(ratio_i)
+        p_adj = min(1.0, float(p_i) * tested)
         if p_adj >= alpha:
             continue
         a, b = max(0, i - 2), min(f.size, i + 3)

@@ -40,7 +40,16 @@ from .creep import Creep, creep_time_constants
 from .delay import Delay, best_delay
 from .drift import Drift
 from .electrostriction import Electrostriction
-from .fit import ExtendedFit, Layout, candidate_starts, fit_extended, fit_extended_record, jacobian_extended
+from .fit import (
+    ExtendedFit,
+    Layout,
+    Solved,
+    candidate_starts,
+    fit_extended,
+    fit_extended_record,
+    jacobian_extended,
+    solve_extended_record,
+)
 from .gain_drift import GainDrift
 from .input_lag import InputLag
 from .pickup import LINE_FREQUENCIES_HZ, MAX_START_HARMONICS, Pickup
@@ -70,6 +79,7 @@ __all__ = [
     "Resonance",
     "Resonance2",
     "Saturation",
+    "Solved",
     "Start",
     "best_delay",
     "candidate_starts",
@@ -82,5 +92,6 @@ __all__ = [
     "from_json",
     "jacobian_extended",
     "simulate_chain",
+    "solve_extended_record",
     "to_json",
 ]

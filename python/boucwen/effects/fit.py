@@ -34,7 +34,16 @@ from ..record import Record, validate_record
 from .base import Context, Effect, Start, simulate_chain, with_effect
 from .registry import effect_class, effect_set, effects_of
 
-__all__ = ["ExtendedFit", "Layout", "candidate_starts", "fit_extended", "fit_extended_record", "jacobian_extended"]
+__all__ = [
+    "ExtendedFit",
+    "Layout",
+    "Solved",
+    "candidate_starts",
+    "fit_extended",
+    "fit_extended_record",
+    "jacobian_extended",
+    "solve_extended_record",
+]
 
 #: The base model's unknowns: the seven parameters and h0.
 _BASE = (*Params.names, "h0")
@@ -94,6 +103,13 @@ class Layout:
             fitted.append(e.unpack(v[i : i + k].tolist()))
             i += k
         return params, effect_set(*fitted), h0
+
+    def constant_columns(self) -> dict[int, float]:
+        """``{index of x0: 1.0}``: x0 is an offset of x̂ (∂x̂/∂x0 = 1 at every sample)
+        through every effect but a saturation (the resonances have unit static gain and
+        start at rest, the delay line starts full of the first value); ``{}`` with a
+        saturation."""
+        return {} if "saturation" in self.names else {_BASE.index("x0"): 1.0}
 
     def bounds(self) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bounds of the unknowns (the difference steps respect them)."""
@@ -215,6 +231,22 @@ def fit_extended(
     return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, workers=workers)
 
 
+@dataclass(frozen=True, eq=False)
+class Solved:
+    """A fit with what its optimiser computed last, at the solution.
+
+    Attributes:
+        fit: the :class:`ExtendedFit`.
+        x: its simulated displacement over the fitted record [µm].
+        jacobian: ∂x̂/∂z there (one row per sample, one column per unknown of the fit's
+            :class:`Layout`, forward differences as :func:`jacobian_extended`).
+    """
+
+    fit: ExtendedFit
+    x: FloatArray
+    jacobian: FloatArray
+
+
 def fit_extended_record(
     record: Record,
     params: Params,
@@ -226,6 +258,22 @@ def fit_extended_record(
     workers: int | None = None,
 ) -> ExtendedFit:
     """:func:`fit_extended` on a checked :class:`~boucwen.record.Record`."""
+    return solve_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, workers=workers).fit
+
+
+def solve_extended_record(
+    record: Record,
+    params: Params,
+    effects: EffectSet,
+    h0: float = 0.0,
+    *,
+    max_nfev: int = 40,
+    tol: float = 1e-8,
+    workers: int | None = None,
+) -> Solved:
+    """:func:`fit_extended_record` with the fit's simulated displacement and the
+    optimiser's Jacobian at the solution (``least_squares`` computes one at every point
+    it accepts, the solution included), for the callers that score the fit."""
     u, x, dt = record.u, record.x, record.dt
     layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
     v0 = layout.pack(params, effects, h0)
@@ -239,7 +287,9 @@ def fit_extended_record(
     v0 = np.clip(v0, lo + margin, hi - margin)
     typ = _typical(layout, v0, u, x)
     with jacobian_threads(workers) as pool:
-        prob = OutputErrorProblem(_Chain(layout, u, dt), x, typical=typ, upper=step_upper, pool=pool)
+        prob = OutputErrorProblem(
+            _Chain(layout, u, dt), x, typical=typ, upper=step_upper, pool=pool, constant=layout.constant_columns()
+        )
         if prob.simulate(v0) is None:
             raise ValueError("the starting point of fit_extended cannot be simulated")
         res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev)
@@ -248,7 +298,7 @@ def fit_extended_record(
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point
         raise ValueError("the fitted parameters cannot be simulated")
     err = x - xs
-    return ExtendedFit(
+    fit = ExtendedFit(
         params=p,
         effects=e,
         h0=h,
@@ -257,6 +307,7 @@ def fit_extended_record(
         nfev=prob.simulations,
         success=bool(res.success),
     )
+    return Solved(fit=fit, x=xs, jacobian=np.asarray(res.jac, dtype=np.float64))
 
 
 def jacobian_extended(record: Record, fitted: ExtendedFit, *, workers: int | None = None) -> FloatArray:
@@ -267,7 +318,14 @@ def jacobian_extended(record: Record, fitted: ExtendedFit, *, workers: int | Non
     z = layout.pack(fitted.params, fitted.effects, fitted.h0)
     _, upper = layout.bounds()
     with jacobian_threads(workers) as pool:
-        prob = OutputErrorProblem(_Chain(layout, u, dt), x, typical=_typical(layout, z, u, x), upper=upper, pool=pool)
+        prob = OutputErrorProblem(
+            _Chain(layout, u, dt),
+            x,
+            typical=_typical(layout, z, u, x),
+            upper=upper,
+            pool=pool,
+            constant=layout.constant_columns(),
+        )
         return prob.jacobian(z)
 
 
