@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from scipy.optimize import least_squares
 
 import boucwen
 from boucwen.diagnosis.lookalike import lookalike_tests, phase_shape, what_it_follows
@@ -87,3 +88,47 @@ def test_lookalike_tests_are_json_ready(smooth_record):
     out = lookalike_tests(validate_record(u, xm, dt), xm)
     assert set(out) == {"follows", "phase"}
     assert out["phase"]["shape"] == "none"
+
+
+@pytest.mark.parametrize("chirp", [0.005, 0.01])
+def test_a_simulated_refit_step_scores_a_nonlinear_unknown_as_a_refit_would(chirp):
+    # y = a·sin(ω t) fitted to a sine whose frequency moves by ±chirp over 10 s: each
+    # block asks for its own ω, and over 50 cycles the straight line through the
+    # Jacobian mispredicts what that ω does to the held-out block.
+    rng = np.random.default_rng(3)
+    n = 4000
+    t = np.linspace(0.0, 10.0, n)
+    w0 = 2 * np.pi * 5.0
+    y = np.sin(w0 * (1 + chirp * (t - 5.0) / 5.0) * t) + rng.normal(0.0, 0.05, n)
+
+    def model(z):
+        return z[0] * np.sin(z[1] * t)
+
+    z = least_squares(lambda v: y - model(v), [1.0, w0]).x
+    jac = np.column_stack([np.sin(z[1] * t), z[0] * t * np.cos(z[1] * t)])
+    linear = blocked_cv(jac, y - model(z), folds=4)
+    simulated = blocked_cv(jac, y - model(z), folds=4, simulate=lambda dz: y - model(z + dz))
+    held = np.empty(n)  # leave-a-block-out refits by least squares, for reference
+    for sl in fold_slices(n, 4):
+        keep = np.ones(n, dtype=bool)
+        keep[sl] = False
+        fitted = least_squares(lambda v, keep=keep: (y - model(v))[keep], z).x
+        held[sl] = (y - model(fitted))[sl]
+    exact = float(np.sqrt(np.mean(held**2)))
+    assert abs(simulated.rms_um - exact) < 0.2 * abs(linear.rms_um - exact), (linear.rms_um, simulated.rms_um, exact)
+
+
+def test_a_simulated_step_that_helps_no_other_block_keeps_the_fit():
+    rng = np.random.default_rng(4)
+    n = 1000
+    design = np.column_stack([np.ones(n), np.linspace(0.0, 1.0, n)])
+    y = design @ [0.5, 1.0] + rng.normal(0.0, 0.1, n)
+    fitted, *_ = np.linalg.lstsq(design, y, rcond=None)
+    r = y - design @ fitted
+    # A model that cannot be simulated anywhere but at the fit keeps the fit's residual.
+    cv = blocked_cv(design, r, folds=4, simulate=lambda dz: None)
+    np.testing.assert_array_equal(cv.residual, r)
+    # For a linear model the simulated step is the linear one.
+    lin = blocked_cv(design, r, folds=4)
+    sim = blocked_cv(design, r, folds=4, simulate=lambda dz: y - design @ (fitted + dz))
+    np.testing.assert_allclose(sim.residual, lin.residual, atol=1e-12)

@@ -18,11 +18,16 @@ not told what it contains, and:
    (:mod:`~boucwen.diagnosis.validation`): the record is cut into ``folds`` contiguous
    blocks (4 by default), each held out in turn from a refit on the others, so that
    evidence anywhere in the record — a step and its hold, a burst, the end of a
-   drift — is scored where it is;
+   drift — is scored where it is; the refit without a block is one Gauss–Newton step
+   from the whole-record fit, *simulated* (line-searched on the other blocks), not
+   extrapolated along the Jacobian: a mode's frequency or a lag's corner is too
+   nonlinear for the straight line;
 5. compares each trial with the *null trial*, the current model refitted with the same
    effort and nothing added: an effect is credited only with the cut of the
-   cross-validated RMS error beyond the better of the two (``gain_over_null``), so
-   that the extra iterations of a trial are not taken for the effect. It earns its
+   cross-validated RMS error beyond the better of the two, capped by the cut of the
+   in-sample error (``gain_over_null``), so that the extra iterations of a trial are
+   not taken for the effect, nor are block refits that extrapolate better with one
+   more unknown beside them. It earns its
    parameters when that cut is at least ``min_gain`` (10 %), or — for evidence that is
    local — when it cuts the cross-validated error by at least 30 % on the 10 % of
    samples it changes most and by at least 3 % overall;
@@ -34,7 +39,11 @@ not told what it contains, and:
    Once creep, drift or gain drift is in the model, another of the three is kept only
    when that test on the current residual names it. Then it repeats from 3 until
    nothing earns its parameters, or what the effects kept leave is consistent with
-   noise (step 8's test);
+   noise (step 8's test). When nothing more earns its parameters but the effects kept
+   would not be named (step 8: too little of the error explained), they are refitted
+   once from a base model fitted afresh to the record less what they add (the base
+   model, fitted without them, may sit in a basin where its hysteresis imitates them;
+   ``evidence["rebased"]``); if that fits better, the search goes on from there;
 7. refits the base model and the kept effects on the whole record and reports the
    errors, before (base model) and after (with the effects);
 8. tests what the final model leaves against the noise estimated from the record and
@@ -42,7 +51,7 @@ not told what it contains, and:
    ``Diagnosis.unexplained`` says whether the residual is consistent with noise and,
    if not, which signals, spectral lines and time spans it follows — also when no
    effect of the vocabulary accounts for it. Effects that leave a residual not
-   consistent with noise and remove less than 3/4 of the base model's mean-square
+   consistent with noise and remove less than 9/10 of the base model's mean-square
    error beyond the noise are not named (``evidence["partial"]`` lists them): they
    fit part of something the vocabulary does not hold.
 

@@ -21,6 +21,7 @@ from ..effects import (
     FN_MAX_NYQUIST_FRACTION,
     VOCABULARY,
     ExtendedFit,
+    Layout,
     Solved,
     candidate_starts,
     fit_extended_record,
@@ -36,7 +37,7 @@ from ..record import Record, validate_record
 from .evidence import delay_evidence, residual_evidence_record
 from .lookalike import GROUPS, lookalike_tests
 from .report import Diagnosis, jsonable
-from .unexplained import unexplained
+from .unexplained import Unexplained, unexplained
 from .validation import FOLDS, CrossValidation, blocked_cv
 
 __all__ = [
@@ -94,9 +95,11 @@ FOLLOWS_GUARDED = ("follows",)
 #: Effects that leave a residual not consistent with noise are named only when they
 #: remove at least this share of the base model's mean-square error beyond the noise
 #: (:func:`_explained_share`); otherwise they are a partial fit of something else.
-PARTIAL_SHARE = 0.75
+PARTIAL_SHARE = 0.9
 #: Whole-sample delays whose shifted base fit a delay trial compares.
 DELAY_STARTS = 2
+#: Iteration limit of the refit of a kept effect from a fresh base model (:func:`_rebased`).
+REBASE_NFEV = 20
 #: Largest delay tried [samples].
 MAX_DELAY_SAMPLES = 8
 
@@ -130,9 +133,22 @@ class _Scored:
 
 
 def _scored(record: Record, solved: Solved, folds: int) -> _Scored:
-    """A fit over ``record`` and its blocked cross-validation."""
-    cv = blocked_cv(solved.jacobian, record.x - solved.x, folds)
-    return _Scored(solved.fit, cv, solved.x, solved.jacobian)
+    """A fit over ``record`` and its blocked cross-validation (each block's refit step
+    simulated)."""
+    fr = solved.fit
+    layout = Layout.of(fr.effects, record.dt, record.dt * max(record.u.size - 1, 1))
+    z = layout.pack(fr.params, fr.effects, fr.h0)
+
+    def stepped(dz: Any) -> Any:
+        try:
+            p, e, h0 = layout.unpack(z + dz)
+        except (ValueError, OverflowError):
+            return None
+        xs = simulate_chain(p, e, record.u, record.dt, h0)
+        return None if xs is None else record.x - xs
+
+    cv = blocked_cv(solved.jacobian, record.x - solved.x, folds, simulate=stepped)
+    return _Scored(fr, cv, solved.x, solved.jacobian)
 
 
 def _trial_fit(
@@ -227,18 +243,27 @@ def _delay_shift(
     return fitted.params, fitted.h0, start
 
 
-def _credit(trial: _Scored, reference: _Scored, ref_rms: float) -> dict[str, Any]:
+def _credit(trial: _Scored, reference: _Scored, ref_rms: float, ref_in_sample: float) -> dict[str, Any]:
     """What a trial is credited with against the reference (the better of the current
-    model and the null trial): overall, per fold and where it acts."""
+    model and the null trial): overall, per fold and where it acts. ``gain_over_null``
+    is the cut of the cross-validated error (against ``ref_rms``), but no more than the
+    cut of the in-sample error against ``ref_in_sample`` (the lower of the current
+    model's and the null trial's): an effect that fits the record no better than the
+    model without it is not credited with refits of the blocks that happen to
+    extrapolate better with one more unknown beside them."""
     cv, ref = trial.cv, reference.cv
     acts = np.abs(trial.x - reference.x)
     k = max(1, round(LOCAL_SHARE * acts.size))
     where = np.argpartition(acts, acts.size - k)[acts.size - k :]
     local_ref = rms(ref.residual[where])
+    cv_gain = 1.0 - cv.rms_um / ref_rms if ref_rms > 0 else 0.0
+    in_sample_gain = 1.0 - cv.in_sample_rms_um / ref_in_sample if ref_in_sample > 0 else 0.0
     return {
         "cv_rms_um": cv.rms_um,
         "in_sample_rms_um": cv.in_sample_rms_um,
-        "gain_over_null": 1.0 - cv.rms_um / ref_rms if ref_rms > 0 else 0.0,
+        "cv_gain": cv_gain,
+        "in_sample_gain": in_sample_gain,
+        "gain_over_null": min(cv_gain, in_sample_gain),
         "fold_gains": [1.0 - a / b if b > 0 else 0.0 for a, b in zip(cv.fold_rms_um, ref.fold_rms_um)],
         "local_gain": 1.0 - rms(cv.residual[where]) / local_ref if local_ref > 0 else 0.0,
     }
@@ -344,6 +369,10 @@ def score_round(
         scored_null = null_run.result()
         return scored_cur if cur_cv.rms_um <= scored_null.cv.rms_um else scored_null
 
+    def in_sample_reference() -> float:
+        """The lower in-sample RMS error [µm] of the current model and the null trial."""
+        return min(cur_cv.in_sample_rms_um, null_run.result().cv.in_sample_rms_um)
+
     def trial(name: str) -> _Scored | str:
         t0 = time.perf_counter()
         if starts is not None and name in starts:
@@ -367,7 +396,7 @@ def score_round(
             return fr
         scored = _scored(record, fr, folds)
         ref = reference()
-        c = _credit(scored, ref, ref.cv.rms_um)
+        c = _credit(scored, ref, ref.cv.rms_um, in_sample_reference())
         tell(
             f"  + {name:9s}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
             f"where it acts {c['local_gain']:+.1%}; {time.perf_counter() - t0:.1f} s)"
@@ -396,7 +425,10 @@ def score_round(
             trials[name] = {"rejected": outcome}
             continue
         fits[name] = outcome
-        trials[name] = {**_credit(outcome, reference_fit, ref_rms), "fitted": outcome.fit.effects.to_dict().get(name)}
+        trials[name] = {
+            **_credit(outcome, reference_fit, ref_rms, in_sample_reference()),
+            "fitted": outcome.fit.effects.to_dict().get(name),
+        }
     ranked = sorted(fits, key=lambda k: trials[k]["cv_rms_um"])
     earning = [k for k in ranked if _earns(trials[k], min_gain)]
     lookalike = lookalike_tests(record, reference_fit.x)
@@ -446,8 +478,8 @@ def _delay_hopeless(record: Record, current: Solved, folds: int) -> bool:
     """A delay cannot earn its parameters: adding the model's rate ẋ̂ (the first-order
     change a small delay makes) as one more column of the Jacobian of ``current`` (over
     ``record``) cuts the cross-validated error by less than :data:`LOCAL_FLOOR`."""
-    cv = _scored(record, current, folds).cv
     xs = current.x
+    cv = blocked_cv(current.jacobian, record.x - xs, folds)
     with_rate = blocked_cv(np.column_stack([current.jacobian, np.gradient(xs)]), record.x - xs, folds)
     return bool(with_rate.rms_um > (1.0 - LOCAL_FLOOR) * cv.rms_um)
 
@@ -464,6 +496,36 @@ def _cost(record: Record, current: ExtendedFit, effects: EffectSet, basis: Any =
     if basis is not None:
         r = r - basis @ (basis.T @ r)
     return rms(r)
+
+
+def _rebased(record: Record, kept: ExtendedFit, *, seed: int, workers: int | None, q: int) -> ExtendedFit | None:
+    """``kept`` refitted from a fresh base model: the base model fitted from scratch
+    (global stage and all) on the record less what the kept effects add to the kept
+    base model, then everything refitted from there. A base model fitted without the
+    effect may have found a basin where its hysteresis imitates the effect (the rate
+    term δ·u·sgn(u̇) integrating into a drift, kv and A cancelling); the trial that
+    adds the effect starts in that basin and a few iterations do not leave it. None
+    when the fresh start cannot be simulated or fitted."""
+    u, dt = record.u, record.dt
+    with_effects = simulate_chain(kept.params, kept.effects, u, dt, kept.h0)
+    without = simulate_chain(kept.params, EffectSet(), u, dt, kept.h0)
+    if with_effects is None or without is None:
+        return None
+    try:
+        plain = validate_record(u, record.x - (with_effects - without), dt)
+        base = fit_record(plain, seed=seed, workers=workers, decimate=q if q > 1 else None)
+        return fit_extended_record(
+            record, base.params, kept.effects, base.h0, workers=workers, max_nfev=REBASE_NFEV, tol=TRIAL_TOL
+        )
+    except ValueError:
+        return None
+
+
+def _partial(before_um: float, after_um: float, left: Unexplained) -> bool:
+    """The model with the effects kept leaves a residual ``left`` not consistent with
+    noise and removes less than :data:`PARTIAL_SHARE` of the base model's mean-square
+    error beyond the noise (RMS errors before and after [µm])."""
+    return not left.consistent_with_noise and _explained_share(before_um, after_um, left.noise_um) < PARTIAL_SHARE
 
 
 def _explained_share(before_um: float, after_um: float, noise_um: float) -> float:
@@ -592,9 +654,11 @@ def diagnose_record(
     # ∂x̂/∂z of the current model over the full record, once known (a round on the
     # full record that keeps an effect has it).
     current_jac: Any = None
+    # What the current model leaves, once an effect is kept.
+    left_now: Unexplained | None = None
 
     while len(added) < max_effects:
-        if added and unexplained(record, current.simulate(u, dt)).consistent_with_noise:
+        if left_now is not None and left_now.consistent_with_noise:
             # What the effects kept leave is noise: nothing is left for another to explain.
             say("the residual is consistent with noise: nothing left to explain")
             evidence["stopped"] = "the residual of the effects kept is consistent with noise"
@@ -641,13 +705,26 @@ def diagnose_record(
                 round_.evidence["screening"] = screened.evidence
         evidence["rounds"].append(round_.evidence)
         if round_.kept is None:
-            say("nothing left that earns its parameters under cross-validation")
-            break
-        current = round_.kept
-        # The kept fit's Jacobian is over the full record unless the screened round is the result.
-        current_jac = None if round_ is screened else round_.kept_jacobian
-        added.append(round_.evidence["most_likely"])
-        say(f"kept {added[-1]}: RMS {current.rms_um:.4g} µm")
+            fresh = None
+            if left_now is not None and "rebased" not in evidence and _partial(base.rms_um, current.rms_um, left_now):
+                # The effects kept explain too little to be named: refitted once from a
+                # fresh base model, the search goes on from there if that fits better.
+                fresh = _rebased(record, current, seed=seed, workers=workers, q=q)
+                evidence["rebased"] = {"rms_um": current.rms_um, "fresh_rms_um": fresh.rms_um if fresh else None}
+                if fresh is not None and fresh.rms_um >= current.rms_um:
+                    fresh = None
+            if fresh is None:
+                say("nothing left that earns its parameters under cross-validation")
+                break
+            say(f"refitted from a fresh base model: RMS {current.rms_um:.4g} → {fresh.rms_um:.4g} µm")
+            current, current_jac = fresh, None
+        else:
+            current = round_.kept
+            # The kept fit's Jacobian is over the full record unless the screened round is the result.
+            current_jac = None if round_ is screened else round_.kept_jacobian
+            added.append(round_.evidence["most_likely"])
+            say(f"kept {added[-1]}: RMS {current.rms_um:.4g} µm")
+        left_now = unexplained(record, current.simulate(u, dt))
 
     if added:
         say("refitting on the whole record")
@@ -663,7 +740,7 @@ def diagnose_record(
         effect_set = EffectSet()
     left = unexplained(record, x_ext)
     share = _explained_share(rms(x - x_base), rms(x - x_ext), left.noise_um)
-    if added and not left.consistent_with_noise and share < PARTIAL_SHARE:
+    if added and _partial(rms(x - x_base), rms(x - x_ext), left):
         # The effects kept explain too little of the error beyond the noise for their
         # names to be the explanation: the record is reported as unexplained instead.
         say(f"{', '.join(added)}: {share:.0%} of the error beyond the noise explained; not named")
