@@ -31,7 +31,7 @@ not told what it contains, and:
    parameters when that cut is at least ``min_gain`` (10 %), or — for evidence that is
    local — when it cuts the cross-validated error by at least 30 % on the 10 % of
    samples it changes most and by at least 3 % overall;
-6. of the effects that earn their parameters the one of least cross-validated error is
+6. of the effects that earn their parameters the one of largest credit is
    kept; when the first two belong to one group of look-alikes (creep / drift / gain
    drift; delay / input lag / resonance) and their credits differ by less than
    1 point, the group's test decides (:mod:`~boucwen.diagnosis.lookalike`: creep

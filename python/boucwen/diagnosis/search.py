@@ -429,7 +429,7 @@ def score_round(
             **_credit(outcome, reference_fit, ref_rms, in_sample_reference()),
             "fitted": outcome.fit.effects.to_dict().get(name),
         }
-    ranked = sorted(fits, key=lambda k: trials[k]["cv_rms_um"])
+    ranked = sorted(fits, key=lambda k: -trials[k]["gain_over_null"])
     earning = [k for k in ranked if _earns(trials[k], min_gain)]
     lookalike = lookalike_tests(record, reference_fit.x)
     present = set(current.effects.names)
