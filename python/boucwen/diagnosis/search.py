@@ -140,11 +140,7 @@ def _scored(record: Record, solved: Solved, folds: int) -> _Scored:
     z = layout.pack(fr.params, fr.effects, fr.h0)
 
     def stepped(dz: Any) -> Any:
-        try:
-            p, e, h0 = layout.unpack(z + dz)
-        except (ValueError, OverflowError):
-            return None
-        xs = simulate_chain(p, e, record.u, record.dt, h0)
+        xs = layout.simulate(z + dz, record.u, record.dt)
         return None if xs is None else record.x - xs
 
     cv = blocked_cv(solved.jacobian, record.x - solved.x, folds, simulate=stepped)

@@ -104,6 +104,15 @@ class Layout:
             i += k
         return params, effect_set(*fitted), h0
 
+    def simulate(self, v: FloatArray, u: FloatArray, dt: float) -> FloatArray | None:
+        """x [µm] of the extended model with the unknowns ``v`` over the voltage ``u``
+        [V] sampled every ``dt`` [s]; None when ``v`` is invalid or cannot be simulated."""
+        try:
+            p, e, h0 = self.unpack(v)
+        except (ValueError, OverflowError):
+            return None
+        return simulate_chain(p, e, u, dt, h0)
+
     def constant_columns(self) -> dict[int, float]:
         """``{index of x0: 1.0}``: x0 is an offset of x̂ (∂x̂/∂x0 = 1 at every sample)
         through every effect but a saturation (the resonances have unit static gain and
@@ -184,11 +193,7 @@ class _Chain:
         self.layout, self.u, self.dt = layout, u, dt
 
     def __call__(self, v: FloatArray) -> FloatArray | None:
-        try:
-            p, e, h0 = self.layout.unpack(v)
-        except (ValueError, OverflowError):
-            return None
-        return simulate_chain(p, e, self.u, self.dt, h0)
+        return self.layout.simulate(v, self.u, self.dt)
 
 
 def _typical(layout: Layout, v0: FloatArray, u: FloatArray, x: FloatArray) -> FloatArray:
