@@ -235,7 +235,7 @@ def _substeps(p: RefParams, h: float, hn: float, k1: float, dt: float, udot: flo
 
 
 #: Largest relative distance |ε| = |(h − h_ref)/h_ref| at which |h|^n is taken from its series.
-NEAR_POWER_MAX_EPS = 0.01
+NEAR_POWER_MAX_EPS = 0.02
 #: Largest |ε| of an interval's end at which its |h|^n is taken from the series and carried
 #: to the next interval (the dropped ε⁵ term is then at the level of rounding).
 NEAR_POWER_CARRY_EPS = 1e-3
@@ -248,15 +248,15 @@ class _NearPower:
 
     def __init__(self, n: float, h_ref: float, hn_ref: float) -> None:
         c1 = n
-        c2 = c1 * (n - 1.0) / 2.0
-        c3 = c2 * (n - 2.0) / 3.0
-        c4 = c3 * (n - 3.0) / 4.0
+        c2 = c1 * (n - 1.0) * 0.5  # cₖ = cₖ₋₁·(n − k + 1)·(1/k), as the core computes it
+        c3 = c2 * (n - 2.0) * (1.0 / 3.0)
+        c4 = c3 * (n - 3.0) * 0.25
         self.inv_ref = 1.0 / h_ref if h_ref != 0.0 else 0.0
         self.hn_ref = hn_ref
         self.a = (hn_ref * c1, hn_ref * c2, hn_ref * c3, hn_ref * c4)
 
     def power(self, e: float) -> float | None:
-        """|h|^n for the ε `e` of h, or None where the series does not apply (|ε| > 0.01)."""
+        """|h|^n for the ε `e` of h, or None where the series does not apply (|ε| > 0.02)."""
         if self.inv_ref == 0.0 or abs(e) > NEAR_POWER_MAX_EPS:
             return None
         a1, a2, a3, a4 = self.a

@@ -8,9 +8,11 @@
 //! - [`integrator`]: the one integrator of eq. (5) (sub-step rule and stages), generic
 //!   over the number type so that the sensitivities take the same steps;
 //! - [`scalar`]: `f64` and the forward-mode [`scalar::Dual`] it runs on;
+//! - `lanes`: several channels side by side, for the integrator's branch-free path (the bank);
 //! - here: the output equation, the per-sample [`Model`], [`simulate`] and the paper's input.
 
 pub mod integrator;
+pub(crate) mod lanes;
 pub mod scalar;
 
 use alloc::vec;
