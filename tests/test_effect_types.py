@@ -116,9 +116,9 @@ STARTS = {
 
 
 def _same_starts(got, want):
-    """The start lists agree in length, keys and integers, and in every float to a few
-    units of the last place: the grids come from NumPy (``geomspace``), whose last bit
-    may differ between releases."""
+    """The start lists agree in length, keys and integers, and in every float to 1e-14
+    relative: the grids come from NumPy (``geomspace``), whose last bit may differ
+    between releases."""
     if isinstance(want, dict):
         return isinstance(got, dict) and got.keys() == want.keys() and all(_same_starts(got[k], want[k]) for k in want)
     if isinstance(want, list):
