@@ -197,6 +197,38 @@ def test_h_stands_still_while_u_holds_and_zero_h_gives_exactly_zero_rate():
     assert h == 0.0 and np.all(np.isfinite(x))
 
 
+# The estimates the paper method reaches late in the latency record (N = 1 000): β ≈ −γ,
+# n = 4, δ = 22 µm/(V·s). Many intervals of the paper input are stiff for them.
+STIFF = PAPER.replace(A=-0.0525, beta=0.00256, gamma=-0.00256, n=4.0, delta=22.18)
+
+
+@pytest.mark.parametrize(("start", "h0"), [(0, 8.4), (0, -8.4), (-6000, -8.4)])
+def test_stiff_intervals_kept_as_two_half_steps_are_within_the_tolerance(paper_u, start, h0, monkeypatch):
+    """Where the two backward-Euler half steps agree with the whole step they are kept:
+    those intervals end within IMPLICIT_TOLERANCE_UM of a 2000-sub-step solution, and the
+    Rust core takes the same decisions as the reference."""
+    seg = paper_u[start:][:6000]
+    x, _ = boucwen.simulate(STIFF, seg, DT, h0=h0)
+    x_ref, _ = reference.simulate(STIFF, seg, DT, h0=h0)
+    assert _close(x, x_ref, SAME_RULE_TOL)
+    h = x - STIFF.kv * seg - STIFF.x0
+    p = reference.RefParams.from_any(STIFF)
+    kept = []
+    for k in range(seg.size - 1):
+        new = reference.advance_h(p, h[k], seg[k], seg[k + 1], DT)
+        with monkeypatch.context() as m:
+            m.setattr(reference, "TRIAL_ABOVE_SUBSTEPS", 10**9)
+            without_trial = reference.advance_h(p, h[k], seg[k], seg[k + 1], DT)
+        if new != without_trial:
+            kept.append((k, new))
+    assert len(kept) >= 100, len(kept)
+    worst = 0.0
+    for k, new in kept:
+        _, fine = reference.simulate_fine(STIFF, seg[k : k + 2], DT, h0=h[k], substeps=2000, sequential=True)
+        worst = max(worst, abs(new - fine))
+    assert worst <= reference.IMPLICIT_TOLERANCE_UM, worst
+
+
 def test_runaway_parameters_stay_finite(paper_u):
     p = PAPER.replace(beta=-0.5, gamma=-0.5, n=3.0)
     x, h = boucwen.simulate(p, paper_u[:5000], DT)

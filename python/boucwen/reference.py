@@ -41,9 +41,11 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "H_LIMIT_UM",
     "IMPLICIT_SUBSTEPS",
+    "IMPLICIT_TOLERANCE_UM",
     "MAX_SUBSTEPS",
     "MIN_SUBSTEPS",
     "STIFFNESS_STEP",
+    "TRIAL_ABOVE_SUBSTEPS",
     "PaperIdentifier",
     "RefParams",
     "advance_h",
@@ -58,7 +60,13 @@ MIN_SUBSTEPS = 2
 #: Most RK4 sub-steps per sample interval; stiffer intervals take
 #: :data:`IMPLICIT_SUBSTEPS` backward-Euler steps instead.
 MAX_SUBSTEPS = 32
-#: Backward-Euler sub-steps per interval when RK4 would need more than MAX_SUBSTEPS.
+#: RK4 sub-steps beyond which an interval first tries two backward-Euler half steps.
+TRIAL_ABOVE_SUBSTEPS = 16
+#: Largest difference [µm] between one backward-Euler step over the interval and two
+#: half steps at which the two half steps are kept.
+IMPLICIT_TOLERANCE_UM = 1e-4
+#: Backward-Euler sub-steps per interval when RK4 would need more than MAX_SUBSTEPS
+#: and the two half steps do not meet IMPLICIT_TOLERANCE_UM.
 IMPLICIT_SUBSTEPS = 32
 #: Largest |∂ḣ/∂h|·Δt allowed in one RK4 sub-step.
 STIFFNESS_STEP = 0.25
@@ -283,6 +291,14 @@ def advance_h_carried(p: RefParams, h: float, hn: float, u0: float, u1: float, d
     udot = du / dt
     k1_first = hysteresis_rate(p, h, u0, udot, hn)
     m = _substeps(p, h, hn, k1_first, dt, udot)
+    if m is None or m > TRIAL_ABOVE_SUBSTEPS:
+        # Stiff: two backward-Euler half steps where they agree with one whole step.
+        half = dt / 2.0
+        whole = _clamp_h(_implicit_step(p, h, u0 + udot * dt, udot, dt))
+        mid = _clamp_h(_implicit_step(p, h, u0 + udot * half, udot, half))
+        end = _clamp_h(_implicit_step(p, mid, u0 + udot * half * 2.0, udot, half))
+        if abs(whole - end) <= IMPLICIT_TOLERANCE_UM:
+            return end, _abs_pow(end, p.n)
     if m is None:
         step = dt / IMPLICIT_SUBSTEPS
         for i in range(1, IMPLICIT_SUBSTEPS + 1):

@@ -14,7 +14,7 @@
 //!    so the prediction is exactly the model's. Its sensitivities ∂h/∂θ to all
 //!    seven parameters are carried alongside through the same scheme, RK4 on
 //!    sub-steps (the sub-step rule of model.rs: more sub-steps where h may cross
-//!    zero or the interval is stiff, backward Euler beyond [`MAX_SUBSTEPS`](crate::model::MAX_SUBSTEPS), h held
+//!    zero or the interval is stiff, backward Euler on the stiffest (see [`TRIAL_ABOVE_SUBSTEPS`](crate::model::TRIAL_ABOVE_SUBSTEPS)), h held
 //!    within ±[`H_LIMIT_UM`](crate::model::H_LIMIT_UM)), differentiated stage by stage (forward mode), each
 //!    interval starting from the model's h. x̂ₖ uses the estimates from before the
 //!    sample.
