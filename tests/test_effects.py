@@ -161,6 +161,20 @@ def test_fit_extended_recovers_known_effects():
     assert r.rms_um < 0.003
 
 
+def test_a_refit_keeps_creep_that_carries_the_gain_while_kv_is_negative():
+    # A fast creep element carrying the gain with kv < 0 (as a fit mimicking a lag can
+    # end): the static gain kv + Σg is positive, so the creep gains' sign bounds are
+    # the positive ones and the refit starts where it is, at the truth, instead of
+    # having its gains clipped to zero (an error of several µm).
+    u = _u(3000)
+    p = P.replace(kv=-0.04)
+    creep = EffectSet(creep={"tau_s": [0.01, 0.3], "gain_um_per_v": [0.2, 0.01]})
+    x = simulate_extended(p, creep, u, DT) + np.random.default_rng(2).normal(0, 0.002, u.size)
+    r = fit_extended(u, x, DT, p, creep, 0.0, max_nfev=5)
+    assert r.rms_um < 0.003
+    assert min(r.effects.to_dict()["creep"]["gain_um_per_v"]) > 0
+
+
 def test_best_delay_finds_the_shift():
     u = _u(2000)
     x = simulate_extended(P, EffectSet(delay={"samples": 3}), u, DT)

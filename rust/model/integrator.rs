@@ -44,8 +44,8 @@ pub const MAX_SUBSTEPS: u32 = 32;
 /// and the two-step trial does not meet [`IMPLICIT_TOLERANCE_UM`].
 pub const IMPLICIT_SUBSTEPS: u32 = 32;
 /// Largest difference \[µm\] between a stiff interval's backward-Euler end in one step
-/// and in two half steps at which the two half steps are kept (1 pm: far below any
-/// displacement sensor's noise).
+/// and in two half steps at which the two half steps are kept (0.1 nm: ten times below
+/// the noise of the quietest displacement sensors).
 pub const IMPLICIT_TOLERANCE_UM: f64 = 1e-4;
 /// RK4 sub-steps beyond which an interval first tries two backward-Euler steps.
 pub const TRIAL_ABOVE_SUBSTEPS: u32 = 16;

@@ -20,6 +20,7 @@ from ..checks import check_int, check_number
 from ..effects import (
     FN_MAX_NYQUIST_FRACTION,
     VOCABULARY,
+    Drift,
     ExtendedFit,
     Layout,
     Solved,
@@ -29,6 +30,7 @@ from ..effects import (
     simulate_chain,
     solve_extended_record,
 )
+from ..effects.base import with_effect
 from ..fit import fit_record
 from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
@@ -102,6 +104,9 @@ DELAY_STARTS = 2
 REBASE_NFEV = 20
 #: Largest delay tried [samples].
 MAX_DELAY_SAMPLES = 8
+#: Multiples of the least-squares trend of x on (1, u, t) from which a drift trial's
+#: base refit starts (:func:`_drift_start`).
+DRIFT_PROFILE = (0.5, 0.8, 1.0, 1.25)
 
 
 def _solved_at(record: Record, fr: ExtendedFit, workers: int | None, jacobian: Any = None) -> Solved:
@@ -176,6 +181,8 @@ def _trial_fit(
         if isinstance(shift, str):
             return shift
         p0, h0, start = shift
+    elif name == "drift":
+        p0, h0, start = _drift_start(record, current, start, workers=workers, nfev=trial_nfev)
     first = _first_stage(trial_nfev)
     try:
         solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
@@ -237,6 +244,45 @@ def _delay_shift(
     if start is None or fitted.rms_um > (1.0 - LOCAL_FLOOR) * results[0][0].rms_um:
         return f"hopeless: the best shift ({best} samples) fits no better than none"
     return fitted.params, fitted.h0, start
+
+
+def _drift_start(
+    record: Record,
+    current: ExtendedFit,
+    start: EffectSet,
+    *,
+    workers: int | None,
+    nfev: int,
+) -> tuple[Params, float, EffectSet]:
+    """Where a drift trial starts: the current model refitted to the record less a trend
+    r·t for each rate r of :data:`DRIFT_PROFILE` × the least-squares trend of x on
+    (1, u, t), and, as the null, less none (same effort); the base parameters, h0 and
+    drift of the best, or the current fit with ``start`` when no trend fits better by
+    :data:`LOCAL_FLOOR`.
+
+    The current fit has bent its hysteresis (kv, x0, h0) to follow a trend in time,
+    and a drift started at rate 0 from there stays in that bend; the model refitted to
+    the record less a trend starts the trial at the trend. Compared on the screened
+    copy (:func:`_screen_copy`), side by side when there is more than one worker."""
+    q = _screen_copy(record)[1]
+    t = np.arange(record.u.size) * record.dt
+    design = np.column_stack([np.ones_like(t), record.u, t])
+    trend = float(np.linalg.lstsq(design, record.x, rcond=None)[0][2])
+    rates = [0.0, *(f * trend for f in DRIFT_PROFILE)] if trend != 0.0 and math.isfinite(trend) else [0.0]
+
+    def refit(r: float) -> ExtendedFit:
+        less = validate_record(record.u, record.x - r * t, record.dt) if r else record
+        cur = current
+        return fit_extended_record(
+            _decimated(less, q), cur.params, cur.effects, cur.h0, max_nfev=nfev, tol=TRIAL_TOL, workers=workers
+        )
+
+    refits = thread_map(refit, rates, workers)
+    best = min(range(1, len(rates)), key=lambda i: refits[i].rms_um, default=0)
+    if best == 0 or refits[best].rms_um > (1.0 - LOCAL_FLOOR) * refits[0].rms_um:
+        return current.params, current.h0, start
+    fitted = refits[best]
+    return fitted.params, fitted.h0, with_effect(current.effects, Drift(rate_um_per_s=rates[best]))
 
 
 def _credit(trial: _Scored, reference: _Scored, ref_rms: float, ref_in_sample: float) -> dict[str, Any]:

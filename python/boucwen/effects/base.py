@@ -135,9 +135,10 @@ class Effect(ABC):
         """(lower, upper) of each unknown, for the optimiser and the difference steps."""
         return tuple(UNBOUNDED for _ in self.unknowns())
 
-    def sign_bounds(self, kv: float) -> tuple[tuple[float, float], ...]:
-        """(lower, upper) of each unknown that only the optimiser sees, given the base
-        model's kv [µm/V]."""
+    def sign_bounds(self, static_gain: float) -> tuple[tuple[float, float], ...]:
+        """(lower, upper) of each unknown that only the optimiser sees, given the
+        model's static gain [µm/V] (kv plus the creep gains: the displacement per volt
+        once creep has settled, whose sign is the actuator's)."""
         return tuple(UNBOUNDED for _ in self.unknowns())
 
     def typical(self, context: Context, span_u: float, span_x: float) -> tuple[float, ...]:

@@ -38,8 +38,9 @@ class Creep(Effect):
     first voltage.
 
     A fit holds the τ_i fixed (see :func:`creep_time_constants`) and fits the gains,
-    on which the output depends linearly; they share the sign of kv (creep continues
-    the motion a voltage step started).
+    on which the output depends linearly; they share the sign of the static gain
+    kv + Σ g_i (creep continues the motion a voltage step started; kv alone may take
+    either sign when a fast element carries much of the gain).
 
     Attributes:
         tau_s: time constants τ_i [s] (finite, > 0; 1 to 16 of them).
@@ -59,8 +60,8 @@ class Creep(Effect):
     def unpack(self, values: Sequence[float]) -> Creep:
         return replace(self, gain_um_per_v=tuple(float(g) for g in values))
 
-    def sign_bounds(self, kv: float) -> tuple[tuple[float, float], ...]:
-        same_sign = (0.0, math.inf) if kv >= 0 else (-math.inf, 0.0)
+    def sign_bounds(self, static_gain: float) -> tuple[tuple[float, float], ...]:
+        same_sign = (0.0, math.inf) if static_gain >= 0 else (-math.inf, 0.0)
         return tuple(same_sign for _ in self.tau_s)
 
     def typical(self, context: Context, span_u: float, span_x: float) -> tuple[float, ...]:

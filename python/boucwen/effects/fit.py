@@ -126,10 +126,11 @@ class Layout:
         base[5] = N_BOUNDS
         return _columns(base, [b for e in self.effects for b in e.bounds(self.context)])
 
-    def sign_bounds(self, kv: float) -> tuple[FloatArray, FloatArray]:
-        """Further bounds that only the optimiser sees, for a base model with ``kv``."""
+    def sign_bounds(self, static_gain: float) -> tuple[FloatArray, FloatArray]:
+        """Further bounds that only the optimiser sees, for a model of static gain
+        ``static_gain`` [µm/V] (:func:`static_gain`)."""
         base = [(-np.inf, np.inf)] * len(_BASE)
-        return _columns(base, [b for e in self.effects for b in e.sign_bounds(kv)])
+        return _columns(base, [b for e in self.effects for b in e.sign_bounds(static_gain)])
 
     def typical(self, span_u: float, span_x: float) -> FloatArray:
         """Least typical size of each unknown for a record whose voltage spans
@@ -147,6 +148,15 @@ class Layout:
         floors = [base[name] for name in _BASE]
         floors += [f for e in self.effects for f in e.typical(self.context, span_u, span_x)]
         return np.asarray(floors, dtype=np.float64)
+
+
+def static_gain(params: Params, effects: EffectSet) -> float:
+    """kv plus the creep gains [µm/V]: the displacement per volt once creep has settled,
+    whose sign is the actuator's. The sign bounds of a fit are taken from it rather
+    than from kv, which a fit may move through zero while a fast creep element carries
+    the gain: a refit from such a fit then starts inside its own bounds."""
+    creep = effects.to_dict().get("creep")
+    return params.kv + (float(sum(creep["gain_um_per_v"])) if creep else 0.0)
 
 
 def _columns(base: list[tuple[float, float]], effects: list[tuple[float, float]]) -> tuple[FloatArray, FloatArray]:
@@ -283,10 +293,10 @@ def solve_extended_record(
     layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
     v0 = layout.pack(params, effects, h0)
     # The Jacobian steps backwards only at the layout's own bounds (fc, fn below
-    # Nyquist); the sign bounds (creep gains share the sign of kv) need no such care,
-    # since any sign can be simulated.
+    # Nyquist); the sign bounds (creep gains share the sign of the static gain) need no
+    # such care, since any sign can be simulated.
     lo, step_upper = layout.bounds()
-    sign_lo, sign_hi = layout.sign_bounds(params.kv)
+    sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))
     lo, hi = np.maximum(lo, sign_lo), np.minimum(step_upper, sign_hi)
     margin = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
     v0 = np.clip(v0, lo + margin, hi - margin)
