@@ -69,6 +69,12 @@ pub fn sgn(v: f64) -> f64 {
     }
 }
 
+/// h held within ±[`H_LIMIT_UM`].
+#[inline(always)]
+fn clamp_h(h: f64) -> f64 {
+    h.clamp(-H_LIMIT_UM, H_LIMIT_UM)
+}
+
 /// |h|^n, exactly 0 at h = 0.
 #[inline(always)]
 pub(crate) fn abs_pow(h: f64, n: f64) -> f64 {
@@ -321,10 +327,9 @@ impl ImplicitTrial {
     #[inline]
     fn new(p: &Params, h0: f64, u0: f64, udot: f64, dt: f64) -> Self {
         let half = dt / 2.0;
-        let clamp = |v: f64| v.clamp(-H_LIMIT_UM, H_LIMIT_UM);
         let whole = implicit_step(p, h0, u0 + udot * dt, udot, dt);
         let mid = implicit_step(p, h0, u0 + udot * half, udot, half);
-        let end = implicit_step(p, clamp(mid), u0 + udot * half * 2.0, udot, half);
+        let end = implicit_step(p, clamp_h(mid), u0 + udot * half * 2.0, udot, half);
         ImplicitTrial { mid, end, whole }
     }
 
@@ -332,8 +337,7 @@ impl ImplicitTrial {
     /// difference estimates the two-step end's error: backward Euler is first order).
     #[inline]
     fn agrees(&self) -> bool {
-        let (whole, end) = (self.whole.clamp(-H_LIMIT_UM, H_LIMIT_UM), self.end.clamp(-H_LIMIT_UM, H_LIMIT_UM));
-        (whole - end).abs() <= IMPLICIT_TOLERANCE_UM
+        (clamp_h(self.whole) - clamp_h(self.end)).abs() <= IMPLICIT_TOLERANCE_UM
     }
 }
 
@@ -644,7 +648,7 @@ fn implicit_interval<S: Scalar, L: Law<S>>(
             (Some(t), _) => t.end,
             (None, _) => implicit_step(p, h.re(), u_end.re(), udv, step),
         };
-        let clamped = star.clamp(-H_LIMIT_UM, H_LIMIT_UM);
+        let clamped = clamp_h(star);
         h = if clamped != star {
             S::pinned(clamped)
         } else if S::DERIVATIVES {
@@ -702,10 +706,7 @@ fn advance_from_power<S: Scalar, L: Law<S>>(
         None => abs_pow(hv, p.n),
     };
     let k1_v = rate(&Coefficients::of(p), hv, hn_v, u0.re(), udv, su);
-    let planned = match forced {
-        Some(m) => Some(m),
-        None => substeps(p, hv, k1_v, hn_v, udv, dt),
-    };
+    let planned = forced.or_else(|| substeps(p, hv, k1_v, hn_v, udv, dt));
     let m = match planned {
         Some(m) if forced.is_some() || m <= TRIAL_ABOVE_SUBSTEPS => m,
         _ => {
@@ -750,7 +751,7 @@ fn advance_from_power<S: Scalar, L: Law<S>>(
         let next = h + (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (step / 6.0);
         let v = next.re();
         if v.is_finite() {
-            let clamped = v.clamp(-H_LIMIT_UM, H_LIMIT_UM);
+            let clamped = clamp_h(v);
             h = if clamped == v { next } else { S::pinned(clamped) };
         }
         e = (h.re() - hv) * near.inv_ref;

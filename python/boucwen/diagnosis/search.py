@@ -210,6 +210,32 @@ def _first_stage(trial_nfev: int) -> int:
     return max(3, trial_nfev // 3)
 
 
+def _refits_beside_null(
+    record: Record,
+    current: ExtendedFit,
+    variants: Sequence[Callable[[Record], Record]],
+    *,
+    workers: int | None,
+    nfev: int,
+) -> tuple[list[ExtendedFit], int, bool]:
+    """The current model refitted to the record itself (the null, first) and to each
+    variant of it (same effort), on the record's screened copy (:func:`_screen_copy`:
+    a variant is made of the full record, then decimated as the copy is), side by side
+    when there is more than one worker. Returns the refits, the index of the best
+    variant's and whether it beats the null's RMS error by :data:`LOCAL_FLOOR`."""
+    q = _screen_factor(record)
+
+    def refit(variant: Callable[[Record], Record] | None) -> ExtendedFit:
+        made = _decimated(variant(record) if variant is not None else record, q)
+        return fit_extended_record(
+            made, current.params, current.effects, current.h0, max_nfev=nfev, tol=TRIAL_TOL, workers=workers
+        )
+
+    refits = thread_map(refit, [None, *variants], workers)
+    best = 1 + int(np.argmin([f.rms_um for f in refits[1:]]))
+    return refits, best, refits[best].rms_um <= (1.0 - LOCAL_FLOOR) * refits[0].rms_um
+
+
 def _delay_shift(
     record: Record,
     current: ExtendedFit,
@@ -219,31 +245,21 @@ def _delay_shift(
     nfev: int,
 ) -> tuple[Params, float, EffectSet] | str:
     """The current model refitted to the record shifted by each delay of ``starts`` and,
-    as the null, not shifted (same effort): the base parameters, h0 and the start of the best shift, or why the delay
-    is hopeless (no shift beats the unshifted fit by :data:`LOCAL_FLOOR`). The refits
-    are independent and run side by side when there is more than one worker.
+    as the null, not shifted (:func:`_refits_beside_null`): the base parameters, h0 and
+    the start of the best shift, or why the delay is hopeless (no shift beats the
+    unshifted fit by :data:`LOCAL_FLOOR`).
 
     The current fit has bent itself to follow the lag; a delay of d samples is the
     model fitted to the record shifted by d, which starts the delay trial right. A
-    record that is screened (:func:`_screen_copy`) is shifted first and then decimated
-    as its screened copy is: the refits (of a model without the delay, to a record
-    shifted in time by whole samples) are compared there."""
-    shifts: list[tuple[int, EffectSet | None]] = [(0, None), *((s.to_dict()["delay"]["samples"], s) for s in starts)]
-    q = _screen_copy(record)[1]
-
-    def refit(d: int) -> ExtendedFit:
-        shifted = _decimated(record.realigned(d) if d else record, q)
-        return fit_extended_record(
-            shifted, current.params, current.effects, current.h0, max_nfev=nfev, tol=TRIAL_TOL, workers=workers
-        )
-
-    refits = thread_map(refit, [d for d, _ in shifts], workers)
-    results = {d: (f, s) for (d, s), f in zip(shifts, refits)}
-    best = min((d for d in results if d), key=lambda d: results[d][0].rms_um)
-    fitted, start = results[best]
-    if start is None or fitted.rms_um > (1.0 - LOCAL_FLOOR) * results[0][0].rms_um:
-        return f"hopeless: the best shift ({best} samples) fits no better than none"
-    return fitted.params, fitted.h0, start
+    screened record is shifted first and then decimated: the refits (of a model
+    without the delay, to a record shifted in time by whole samples) are compared on
+    its screened copy."""
+    delays = [s.to_dict()["delay"]["samples"] for s in starts]
+    variants = [lambda r, d=d: r.realigned(d) for d in delays]
+    refits, best, wins = _refits_beside_null(record, current, variants, workers=workers, nfev=nfev)
+    if not wins:
+        return f"hopeless: the best shift ({delays[best - 1]} samples) fits no better than none"
+    return refits[best].params, refits[best].h0, starts[best - 1]
 
 
 def _drift_start(
@@ -256,33 +272,25 @@ def _drift_start(
 ) -> tuple[Params, float, EffectSet]:
     """Where a drift trial starts: the current model refitted to the record less a trend
     r·t for each rate r of :data:`DRIFT_PROFILE` × the least-squares trend of x on
-    (1, u, t), and, as the null, less none (same effort); the base parameters, h0 and
-    drift of the best, or the current fit with ``start`` when no trend fits better by
-    :data:`LOCAL_FLOOR`.
+    (1, u, t), beside the null (:func:`_refits_beside_null`); the base parameters, h0
+    and drift of the best, or the current fit with ``start`` when no trend fits better
+    by :data:`LOCAL_FLOOR` (or x has no trend).
 
     The current fit has bent its hysteresis (kv, x0, h0) to follow a trend in time,
     and a drift started at rate 0 from there stays in that bend; the model refitted to
-    the record less a trend starts the trial at the trend. Compared on the screened
-    copy (:func:`_screen_copy`), side by side when there is more than one worker."""
-    q = _screen_copy(record)[1]
+    the record less a trend starts the trial at the trend."""
     t = np.arange(record.u.size) * record.dt
     design = np.column_stack([np.ones_like(t), record.u, t])
     trend = float(np.linalg.lstsq(design, record.x, rcond=None)[0][2])
-    rates = [0.0, *(f * trend for f in DRIFT_PROFILE)] if trend != 0.0 and math.isfinite(trend) else [0.0]
-
-    def refit(r: float) -> ExtendedFit:
-        less = validate_record(record.u, record.x - r * t, record.dt) if r else record
-        cur = current
-        return fit_extended_record(
-            _decimated(less, q), cur.params, cur.effects, cur.h0, max_nfev=nfev, tol=TRIAL_TOL, workers=workers
-        )
-
-    refits = thread_map(refit, rates, workers)
-    best = min(range(1, len(rates)), key=lambda i: refits[i].rms_um, default=0)
-    if best == 0 or refits[best].rms_um > (1.0 - LOCAL_FLOOR) * refits[0].rms_um:
+    if trend == 0.0 or not math.isfinite(trend):
+        return current.params, current.h0, start
+    rates = [f * trend for f in DRIFT_PROFILE]
+    variants = [lambda r, rate=rate: validate_record(r.u, r.x - rate * t, r.dt) for rate in rates]
+    refits, best, wins = _refits_beside_null(record, current, variants, workers=workers, nfev=nfev)
+    if not wins:
         return current.params, current.h0, start
     fitted = refits[best]
-    return fitted.params, fitted.h0, with_effect(current.effects, Drift(rate_um_per_s=rates[best]))
+    return fitted.params, fitted.h0, with_effect(current.effects, Drift(rate_um_per_s=rates[best - 1]))
 
 
 def _credit(trial: _Scored, reference: _Scored, ref_rms: float, ref_in_sample: float) -> dict[str, Any]:
@@ -590,12 +598,16 @@ def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool
     return bool(peak["peak_hz"] > FN_MAX_NYQUIST_FRACTION / screen_dt and peak["peak_over_median"] > PEAK_OVER_MEDIAN)
 
 
-def _screen_copy(record: Record) -> tuple[Record, int]:
-    """The record decimated to about :data:`SCREEN_RATE_HZ` (every q-th sample), and q
-    (the record itself and 1 when it is not screened)."""
+def _screen_factor(record: Record) -> int:
+    """The decimation q of the record's screened copy (1 when it is not screened)."""
     q = max(1, int(1.0 / (record.dt * SCREEN_RATE_HZ)))
-    if q == 1 or len(record) <= SCREEN_MIN_SAMPLES:
-        return record, 1
+    return 1 if len(record) <= SCREEN_MIN_SAMPLES else q
+
+
+def _screen_copy(record: Record) -> tuple[Record, int]:
+    """The record decimated to about :data:`SCREEN_RATE_HZ` (every q-th sample,
+    :func:`_screen_factor`), and q (the record itself and 1 when it is not screened)."""
+    q = _screen_factor(record)
     return _decimated(record, q), q
 
 
