@@ -81,22 +81,59 @@ def test_a_drift_the_base_model_bends_to_follow_starts_its_trial_at_the_trend():
     assert _rms(d.x_extended - rec.x_true) < 0.2 * _rms(d.x_base - rec.x_true)
 
 
+def _two_modes(size_um, family, seed, fs_hz, param_set):
+    """A suite record with two resonance modes of nominal size ``size_um`` [µm] at 20 nm
+    of noise, and its diagnosis."""
+    effects = (("resonance", size_um), ("resonance2", size_um))
+    rec = make_suite_record(effects, family, seed, fs_hz=fs_hz, param_set=param_set, noise_um=0.02)
+    return rec, diagnose(rec.u, rec.x, rec.dt, seed=seed)
+
+
 def test_two_modes_near_nyquist_earn_their_parameters():
     # Two modes at 0.4 × the sampling rate, ringing after the steps of a staircase: the
     # straight-line refit of a block predicted the held-out block 6× worse than the
     # model without them; the simulated refit credits the first mode with 30 %.
-    rec = make_suite_record(
-        (("resonance", 0.08), ("resonance2", 0.08)),
-        "staircase",
-        142,
-        fs_hz=10_000.0,
-        param_set="paper_100hz",
-        noise_um=0.02,
-    )
-    d = diagnose(rec.u, rec.x, rec.dt, seed=142)
+    rec, d = _two_modes(0.08, "staircase", 142, 10_000.0, "paper_100hz")
     assert d.effects == ["resonance", "resonance2"]
     assert d.unexplained is not None and d.unexplained.consistent_with_noise
     assert _rms(d.x_extended - rec.x_true) < 0.1 * _rms(d.x_base - rec.x_true)
+
+
+def test_two_modes_a_lone_mode_cannot_fit_are_tried_together():
+    # A single step rings through two modes at 8 kHz (20 kHz sampling), 23× the noise
+    # after the base fit: one mode cuts 3 % and is not kept, so a second mode (tried
+    # only beside a first) was never tried and nothing was named. Both modes started
+    # together, from the lone mode's best start, explain it down to the noise.
+    rec, d = _two_modes(0.02, "single_step", 143, 20_000.0, "paper_200hz")
+    assert d.effects == ["resonance", "resonance2"]
+    first = d.evidence["rounds"][0]["trials"]
+    assert first["resonance2"]["gain_over_null"] > 0.5 > first["resonance"]["gain_over_null"]
+    assert d.unexplained is not None and d.unexplained.ratio_to_noise < 1.2
+    assert _rms(d.x_extended - rec.x_true) < 0.1 * _rms(d.x_base - rec.x_true)
+
+
+def test_a_trial_whose_start_promises_a_cut_is_not_stopped_after_its_first_steps():
+    # Two modes at 1.96 and 2.64 kHz after a single step: the second mode's best start
+    # leaves 0.042 µm after the first-order refit, against the null trial's 0.079 µm,
+    # but its first steps had not yet found their way (0.089 µm) and the trial was
+    # stopped as hopeless; the record ended with a passing delay and 88 % explained.
+    _, d = _two_modes(0.08, "single_step", 151, 10_000.0, "paper_100hz")
+    assert d.effects == ["resonance", "resonance2"]
+    assert d.unexplained is not None and d.unexplained.ratio_to_noise < 1.2
+
+
+def test_an_effect_kept_first_whose_work_a_later_one_does_is_dropped():
+    # An amplifier lag under a staircase (20 kHz, 1 nm noise): creep, whose fastest
+    # element imitates the lag, is kept first; the lag then explains everything. Taken
+    # out, creep costs the lag nothing, and it goes.
+    rec = make_suite_record(
+        (("input_lag", 0.3),), "staircase", 65, fs_hz=20_000.0, param_set="paper_200hz", noise_um=0.001
+    )
+    d = diagnose(rec.u, rec.x, rec.dt, seed=65)
+    assert d.effects == ["input_lag"]
+    pruned = d.evidence["pruned"]
+    assert pruned["creep"]["gain_over_null"] < 0.03 < 0.9 < pruned["input_lag"]["gain_over_null"]
+    assert d.unexplained is not None and d.unexplained.consistent_with_noise
 
 
 def test_trials_side_by_side_give_the_result_of_trials_in_turn():

@@ -13,7 +13,13 @@ not told what it contains, and:
    the registry at run time) not yet in the model: adds it and refits everything on
    the whole record with a small iteration budget (a *trial*), from the start of the
    effect's that fits best once the current model's unknowns are refitted to first
-   order (the current fit has bent itself to follow what the effect describes);
+   order (the current fit has bent itself to follow what the effect describes); a
+   trial no better than the null trial (step 5) after a third of its budget stops
+   there, unless that first-order refit promised a cut of at least ``min_gain``; a
+   second resonance mode is tried beside a first, and while the model has none its
+   trial adds both at once (two peaks close together, or one double peak, which a
+   lone mode cannot fit), kept over the lone mode only when it beats it by
+   ``min_gain``;
 4. scores every model by **blocked cross-validation** over the whole record
    (:mod:`~boucwen.diagnosis.validation`): the record is cut into ``folds`` contiguous
    blocks (4 by default), each held out in turn from a refit on the others, so that
@@ -43,7 +49,12 @@ not told what it contains, and:
    would not be named (step 8: too little of the error explained), they are refitted
    once from a base model fitted afresh to the record less what they add (the base
    model, fitted without them, may sit in a basin where its hysteresis imitates them;
-   ``evidence["rebased"]``); if that fits better, the search goes on from there;
+   ``evidence["rebased"]``); if that fits better, the search goes on from there.
+   Last, a backward step: each effect kept is taken out and the others refitted with
+   the null trial's effort; one that the model with it does not earn against that
+   refit (same rule) was a passenger — a look-alike kept first whose work a later
+   effect does, or an effect credited with what those kept before it had not yet
+   converged to — and is dropped (``evidence["pruned"]``);
 7. refits the base model and the kept effects on the whole record and reports the
    errors, before (base model) and after (with the effects);
 8. tests what the final model leaves against the noise estimated from the record and

@@ -23,6 +23,7 @@ from ..effects import (
     Drift,
     ExtendedFit,
     Layout,
+    Resonance2,
     Solved,
     candidate_starts,
     fit_extended_record,
@@ -30,7 +31,7 @@ from ..effects import (
     simulate_chain,
     solve_extended_record,
 )
-from ..effects.base import with_effect
+from ..effects.base import with_effect, without
 from ..fit import fit_record
 from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
@@ -98,6 +99,12 @@ FOLLOWS_GUARDED = ("follows",)
 #: remove at least this share of the base model's mean-square error beyond the noise
 #: (:func:`_explained_share`); otherwise they are a partial fit of something else.
 PARTIAL_SHARE = 0.9
+#: A trial adding both resonance modes at once starts the second at this multiple of
+#: the first's frequency (distinct, so that the two can part).
+SECOND_MODE_SPLIT = 1.05
+#: ... and its second stage has this many times a trial's evaluations (four unknowns
+#: added, the two modes trading places as they part).
+PAIR_EFFORT = 5
 #: Whole-sample delays whose shifted base fit a delay trial compares.
 DELAY_STARTS = 2
 #: Iteration limit of the refit of a kept effect from a fresh base model (:func:`_rebased`).
@@ -152,30 +159,54 @@ def _scored(record: Record, solved: Solved, folds: int) -> _Scored:
     return _Scored(fr, cv, solved.x, solved.jacobian)
 
 
+def _ranked_starts(
+    name: str, record: Record, current: ExtendedFit, basis: Any, workers: int | None
+) -> tuple[list[EffectSet], float]:
+    """The starts of a trial adding ``name`` to ``current``, best first: least
+    :func:`_cost` beyond the first-order refit of ``basis`` (when given), simulated side
+    by side when there is more than one worker; and what the best leaves [µm] (∞ when
+    not known: one start, or no basis)."""
+    starts = candidate_starts(name, record, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
+    if len(starts) <= 1:
+        return starts, math.inf
+    costs = thread_map(lambda s: _cost(record, current, s, basis), starts, workers)
+    order = [int(k) for k in np.argsort(costs)]
+    return [starts[k] for k in order], float(costs[order[0]]) if basis is not None else math.inf
+
+
 def _trial_fit(
     name: str,
     record: Record,
     current: ExtendedFit,
     null_rms: Callable[[], float],
+    ranked: Callable[[str], tuple[list[EffectSet], float]],
     *,
-    seed: int,
     workers: int | None,
     trial_nfev: int,
     basis: Any = None,
 ) -> Solved | str:
-    """Adds ``name`` to ``current`` from its best start and refits everything, in two
-    stages: a trial no better than the null trial after a third of ``trial_nfev``
-    evaluations is stopped there, the others go on for ``trial_nfev`` more (the second
-    stage restarts the optimiser's trust region, which spends evaluations). The best start is the one of least
-    :func:`_cost` (beyond the first-order refit of ``basis``, when given; the starts are
-    simulated side by side when there is more than one worker). ``null_rms``
-    gives the null trial's RMS error [µm] (it waits for the null trial when that runs
-    beside this one). Returns the fit, or why there is none."""
-    starts = candidate_starts(name, record, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
-    if len(starts) > 1:
-        order = np.argsort(thread_map(lambda s: _cost(record, current, s, basis), starts, workers))
-        starts = [starts[int(k)] for k in order[: DELAY_STARTS if name == "delay" else 1]]
+    """Adds ``name`` to ``current`` from its best start (``ranked``: the starts of an
+    effect best first and what the best leaves, :func:`_ranked_starts`) and refits
+    everything, in two stages: a trial no better than the null trial after a third of
+    ``trial_nfev`` evaluations is stopped there unless its best start promises a cut
+    of at least :data:`MIN_GAIN` beyond the first-order refit of ``basis``, the others
+    go on for ``trial_nfev`` more (the second stage restarts the optimiser's trust
+    region, which spends evaluations). ``null_rms`` gives the null trial's RMS error
+    [µm] (it waits for the null trial when that runs beside this one). Returns the fit,
+    or why there is none."""
+    pair = _two_modes(name, current)
+    starts, predicted = ranked("resonance" if pair else name)
+    starts = starts[: DELAY_STARTS if name == "delay" else 1]
     p0, h0, start = current.params, current.h0, starts[0]
+    if pair:
+        # Two modes where the data hold two peaks close together (or one double peak),
+        # which a lone mode cannot fit: the second starts beside the first's best
+        # start, and goes on only where it promises more than that start alone.
+        mode = start.to_dict()["resonance"]
+        start = with_effect(start, Resonance2(fn_hz=SECOND_MODE_SPLIT * mode["fn_hz"], zeta=mode["zeta"]))
+        alone, predicted = predicted, _cost(record, current, start, basis)
+        if not predicted <= (1.0 - LOCAL_FLOOR) * alone:
+            return "hopeless: two modes promise no more than the first alone"
     if name == "delay":
         shift = _delay_shift(record, current, starts, workers=workers, nfev=trial_nfev)
         if isinstance(shift, str):
@@ -187,20 +218,29 @@ def _trial_fit(
     try:
         solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
         fr = solved.fit
-        if fr.rms_um >= null_rms():
+        if fr.rms_um >= null_rms() and not predicted <= (1.0 - MIN_GAIN) * null_rms():
+            # A start whose first-order refit promises a cut goes on: its first steps
+            # may still be finding their way (a second mode beside the first).
             return "hopeless: no better than the null trial after a third of the effort"
         if not fr.success:
             solved = solve_extended_record(
-                record, fr.params, fr.effects, fr.h0, max_nfev=trial_nfev, tol=TRIAL_TOL, workers=workers
+                record,
+                fr.params,
+                fr.effects,
+                fr.h0,
+                max_nfev=PAIR_EFFORT * trial_nfev if pair else trial_nfev,
+                tol=TRIAL_TOL,
+                workers=workers,
             )
     except ValueError as exc:
         return str(exc)
-    mode = solved.fit.effects.to_dict().get(name)
-    if isinstance(mode, dict) and "zeta" in mode and mode["zeta"] >= PEAK_ZETA:
-        # A second-order low-pass (either resonance mode) has a peak only for ζ < 1/√2:
-        # without one it is a lag shape the other effects describe; recorded, but not a
-        # candidate.
-        return f"no resonance peak: fitted zeta {mode['zeta']:.3g} ≥ 1/√2"
+    fitted: dict[str, Any] = dict(solved.fit.effects.to_dict())
+    for got in [fitted.get(k) for k in (("resonance", name) if pair else (name,))]:
+        if isinstance(got, dict) and "zeta" in got and got["zeta"] >= PEAK_ZETA:
+            # A second-order low-pass (either resonance mode) has a peak only for ζ < 1/√2:
+            # without one it is a lag shape the other effects describe; recorded, but not
+            # a candidate.
+            return f"no resonance peak: fitted zeta {got['zeta']:.3g} ≥ 1/√2"
     return solved
 
 
@@ -343,18 +383,27 @@ class Round:
         ranked: the candidates' fits, best first (those that earn their parameters).
         kept_jacobian: ∂x̂/∂z of ``kept`` over the round's record (µm per unit of each
             unknown of its :class:`~boucwen.effects.Layout`), or None.
+        null: the null trial, scored over the round's record.
     """
 
     evidence: dict[str, Any]
     kept: ExtendedFit | None
     ranked: list[tuple[str, ExtendedFit]]
     kept_jacobian: Any = None
+    null: _Scored | None = None
 
 
 def candidates(present: Sequence[str]) -> tuple[str, ...]:
     """The effects of the vocabulary a round tries beside those `present`: every one not
-    yet in the model, a second resonance mode only once a first is in."""
-    return tuple(n for n in VOCABULARY if n not in present and (n != "resonance2" or "resonance" in present))
+    yet in the model (``resonance2`` without ``resonance``: both modes at once, see
+    :func:`_trial_fit`)."""
+    return tuple(n for n in VOCABULARY if n not in present)
+
+
+def _two_modes(name: str, current: ExtendedFit) -> bool:
+    """The trial of ``name`` adds both resonance modes at once: ``resonance2`` while the
+    model has no ``resonance``."""
+    return name == "resonance2" and "resonance" not in current.effects.names
 
 
 def score_round(
@@ -423,6 +472,17 @@ def score_round(
         """The lower in-sample RMS error [µm] of the current model and the null trial."""
         return min(cur_cv.in_sample_rms_um, null_run.result().cv.in_sample_rms_um)
 
+    # The starts of each effect, ranked once per round (the two-mode trial ranks the
+    # first mode's starts as the lone mode's trial does: whichever comes second waits).
+    rank_locks = {name: threading.Lock() for name in VOCABULARY}
+    rankings: dict[str, tuple[list[EffectSet], float]] = {}
+
+    def starts_of(name: str) -> tuple[list[EffectSet], float]:
+        with rank_locks[name]:
+            if name not in rankings:
+                rankings[name] = _ranked_starts(name, record, current, basis, workers)
+            return rankings[name]
+
     def trial(name: str) -> _Scored | str:
         t0 = time.perf_counter()
         if starts is not None and name in starts:
@@ -436,7 +496,7 @@ def score_round(
                 record,
                 current,
                 lambda: null_run.result().fit.rms_um,
-                seed=seed,
+                starts_of,
                 workers=workers,
                 trial_nfev=trial_nfev,
                 basis=basis,
@@ -490,6 +550,16 @@ def score_round(
             for k in [k for k in earning if k in members and k != said]:
                 earning.remove(k)
                 refused[k] = f"a look-alike is in the model and the {test!r} test names {said!r}"
+    pair, lone = trials.get("resonance2", {}), trials.get("resonance", {})
+    if (
+        "resonance" in earning
+        and "resonance2" in earning
+        and "resonance" not in present
+        and pair["cv_rms_um"] > (1.0 - min_gain) * lone["cv_rms_um"]
+    ):
+        # Both modes at once earn their two more parameters only beyond the lone mode.
+        earning.remove("resonance2")
+        refused["resonance2"] = "two modes fit no better than one by the least gain"
     decision = None
     if len(earning) >= 2:
         a, b = earning[0], earning[1]
@@ -521,6 +591,7 @@ def score_round(
         kept=fits[best].fit if keep and best is not None else None,
         ranked=[(k, fits[k].fit) for k in earning],
         kept_jacobian=fits[best].jacobian if keep and best is not None else None,
+        null=scored_null,
     )
 
 
@@ -586,6 +657,57 @@ def _explained_share(before_um: float, after_um: float, noise_um: float) -> floa
     if not excess > 0:
         return 1.0
     return 1.0 - max(after_um**2 - noise_um**2, 0.0) / excess
+
+
+def _pruned(
+    record: Record,
+    screen: Record,
+    current: ExtendedFit,
+    added: list[str],
+    evidence: dict[str, Any],
+    *,
+    null: _Scored | None,
+    folds: int,
+    min_gain: float,
+    workers: int | None,
+    say: Callable[[str], None],
+) -> tuple[ExtendedFit, list[str]]:
+    """The backward step: each effect kept, in the order kept, is taken out and the
+    others refitted with the null trial's effort; an effect that the model with it,
+    refitted alike, does not earn against that refit by the rule that kept it
+    (:func:`_earns`) was a passenger: a look-alike kept first whose work a later effect
+    does, or an effect credited with what the effects kept before it had not yet
+    converged to. It is dropped. On the screened copy when the model can be simulated
+    there (else on the record). The first mode of a resonance is not taken out while
+    the second is in. ``null``: the model with them all so refitted, on the
+    copy used, when the last round has it. Returns the model and the effects left;
+    ``evidence["pruned"]`` gets each credit."""
+    simulable = simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is not None
+    on = screen if simulable else record
+    effort = _first_stage(TRIAL_NFEV) + TRIAL_NFEV
+
+    def refit(effects: EffectSet) -> _Scored:
+        solved = solve_extended_record(on, current.params, effects, current.h0, max_nfev=effort, workers=workers)
+        return _scored(on, solved, folds)
+
+    full = null if null is not None and simulable else refit(current.effects)
+    credits: dict[str, Any] = {}
+    for name in list(added):
+        if name == "resonance" and "resonance2" in current.effects.names:
+            continue
+        rest = refit(without(current.effects, name))
+        c = _credit(full, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um)
+        credits[name] = c
+        say(
+            f"  backward {name:9s}: over the others refitted without it {c['gain_over_null']:+.1%}, "
+            f"where it acts {c['local_gain']:+.1%}"
+        )
+        if not _earns(c, min_gain):
+            say(f"dropped {name}: it does not earn its parameters beside the effects kept after it")
+            current, full = rest.fit, rest
+            added = [k for k in added if k != name]
+    evidence["pruned"] = credits
+    return current, added
 
 
 def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool:
@@ -710,6 +832,7 @@ def diagnose_record(
     current_jac: Any = None
     # What the current model leaves, once an effect is kept.
     left_now: Unexplained | None = None
+    last_null: _Scored | None = None
 
     while len(added) < max_effects:
         if left_now is not None and left_now.consistent_with_noise:
@@ -739,7 +862,7 @@ def diagnose_record(
                     say("  - delay    : hopeless: the model's rate does not explain the residual")
                     full_only.remove("delay")
             if "resonance" in names and _peak_beyond(record, current, screen.dt):
-                full_only.append("resonance")
+                full_only += ["resonance", "resonance2"]
             todo = tuple(k for k in VOCABULARY if k in confirm or k in full_only)
             say(f"confirming {list(todo)} on the full record")
             round_ = (
@@ -769,17 +892,35 @@ def diagnose_record(
                     fresh = None
             if fresh is None:
                 say("nothing left that earns its parameters under cross-validation")
+                if round_ is screened or q == 1:
+                    # The current model refitted with the null trial's effort, on the copy
+                    # the backward step uses.
+                    last_null = round_.null
                 break
             say(f"refitted from a fresh base model: RMS {current.rms_um:.4g} → {fresh.rms_um:.4g} µm")
             current, current_jac = fresh, None
         else:
+            new = [k for k in round_.kept.effects.names if k not in current.effects.names]
             current = round_.kept
             # The kept fit's Jacobian is over the full record unless the screened round is the result.
             current_jac = None if round_ is screened else round_.kept_jacobian
-            added.append(round_.evidence["most_likely"])
-            say(f"kept {added[-1]}: RMS {current.rms_um:.4g} µm")
+            added += new
+            say(f"kept {', '.join(new)}: RMS {current.rms_um:.4g} µm")
         left_now = unexplained(record, current.simulate(u, dt))
 
+    if len(added) >= 2:
+        current, added = _pruned(
+            record,
+            screen,
+            current,
+            added,
+            evidence,
+            null=last_null,
+            folds=folds,
+            min_gain=min_gain,
+            workers=workers,
+            say=say,
+        )
     if added:
         say("refitting on the whole record")
         ext = fit_extended_record(
