@@ -54,7 +54,9 @@ not told what it contains, and:
    the null trial's effort; one that the model with it does not earn against that
    refit (same rule) was a passenger — a look-alike kept first whose work a later
    effect does, or an effect credited with what those kept before it had not yet
-   converged to — and is dropped (``evidence["pruned"]``);
+   converged to — and is dropped (``evidence["pruned"]``); a kept creep, drift or gain
+   drift (or delay or input lag) whose residual without it the group's test attributes
+   to another member is swapped for that one where it earns as much, within 1 point;
 7. refits the base model and the kept effects on the whole record and reports the
    errors, before (base model) and after (with the effects);
 8. tests what the final model leaves against the noise estimated from the record and

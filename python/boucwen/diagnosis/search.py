@@ -38,7 +38,7 @@ from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
 from .evidence import delay_evidence, residual_evidence_record
-from .lookalike import GROUPS, lookalike_tests
+from .lookalike import GROUPS, lookalike_tests, phase_shape, what_it_follows
 from .report import Diagnosis, jsonable
 from .unexplained import Unexplained, unexplained
 from .validation import FOLDS, CrossValidation, blocked_cv
@@ -105,6 +105,9 @@ SECOND_MODE_SPLIT = 1.05
 #: ... and its second stage has this many times a trial's evaluations (four unknowns
 #: added, the two modes trading places as they part).
 PAIR_EFFORT = 5
+#: Look-alikes the backward step may swap for one another (:func:`_look_alike_swap`).
+SWAP_FOLLOWS = GROUPS["follows"]
+SWAP_PHASE = ("delay", "input_lag")
 #: Whole-sample delays whose shifted base fit a delay trial compares.
 DELAY_STARTS = 2
 #: Iteration limit of the refit of a kept effect from a fresh base model (:func:`_rebased`).
@@ -677,8 +680,10 @@ def _pruned(
     refitted alike, does not earn against that refit by the rule that kept it
     (:func:`_earns`) was a passenger: a look-alike kept first whose work a later effect
     does, or an effect credited with what the effects kept before it had not yet
-    converged to. It is dropped. On the screened copy when the model can be simulated
-    there (else on the record). The first mode of a resonance is not taken out while
+    converged to. It is dropped. One that earns its place may still be a look-alike
+    of the right effect, kept before its partner was in the model: it is swapped
+    where :func:`_look_alike_swap` finds the other. On the screened copy when the
+    model can be simulated there (else on the record). The first mode of a resonance is not taken out while
     the second is in. ``null``: the model with them all so refitted, on the
     copy used, when the last round has it. Returns the model and the effects left;
     ``evidence["pruned"]`` gets each credit."""
@@ -706,8 +711,66 @@ def _pruned(
             say(f"dropped {name}: it does not earn its parameters beside the effects kept after it")
             current, full = rest.fit, rest
             added = [k for k in added if k != name]
+            continue
+        swap = _look_alike_swap(on, name, rest, c, min_gain=min_gain, folds=folds, workers=workers)
+        if swap is not None:
+            other, scored, c_other = swap
+            c["swapped_for"] = {other: c_other}
+            say(
+                f"swapped {name} for {other}: the residual without {name} follows {other} (look-alike test), "
+                f"which earns {c_other['gain_over_null']:+.1%} in its place ({name}: {c['gain_over_null']:+.1%})"
+            )
+            current, full = scored.fit, scored
+            added = [other if k == name else k for k in added]
     evidence["pruned"] = credits
     return current, added
+
+
+def _look_alike_swap(
+    on: Record,
+    name: str,
+    rest: _Scored,
+    credit: dict[str, Any],
+    *,
+    min_gain: float,
+    folds: int,
+    workers: int | None,
+) -> tuple[str, _Scored, dict[str, Any]] | None:
+    """For a kept creep, drift or gain drift, or a kept delay or input lag (``name``,
+    credited with ``credit`` against ``rest``, the others refitted without it): the
+    look-alike that the group's test names on the residual of ``rest``
+    (:mod:`~boucwen.diagnosis.lookalike`), tried in its place from ``rest`` like a
+    trial, with its scored fit and credit, where it earns its parameters and its
+    credit is within :data:`LOOKALIKE_MARGIN` of ``name``'s or above; else None. A
+    look-alike kept in an earlier round, before the effect it was paired with was in
+    the model, is thus told apart the way a round tells two apart. (The resonance
+    modes are not swapped: their peak is its own evidence.)"""
+    if name in SWAP_FOLLOWS:
+        group, said = SWAP_FOLLOWS, what_it_follows(on, rest.x)["follows"]
+    elif name in SWAP_PHASE:
+        group, said = SWAP_PHASE, phase_shape(on, rest.x)["shape"]
+    else:
+        return None
+    if said not in group or said == name or said in rest.fit.effects.names:
+        return None
+    basis = _refit_basis(rest.jacobian)
+    fr = _trial_fit(
+        said,
+        on,
+        rest.fit,
+        lambda: rest.fit.rms_um,
+        lambda n: _ranked_starts(n, on, rest.fit, basis, workers),
+        workers=workers,
+        trial_nfev=TRIAL_NFEV,
+        basis=basis,
+    )
+    if isinstance(fr, str):
+        return None
+    scored = _scored(on, fr, folds)
+    c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um)
+    if not _earns(c, min_gain) or c["gain_over_null"] < credit["gain_over_null"] - LOOKALIKE_MARGIN:
+        return None
+    return said, scored, c
 
 
 def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool:
