@@ -149,6 +149,21 @@ def test_a_look_alike_kept_before_its_partner_is_swapped_for_the_one_the_test_na
     assert d.unexplained is not None and d.unexplained.consistent_with_noise
 
 
+def test_a_strong_electrostriction_the_base_model_imitates_is_found_from_a_bent_start():
+    # ε = −0.032 /µm under a triangle (10 kHz, 20 nm noise): the base model bends its
+    # hysteresis to follow the square and leaves 0.098 µm; an electrostriction trial
+    # started at ε = 0 stays in that bend (+0.1 %), and the record was named nothing.
+    # Started where the square bends the stroke by a share of its span, the best start
+    # by the first-order refit promises a cut, and the trial takes it to near the noise.
+    rec = make_suite_record(
+        (("electrostriction", 0.3),), "triangle", 115, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02
+    )
+    d = diagnose(rec.u, rec.x, rec.dt, seed=115)
+    assert d.effects == ["electrostriction"]
+    assert d.rms_after < 0.3 * d.rms_before
+    assert _rms(d.x_extended - rec.x_true) < 0.2 * _rms(d.x_base - rec.x_true)
+
+
 def test_trials_side_by_side_give_the_result_of_trials_in_turn():
     # The trials of a round run in threads with workers > 1; the evidence is the same
     # whatever order they end in.

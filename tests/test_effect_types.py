@@ -37,6 +37,7 @@ from boucwen.effects import (
     from_json,
     to_json,
 )
+from boucwen.effects.electrostriction import STROKE_BENDS
 from boucwen.record import validate_record
 from conftest import EVERY_EFFECT, WHOLE_VOCABULARY
 
@@ -297,7 +298,9 @@ def test_starts_of_the_new_effects():
         return [s.to_dict()[name] for s in candidate_starts(name, rec, P, others, 0.0, max_delay=4)]
 
     assert starts("gain_drift") == [{"rate_per_s": 0.0}]
-    assert starts("electrostriction") == [{"epsilon_per_um": 0.0}]
+    # ε·span² = b·span for each bend b: the square bends the stroke by that share of the span.
+    span = float(np.ptp(rec.x))
+    assert starts("electrostriction") == [{"epsilon_per_um": b / span} for b in STROKE_BENDS]
     assert _same_starts(starts("resonance2"), STARTS["resonance"])
     assert starts("saturation") == [{"min_um": float(rec.x.min()), "max_um": float(rec.x.max())}]
     # 50 and 60 Hz, three harmonics each below the 500 Hz Nyquist frequency, the

@@ -15,7 +15,7 @@ not told what it contains, and:
    effect's that fits best once the current model's unknowns are refitted to first
    order (the current fit has bent itself to follow what the effect describes); a
    trial no better than the null trial (step 5) after a third of its budget stops
-   there, unless that first-order refit promised a cut of at least ``min_gain``; a
+   there, unless that first-order refit promised a cut of at least 3 %; a
    second resonance mode is tried beside a first, and while the model has none its
    trial adds both at once (two peaks close together, or one double peak, which a
    lone mode cannot fit), kept over the lone mode only when it beats it by

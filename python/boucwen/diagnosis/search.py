@@ -192,7 +192,7 @@ def _trial_fit(
     effect best first and what the best leaves, :func:`_ranked_starts`) and refits
     everything, in two stages: a trial no better than the null trial after a third of
     ``trial_nfev`` evaluations is stopped there unless its best start promises a cut
-    of at least :data:`MIN_GAIN` beyond the first-order refit of ``basis``, the others
+    of at least :data:`LOCAL_FLOOR` beyond the first-order refit of ``basis``, the others
     go on for ``trial_nfev`` more (the second stage restarts the optimiser's trust
     region, which spends evaluations). ``null_rms`` gives the null trial's RMS error
     [µm] (it waits for the null trial when that runs beside this one). Returns the fit,
@@ -221,7 +221,7 @@ def _trial_fit(
     try:
         solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
         fr = solved.fit
-        if fr.rms_um >= null_rms() and not predicted <= (1.0 - MIN_GAIN) * null_rms():
+        if fr.rms_um >= null_rms() and not predicted <= (1.0 - LOCAL_FLOOR) * null_rms():
             # A start whose first-order refit promises a cut goes on: its first steps
             # may still be finding their way (a second mode beside the first).
             return "hopeless: no better than the null trial after a third of the effort"
@@ -662,7 +662,7 @@ def _explained_share(before_um: float, after_um: float, noise_um: float) -> floa
     return 1.0 - max(after_um**2 - noise_um**2, 0.0) / excess
 
 
-def _pruned(
+def _backward_step(
     record: Record,
     screen: Record,
     current: ExtendedFit,
@@ -683,10 +683,10 @@ def _pruned(
     converged to. It is dropped. One that earns its place may still be a look-alike
     of the right effect, kept before its partner was in the model: it is swapped
     where :func:`_look_alike_swap` finds the other. On the screened copy when the
-    model can be simulated there (else on the record). The first mode of a resonance is not taken out while
-    the second is in. ``null``: the model with them all so refitted, on the
-    copy used, when the last round has it. Returns the model and the effects left;
-    ``evidence["pruned"]`` gets each credit."""
+    model can be simulated there (else on the record). The first mode of a resonance
+    is not taken out while the second is in. ``null``: the model with them all so
+    refitted, on the copy used, when the last round has it. Returns the model and the
+    effects left; ``evidence["pruned"]`` gets each credit (and any swap)."""
     simulable = simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is not None
     on = screen if simulable else record
     effort = _first_stage(TRIAL_NFEV) + TRIAL_NFEV
@@ -712,7 +712,7 @@ def _pruned(
             current, full = rest.fit, rest
             added = [k for k in added if k != name]
             continue
-        swap = _look_alike_swap(on, name, rest, c, min_gain=min_gain, folds=folds, workers=workers)
+        swap = _look_alike_swap(on, name, rest, c, phase=on is record, min_gain=min_gain, folds=folds, workers=workers)
         if swap is not None:
             other, scored, c_other = swap
             c["swapped_for"] = {other: c_other}
@@ -732,6 +732,7 @@ def _look_alike_swap(
     rest: _Scored,
     credit: dict[str, Any],
     *,
+    phase: bool,
     min_gain: float,
     folds: int,
     workers: int | None,
@@ -744,10 +745,12 @@ def _look_alike_swap(
     credit is within :data:`LOOKALIKE_MARGIN` of ``name``'s or above; else None. A
     look-alike kept in an earlier round, before the effect it was paired with was in
     the model, is thus told apart the way a round tells two apart. (The resonance
-    modes are not swapped: their peak is its own evidence.)"""
+    modes are not swapped: their peak is its own evidence. Delay and input lag only
+    where ``phase``: on the record itself, not on a screened copy, where a delay of
+    whole samples is not the record's.)"""
     if name in SWAP_FOLLOWS:
         group, said = SWAP_FOLLOWS, what_it_follows(on, rest.x)["follows"]
-    elif name in SWAP_PHASE:
+    elif name in SWAP_PHASE and phase:
         group, said = SWAP_PHASE, phase_shape(on, rest.x)["shape"]
     else:
         return None
@@ -972,7 +975,7 @@ def diagnose_record(
         left_now = unexplained(record, current.simulate(u, dt))
 
     if len(added) >= 2:
-        current, added = _pruned(
+        current, added = _backward_step(
             record,
             screen,
             current,

@@ -6,9 +6,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
+import numpy as np
+
 from .base import Context, Effect, Start
 
-__all__ = ["Electrostriction"]
+__all__ = ["STROKE_BENDS", "Electrostriction"]
+
+#: Shares of the record's span by which the starts of a fit bend the stroke (ε·span²).
+STROKE_BENDS = (0.0, -0.03, 0.03, -0.1, 0.1, -0.3, 0.3)
 
 
 @dataclass(frozen=True)
@@ -44,4 +49,10 @@ class Electrostriction(Effect):
 
     @classmethod
     def starts(cls, at: Start) -> list[Electrostriction]:
-        return [cls(epsilon_per_um=0.0)]
+        # ε·span² = b·span: the square bends the stroke by a share b of the record's
+        # span. A strong electrostriction is one the base model bends its hysteresis
+        # to imitate, and a trial started at ε = 0 stays in that bend.
+        span = float(np.ptp(at.record.x))
+        if not span > 0:
+            return [cls(epsilon_per_um=0.0)]
+        return [cls(epsilon_per_um=b / span) for b in STROKE_BENDS]
