@@ -13,13 +13,16 @@ import json
 import numpy as np
 import pytest
 
-from boucwen import diagnose
+from boucwen import EffectSet, Params, diagnose
 from boucwen.cli import main
 from boucwen.diagnosis import residual_evidence
+from boucwen.diagnosis.search import _decimated, _screenable
+from boucwen.effects import ExtendedFit
 from boucwen.experiments.suite_records import make_suite_record
 from boucwen.experiments.undeclared_records import make_record
 from boucwen.experiments.undeclared_records import test_input as make_input  # not a test
 from boucwen.io import read_csv, write_csv
+from boucwen.record import validate_record
 
 # (effect, seed, base parameter set, noise [µm]): one record per effect, two clean ones.
 CASES = [
@@ -162,6 +165,18 @@ def test_a_strong_electrostriction_the_base_model_imitates_is_found_from_a_bent_
     assert d.effects == ["electrostriction"]
     assert d.rms_after < 0.3 * d.rms_before
     assert _rms(d.x_extended - rec.x_true) < 0.2 * _rms(d.x_base - rec.x_true)
+
+
+def test_a_model_with_a_delay_is_not_screened():
+    # A delay of d samples is d samples of the full rate; on the screened copy (every
+    # q-th sample) the same model would delay by d·q: the rounds and the backward step
+    # go to the full record instead.
+    rec = make_record("drift", 0, "paper_1hz", 0.005)
+    screen = _decimated(validate_record(rec.u, rec.x, rec.dt), 4)
+    p = Params.paper_1hz()
+    plain = ExtendedFit(p, EffectSet(drift={"rate_um_per_s": 0.1}), 0.0, 0.0, 0.0, 0, True)
+    delayed = ExtendedFit(p, EffectSet(delay={"samples": 2}), 0.0, 0.0, 0.0, 0, True)
+    assert _screenable(plain, screen) and not _screenable(delayed, screen)
 
 
 def test_trials_side_by_side_give_the_result_of_trials_in_turn():

@@ -75,7 +75,9 @@ and the best screened effect
 is tried again, with its own null trial, on the full record, where the decision is
 taken; so are ``delay`` (whole samples of the full rate; the refits that compare its
 shifts run on the shifted record's screened copy) and, when the residual's spectrum
-peaks above what the copy can hold, ``resonance``.
+peaks above what the copy can hold, ``resonance``. Once the model holds what the copy
+cannot (a resonance above its Nyquist frequency, or a delay, whose whole samples are the
+full rate's), the rounds and the backward step run on the full record.
 
 The null trial and the trials of a round are independent: they run side by side on
 ``workers`` threads (the simulations release the GIL), each printing its progress line

@@ -687,7 +687,7 @@ def _backward_step(
     is not taken out while the second is in. ``null``: the model with them all so
     refitted, on the copy used, when the last round has it. Returns the model and the
     effects left; ``evidence["pruned"]`` gets each credit (and any swap)."""
-    simulable = simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is not None
+    simulable = _screenable(current, screen)
     on = screen if simulable else record
     effort = _first_stage(TRIAL_NFEV) + TRIAL_NFEV
 
@@ -784,6 +784,15 @@ def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool
         return False
     peak = residual_evidence_record(record, xs)["resonance"]
     return bool(peak["peak_hz"] > FN_MAX_NYQUIST_FRACTION / screen_dt and peak["peak_over_median"] > PEAK_OVER_MEDIAN)
+
+
+def _screenable(current: ExtendedFit, screen: Record) -> bool:
+    """The current model means on the screened copy what it means on the record: it
+    simulates there (a resonance above the copy's Nyquist frequency does not), and it
+    holds no delay (whole samples of the record, which the copy's samples are not)."""
+    if "delay" in current.effects.names:
+        return False
+    return simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is not None
 
 
 def _screen_factor(record: Record) -> int:
@@ -908,9 +917,10 @@ def diagnose_record(
             break
         say(f"round {len(added) + 1}: trying {list(candidates(current.effects.names))}")
         screened: Round | None = None
-        if q == 1 or simulate_chain(current.params, current.effects, screen.u, screen.dt, current.h0) is None:
+        if q == 1 or not _screenable(current, screen):
             # Not screened, or the model holds what the screened copy cannot (a
-            # resonance above its Nyquist frequency): every trial on the full record.
+            # resonance above its Nyquist frequency, a delay): every trial on the full
+            # record.
             round_ = score_round(record, current, current_jacobian=current_jac, **opts)
         else:
             names = tuple(k for k in candidates(current.effects.names) if k != "delay")
