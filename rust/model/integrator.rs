@@ -442,10 +442,16 @@ impl<L: Lanes> NearPower<L> {
 }
 
 impl NearPower {
+    /// The series about `h_ref` with |h_ref|^n = `hn_ref`; ln|h_ref| is `ln_ref` when
+    /// given, else computed where `with_ln` (0 otherwise).
     #[inline(always)]
-    fn new(n: f64, h_ref: f64, hn_ref: f64, with_ln: bool) -> Self {
+    fn new(n: f64, h_ref: f64, hn_ref: f64, ln_ref: Option<f64>, with_ln: bool) -> Self {
         let a = h_ref.abs();
-        let ln_ref = if with_ln && a > 0.0 { math::ln(a) } else { 0.0 };
+        let ln_ref = match ln_ref {
+            Some(ln) => ln,
+            None if with_ln && a > 0.0 => math::ln(a),
+            None => 0.0,
+        };
         NearPower {
             inv_ref: if a > 0.0 { 1.0 / h_ref } else { 0.0 },
             hn_ref,
@@ -525,6 +531,28 @@ pub(crate) fn advance_seeded<const M: usize, const FIRST: usize, const INPUT: us
     }
 }
 
+/// |h|^n and ln|h| of a state, carried from one interval to the next.
+pub(crate) type Power = (f64, f64);
+
+/// [`advance_seeded`] given (|h|^n, ln|h|) at the start (`None`: computed), also
+/// returning them at the end where the interval's series gives them (as
+/// [`advance_h_carried`] does for |h|^n): a run of intervals on the same parameters
+/// (a pass over a window) then calls `powf` and `ln` only where h moves fast or near 0.
+#[inline(always)]
+pub(crate) fn advance_seeded_carrying<const M: usize, const FIRST: usize, const INPUT: usize>(
+    p: &Params,
+    h: Dual<M>,
+    power: Option<Power>,
+    u0: Dual<M>,
+    u1: Dual<M>,
+    dt: f64,
+) -> (Dual<M>, Option<Power>) {
+    match Seeded::<M, FIRST, INPUT>::new(p, &u0.du, &u1.du) {
+        Some(law) => advance_from_power(p, &law, h, power, u0, u1, dt, None),
+        None => advance_from_power(p, &Coefficients::seeded(p, FIRST), h, power, u0, u1, dt, None),
+    }
+}
+
 /// [`advance_h`] given `hn` = |h|^n at the start, also returning |h|^n at the end: the
 /// per-sample paths (the [`Model`](super::Model), [`simulate`](super::simulate), the
 /// inverse, the banks) carry |h|^n from one interval to the next instead of calling
@@ -545,7 +573,8 @@ pub(crate) fn advance_h_carried(p: &Params, h: f64, hn: f64, u0: f64, u1: f64, d
 /// series does not give it: a bank computes those after all its channels have moved.
 #[inline]
 pub(crate) fn advance_h_carrying(p: &Params, h: f64, hn: f64, u0: f64, u1: f64, dt: f64) -> (f64, Option<f64>) {
-    advance_from_power(p, &Coefficients::of(p), h, Some(hn), u0, u1, dt, None)
+    let (next, carried) = advance_from_power(p, &Coefficients::of(p), h, Some((hn, 0.0)), u0, u1, dt, None);
+    (next, carried.map(|(hn, _)| hn))
 }
 
 /// The coefficients A, β, γ, n, δ of one channel, or of [`super::lanes::WIDTH`]
@@ -679,31 +708,32 @@ pub(crate) fn advance_forced<S: Scalar, L: Law<S>>(
     advance_from_power(p, c, h, None, u0, u1, dt, forced).0
 }
 
-/// [`advance_forced`] with |h|^n at the start given (`hn`) or computed (`None`).
-/// Returns h at the end and, where the interval's series applies there, its |h|^n
-/// (`None`: compute it; the start's own when h did not move).
+/// [`advance_forced`] with |h|^n and ln|h| at the start given (`power`; ln read only
+/// when `S` carries derivatives) or computed (`None`). Returns h at the end and, where
+/// the interval's series applies there, its |h|^n and ln|h| (ln 0 without derivatives;
+/// `None`: compute them; the start's own when h did not move).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn advance_from_power<S: Scalar, L: Law<S>>(
     p: &Params,
     c: &L,
     h: S,
-    hn: Option<f64>,
+    power: Option<Power>,
     u0: S,
     u1: S,
     dt: f64,
     forced: Option<u32>,
-) -> (S, Option<f64>) {
+) -> (S, Option<Power>) {
     let du = u1 - u0;
     if du.re() == 0.0 {
-        return (h, hn);
+        return (h, power);
     }
     let udot = c.per_second(du, dt);
     let (hv, udv) = (h.re(), udot.re());
     let su = sgn(udv);
-    let hn_v = match hn {
-        Some(hn) => hn,
-        None => abs_pow(hv, p.n),
+    let (hn_v, ln_start) = match power {
+        Some((hn, ln)) => (hn, S::DERIVATIVES.then_some(ln)),
+        None => (abs_pow(hv, p.n), None),
     };
     let k1_v = rate(&Coefficients::of(p), hv, hn_v, u0.re(), udv, su);
     let planned = forced.or_else(|| substeps(p, hv, k1_v, hn_v, udv, dt));
@@ -727,7 +757,7 @@ fn advance_from_power<S: Scalar, L: Law<S>>(
         _ => dt / m as f64,
     };
     let half = 0.5 * step;
-    let near = NearPower::new(p.n, hv, hn_v, S::DERIVATIVES);
+    let near = NearPower::new(p.n, hv, hn_v, ln_start, S::DERIVATIVES);
     // ε per unit rate of the stage states h + half·k and h + step·k.
     let (e_half, e_step) = (near.inv_ref * half, near.inv_ref * step);
     let mut h = h;
@@ -756,7 +786,8 @@ fn advance_from_power<S: Scalar, L: Law<S>>(
         }
         e = (h.re() - hv) * near.inv_ref;
     }
-    (h, (near.inv_ref != 0.0 && e.abs() <= NearPower::<f64>::CARRY_EPS).then(|| near.power(e)))
+    let carried = near.inv_ref != 0.0 && e.abs() <= NearPower::<f64>::CARRY_EPS;
+    (h, carried.then(|| (near.power(e), if S::DERIVATIVES { near.ln(e) } else { 0.0 })))
 }
 
 #[cfg(test)]
@@ -767,7 +798,7 @@ mod tests {
     fn series_power_matches_powf_where_it_is_used() {
         for n in [0.3, 1.0, 1.52, 2.7, 4.9] {
             for h_ref in [-3.0, -0.01, 1e-3, 0.7, 12.0] {
-                let near = NearPower::new(n, h_ref, abs_pow(h_ref, n), true);
+                let near = NearPower::new(n, h_ref, abs_pow(h_ref, n), None, true);
                 let mut used = 0;
                 for k in -25..=25 {
                     let h = h_ref * (1.0 + 0.001 * k as f64);

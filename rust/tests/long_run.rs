@@ -14,7 +14,10 @@
 
 use std::time::Instant;
 
-use boucwen::identify::{AnyIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier};
+use boucwen::identify::{
+    AnyIdentifier, HorizonConfig, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig,
+    RpemIdentifier,
+};
 use boucwen::model::{paper_input, H_LIMIT_UM};
 use boucwen::{simulate, Model, Params, Snapshot};
 use proptest::prelude::*;
@@ -177,22 +180,25 @@ fn record() -> (Vec<f64>, Vec<f64>) {
     (u, x)
 }
 
-#[test]
-fn restored_paper_identifier_continues_bit_for_bit() {
+/// Snapshots of `fresh` after each of `cuts` samples of the paper record: the restored
+/// identifier writes the same bytes and continues exactly like the original for `span`
+/// samples (predictions, estimates, status); every truncation and a flipped kind byte
+/// are rejected without a panic.
+fn check_restores<I>(fresh: &I, cuts: &[usize], span: usize)
+where
+    I: OnlineIdentifier + Snapshot + Clone,
+    I::Status: PartialEq + std::fmt::Debug,
+{
     let (u, x) = record();
-    let window = 500;
-    let cfg = PaperConfig { min_points: 5, ..PaperConfig::with_window(window) };
-    let fresh = PaperIdentifier::new(DT, Params::paper_1hz(), 0.1, cfg).unwrap();
-    // Before the window fills, at and around refreshes, and far into the run.
-    for cut in [0, 1, 2, 3, 77, window + 1, window + 2, window + 3, 2 * window + 2, 2 * window + 3, 31_234] {
+    for &cut in cuts {
         let mut original = fresh.clone();
         for k in 0..cut {
             original.push(u[k], x[k]).unwrap();
         }
         let bytes = original.to_bytes();
-        let mut restored = PaperIdentifier::from_bytes(&bytes).unwrap();
+        let mut restored = I::from_bytes(&bytes).unwrap();
         assert_eq!(restored.to_bytes(), bytes, "cut {cut}: snapshot of the restored identifier");
-        for k in cut..(cut + 3 * window).min(u.len()) {
+        for k in cut..(cut + span).min(u.len()) {
             let a = original.push(u[k], x[k]).unwrap();
             let b = restored.push(u[k], x[k]).unwrap();
             assert_eq!(a.to_bits(), b.to_bits(), "cut {cut}, sample {k}");
@@ -200,14 +206,33 @@ fn restored_paper_identifier_continues_bit_for_bit() {
             assert_eq!(original.status(), restored.status(), "cut {cut}, sample {k}");
         }
         assert_eq!(original.to_bytes(), restored.to_bytes(), "cut {cut}: state after continuing");
-        // Every truncation and a flipped kind byte are rejected without a panic.
         for end in (0..bytes.len()).step_by(97) {
-            assert!(PaperIdentifier::from_bytes(&bytes[..end]).is_err());
+            assert!(I::from_bytes(&bytes[..end]).is_err());
         }
         let mut wrong = bytes.clone();
-        wrong[5] = 1;
-        assert!(PaperIdentifier::from_bytes(&wrong).is_err());
+        wrong[5] = if wrong[5] == 1 { 2 } else { 1 };
+        assert!(I::from_bytes(&wrong).is_err());
     }
+}
+
+#[test]
+fn restored_paper_identifier_continues_bit_for_bit() {
+    let window = 500;
+    let cfg = PaperConfig { min_points: 5, ..PaperConfig::with_window(window) };
+    let fresh = PaperIdentifier::new(DT, Params::paper_1hz(), 0.1, cfg).unwrap();
+    // Before the window fills, at and around refreshes, and far into the run.
+    let cuts = [0, 1, 2, 3, 77, window + 1, window + 2, window + 3, 2 * window + 2, 2 * window + 3, 31_234];
+    check_restores(&fresh, &cuts, 3 * window);
+}
+
+#[test]
+fn restored_horizon_identifier_continues_bit_for_bit() {
+    // The default method, with its input lag: at the start, in the middle of passes
+    // (whose simulation carries |h|^n and ln|h| from sample to sample), around the
+    // first updates, and in the 10, 100 and 200 Hz parts.
+    let fresh = HorizonIdentifier::recommended(DT, Params::paper_1hz(), 0.1, HorizonConfig::default()).unwrap();
+    let cuts = [0, 1, 2, 17, 5_003, 12_345, 20_001, 30_500, 33_150, 33_500];
+    check_restores(&fresh, &cuts, 3_000);
 }
 
 #[test]

@@ -25,7 +25,9 @@
 //!    uses; it is never reset from the measurement).
 //! 2. **Store** the sample; the window's start moves on as the travel grows.
 //! 3. **Pass.** A simulation of the window with the current estimates runs
-//!    `samples_per_push` samples further, on dual numbers ([`crate::model::advance`]),
+//!    `samples_per_push` samples further, on dual numbers ([`crate::model::advance`],
+//!    |h|^n and ln|h| carried from one sample to the next where h moved by at most
+//!    0.1 % of itself, so that `powf` and `ln` run only where h moves fast or near 0),
 //!    accumulating the Gauss–Newton normal equations JᵀJ, Jᵀr over the 8 unknowns (9
 //!    with the input lag).
 //!    When it has caught up with the newest sample (and spans at least
@@ -66,7 +68,7 @@ use crate::effects::input_lag::LagStage;
 use crate::effects::{EffectSet, InputLag};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::math;
-use crate::model::integrator::advance_seeded;
+use crate::model::integrator::{advance_seeded_carrying, Power};
 use crate::model::scalar::{Dual, Scalar};
 use crate::model::{advance_h, output, H_LIMIT_UM};
 use crate::params::Params;
@@ -125,6 +127,8 @@ struct Pass {
     h_start: f64,
     /// h and its derivatives at the last simulated sample.
     h: Dual<ND>,
+    /// |h|^n and ln|h| there, where the last interval's series carried them.
+    power: Option<Power>,
     /// u_a and its derivative over ln fc at the last simulated sample \[V\].
     ua: Dual<ND>,
     /// The lag the pass runs (unused without the lag).
@@ -145,6 +149,7 @@ impl Pass {
             params,
             h_start,
             h: Dual::var(h_start, 5),
+            power: None,
             ua: ua_dual,
             lag,
             jtj: Normal::zeros(),
@@ -391,7 +396,8 @@ impl HorizonIdentifier {
             } else {
                 Dual::cst(e.u)
             };
-            self.pass.h = advance_seeded::<ND, 0, { I_LN_FC - 2 }>(&p, self.pass.h, ua0, ua1, self.dt, None);
+            (self.pass.h, self.pass.power) =
+                advance_seeded_carrying::<ND, 0, { I_LN_FC - 2 }>(&p, self.pass.h, self.pass.power, ua0, ua1, self.dt);
             self.pass.ua = ua1;
         }
         let h = self.pass.h;

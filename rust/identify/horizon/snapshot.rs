@@ -72,14 +72,28 @@ impl Snapshot for HorizonIdentifier {
             w.f64s(&[*u, *x, *travel, *h, *ua, *dua]);
             w.f64s(dh);
         }
-        let Pass { start: p_start, cursor, params: p_params, h_start, h: p_h, ua: p_ua, lag: _, jtj, jtr, sse, count } =
-            pass;
+        let Pass {
+            start: p_start,
+            cursor,
+            params: p_params,
+            h_start,
+            h: p_h,
+            power,
+            ua: p_ua,
+            lag: _,
+            jtj,
+            jtr,
+            sse,
+            count,
+        } = pass;
         w.u64(*p_start);
         w.u64(*cursor);
         write_params(&mut w, p_params);
         w.f64(*h_start);
         w.f64(p_h.re);
         w.f64s(p_h.du.as_slice());
+        w.opt_f64(power.map(|(hn, _)| hn));
+        w.opt_f64(power.map(|(_, ln)| ln));
         w.f64(p_ua.re);
         w.f64s(p_ua.du.as_slice());
         w.f64s(jtj.as_slice());
@@ -179,6 +193,12 @@ impl Snapshot for HorizonIdentifier {
         let h_start = r.f64()?;
         let re = r.f64()?;
         let du = r.f64s::<ND>()?;
+        let at = r.offset();
+        let power = match (r.opt_f64()?, r.opt_f64()?) {
+            (Some(hn), Some(ln)) => Some((hn, ln)),
+            (None, None) => None,
+            _ => return Err(corrupt(at, "snapshot holds an invalid pass")),
+        };
         let ua_re = r.f64()?;
         let ua_du = r.f64s::<ND>()?;
         let jtj = r.f64s::<{ NZ * NZ }>()?;
@@ -191,6 +211,7 @@ impl Snapshot for HorizonIdentifier {
             params: p_params,
             h_start,
             h: Dual::new(re, SVector::from(du)),
+            power,
             ua: Dual::new(ua_re, SVector::from(ua_du)),
             lag: id.lag,
             jtj: Normal::from_column_slice(&jtj),
