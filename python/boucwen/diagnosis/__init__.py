@@ -15,7 +15,9 @@ not told what it contains, and:
    effect's that fits best once the current model's unknowns are refitted to first
    order (the current fit has bent itself to follow what the effect describes); a
    trial no better than the null trial (step 5) after a third of its budget stops
-   there, unless that first-order refit promised a cut of at least 3 %; a
+   there, unless that first-order refit promised a cut of at least 3 %, and one whose
+   second stage left less than half the error of its first, without converging, gets
+   a third (it is judged where it converges, not where its budget happened to end); a
    second resonance mode is tried beside a first, and while the model has none its
    trial adds both at once (two peaks close together, or one double peak, which a
    lone mode cannot fit), kept over the lone mode only when it beats it by
@@ -56,7 +58,9 @@ not told what it contains, and:
    effect does, or an effect credited with what those kept before it had not yet
    converged to — and is dropped (``evidence["pruned"]``); a kept creep, drift or gain
    drift (or delay or input lag) whose residual without it the group's test attributes
-   to another member is swapped for that one where it earns as much, within 1 point;
+   to another member is swapped for that one where it earns as much, within 1 point
+   (on a record short enough not to be screened every other member is tried, and one
+   the test does not name is swapped in where it earns more);
 7. refits the base model and the kept effects on the whole record and reports the
    errors, before (base model) and after (with the effects);
 8. tests what the final model leaves against the noise estimated from the record and

@@ -105,6 +105,9 @@ SECOND_MODE_SPLIT = 1.05
 #: ... and its second stage has this many times a trial's evaluations (four unknowns
 #: added, the two modes trading places as they part).
 PAIR_EFFORT = 5
+#: A trial whose second stage ended with less than this share of the RMS error its
+#: first stage left, without converging, gets a third stage (:func:`_trial_fit`).
+STILL_FALLING = 0.5
 #: Look-alikes the backward step may swap for one another (:func:`_look_alike_swap`).
 SWAP_FOLLOWS = GROUPS["follows"]
 SWAP_PHASE = ("delay", "input_lag")
@@ -181,7 +184,7 @@ def _trial_fit(
     name: str,
     record: Record,
     current: ExtendedFit,
-    null_rms: Callable[[], float],
+    null: Callable[[], ExtendedFit],
     ranked: Callable[[str], tuple[list[EffectSet], float]],
     *,
     workers: int | None,
@@ -194,9 +197,12 @@ def _trial_fit(
     ``trial_nfev`` evaluations is stopped there unless its best start promises a cut
     of at least :data:`LOCAL_FLOOR` beyond the first-order refit of ``basis``, the others
     go on for ``trial_nfev`` more (the second stage restarts the optimiser's trust
-    region, which spends evaluations). ``null_rms`` gives the null trial's RMS error
-    [µm] (it waits for the null trial when that runs beside this one). Returns the fit,
-    or why there is none."""
+    region, which spends evaluations). A trial whose second stage left less than
+    :data:`STILL_FALLING` of its first stage's error without converging gets a third,
+    where the null trial converged within its effort (else the third stage could be
+    credited with convergence the null trial was denied). ``null`` gives the null
+    trial's fit (it waits for the null trial when that runs beside this one). Returns the
+    fit, or why there is none."""
     pair = _two_modes(name, current)
     starts, predicted = ranked("resonance" if pair else name)
     starts = starts[: DELAY_STARTS if name == "delay" else 1]
@@ -221,7 +227,8 @@ def _trial_fit(
     try:
         solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
         fr = solved.fit
-        if fr.rms_um >= null_rms() and not predicted <= (1.0 - LOCAL_FLOOR) * null_rms():
+        null_rms = null().rms_um
+        if fr.rms_um >= null_rms and not predicted <= (1.0 - LOCAL_FLOOR) * null_rms:
             # A start whose first-order refit promises a cut goes on: its first steps
             # may still be finding their way (a second mode beside the first).
             return "hopeless: no better than the null trial after a third of the effort"
@@ -235,6 +242,13 @@ def _trial_fit(
                 tol=TRIAL_TOL,
                 workers=workers,
             )
+            went = solved.fit
+            if not went.success and went.rms_um < STILL_FALLING * fr.rms_um and null().success:
+                # Still falling fast when its effort ran out: a trial judged there would
+                # be credited with where it happened to stop, not with what it explains.
+                solved = solve_extended_record(
+                    record, went.params, went.effects, went.h0, max_nfev=trial_nfev, tol=TRIAL_TOL, workers=workers
+                )
     except ValueError as exc:
         return str(exc)
     fitted: dict[str, Any] = dict(solved.fit.effects.to_dict())
@@ -498,7 +512,7 @@ def score_round(
                 name,
                 record,
                 current,
-                lambda: null_run.result().fit.rms_um,
+                lambda: null_run.result().fit,
                 starts_of,
                 workers=workers,
                 trial_nfev=trial_nfev,
@@ -712,13 +726,23 @@ def _backward_step(
             current, full = rest.fit, rest
             added = [k for k in added if k != name]
             continue
-        swap = _look_alike_swap(on, name, rest, c, phase=on is record, min_gain=min_gain, folds=folds, workers=workers)
+        swap = _look_alike_swap(
+            on,
+            name,
+            rest,
+            c,
+            phase=on is record,
+            every=screen is record,
+            min_gain=min_gain,
+            folds=folds,
+            workers=workers,
+        )
         if swap is not None:
             other, scored, c_other = swap
             c["swapped_for"] = {other: c_other}
             say(
-                f"swapped {name} for {other}: the residual without {name} follows {other} (look-alike test), "
-                f"which earns {c_other['gain_over_null']:+.1%} in its place ({name}: {c['gain_over_null']:+.1%})"
+                f"swapped {name} for {other}, which earns {c_other['gain_over_null']:+.1%} in its place "
+                f"({name}: {c['gain_over_null']:+.1%}; the look-alike test names {c_other['test_named']})"
             )
             current, full = scored.fit, scored
             added = [other if k == name else k for k in added]
@@ -733,6 +757,7 @@ def _look_alike_swap(
     credit: dict[str, Any],
     *,
     phase: bool,
+    every: bool,
     min_gain: float,
     folds: int,
     workers: int | None,
@@ -742,38 +767,45 @@ def _look_alike_swap(
     look-alike that the group's test names on the residual of ``rest``
     (:mod:`~boucwen.diagnosis.lookalike`), tried in its place from ``rest`` like a
     trial, with its scored fit and credit, where it earns its parameters and its
-    credit is within :data:`LOOKALIKE_MARGIN` of ``name``'s or above; else None. A
-    look-alike kept in an earlier round, before the effect it was paired with was in
-    the model, is thus told apart the way a round tells two apart. (The resonance
-    modes are not swapped: their peak is its own evidence. Delay and input lag only
-    where ``phase``: on the record itself, not on a screened copy, where a delay of
-    whole samples is not the record's.)"""
+    credit is within :data:`LOOKALIKE_MARGIN` of ``name``'s or above (its credit records
+    what the test named, ``test_named``); else None. With
+    ``every`` (a record short enough not to be screened) each other member of the group
+    is tried too, and one the test does not name takes the place only with a credit
+    above ``name``'s; the best credit wins. A look-alike kept in an earlier round,
+    before the effect it was paired with was in the model, is thus told apart the way a
+    round tells two apart. (The resonance modes are not swapped: their peak is its own
+    evidence. Delay and input lag only where ``phase``: on the record itself, not on a
+    screened copy, where a delay of whole samples is not the record's.)"""
     if name in SWAP_FOLLOWS:
         group, said = SWAP_FOLLOWS, what_it_follows(on, rest.x)["follows"]
     elif name in SWAP_PHASE and phase:
         group, said = SWAP_PHASE, phase_shape(on, rest.x)["shape"]
     else:
         return None
-    if said not in group or said == name or said in rest.fit.effects.names:
-        return None
-    basis = _refit_basis(rest.jacobian)
-    fr = _trial_fit(
-        said,
-        on,
-        rest.fit,
-        lambda: rest.fit.rms_um,
-        lambda n: _ranked_starts(n, on, rest.fit, basis, workers),
-        workers=workers,
-        trial_nfev=TRIAL_NFEV,
-        basis=basis,
-    )
-    if isinstance(fr, str):
-        return None
-    scored = _scored(on, fr, folds)
-    c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um)
-    if not _earns(c, min_gain) or c["gain_over_null"] < credit["gain_over_null"] - LOOKALIKE_MARGIN:
-        return None
-    return said, scored, c
+    others = [k for k in group if k != name and k not in rest.fit.effects.names and (every or k == said)]
+    basis = _refit_basis(rest.jacobian) if others else None
+    best: tuple[str, _Scored, dict[str, Any]] | None = None
+    for other in others:
+        fr = _trial_fit(
+            other,
+            on,
+            rest.fit,
+            lambda: rest.fit,
+            lambda n: _ranked_starts(n, on, rest.fit, basis, workers),
+            workers=workers,
+            trial_nfev=TRIAL_NFEV,
+            basis=basis,
+        )
+        if isinstance(fr, str):
+            continue
+        scored = _scored(on, fr, folds)
+        c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um)
+        floor = credit["gain_over_null"] - (LOOKALIKE_MARGIN if other == said else 0.0)
+        if not _earns(c, min_gain) or not c["gain_over_null"] > floor:
+            continue
+        if best is None or c["gain_over_null"] > best[2]["gain_over_null"]:
+            best = (other, scored, {**c, "test_named": said})
+    return best
 
 
 def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool:
