@@ -26,18 +26,21 @@ from boucwen import (
     Saturation,
     effect_set,
     effects_of,
+    simulate,
 )
 from boucwen.effects import (
     EFFECTS,
     VOCABULARY,
     Context,
     Layout,
+    Start,
     candidate_starts,
     fit_extended_record,
     from_json,
     to_json,
 )
 from boucwen.effects.electrostriction import STROKE_BENDS
+from boucwen.effects.resonance import PEAK_ZETAS, residual_peak_hz
 from boucwen.record import validate_record
 from conftest import EVERY_EFFECT, WHOLE_VOCABULARY
 
@@ -143,8 +146,34 @@ def test_start_lists_are_compared_to_rounding_only():
 def test_candidate_starts_are_unchanged(name):
     others = EffectSet(**{k: v for k, v in PINNED.items() if k != name})
     starts = candidate_starts(name, _record(), P, others, 0.0, max_delay=4)
-    assert _same_starts([s.to_dict()[name] for s in starts], STARTS[name])
+    assert _same_starts([s.to_dict()[name] for s in starts], _with_peak(name, STARTS[name], others))
     assert all(s.to_dict() == {**others.to_dict(), name: s.to_dict()[name]} for s in starts)
+
+
+def _with_peak(name, grid, others):
+    """The grid of starts of ``name``, with a resonance's starts at the peak of the
+    current residual's spectrum on :func:`_record`."""
+    if name not in ("resonance", "resonance2"):
+        return grid
+    peak = residual_peak_hz(Start(_record(), P, others, 0.0))
+    assert peak is not None
+    return [*grid, *({"fn_hz": peak, "zeta": z} for z in PEAK_ZETAS)]
+
+
+def test_a_resonance_is_started_at_the_peak_of_the_residual_spectrum():
+    # A mode at 300 Hz (ζ = 0.02) rings after a step in the middle of the record: the
+    # grid's nearest natural frequencies are 281 and 405 Hz; the peak of the residual's
+    # spectrum is within the Welch resolution (4 Hz) of the mode.
+    t = np.arange(3001) * DT
+    u = np.where(t < 1.5, 20.0, 60.0)
+    x, _ = simulate(P, u, DT)
+    after = np.clip(t - 1.5, 0.0, None)
+    x = x + np.where(t >= 1.5, 0.2 * np.exp(-2 * np.pi * 300.0 * 0.02 * after) * np.sin(2 * np.pi * 300.0 * after), 0.0)
+    rec = validate_record(u, x, DT)
+    peak = residual_peak_hz(Start(rec, P, EffectSet(), 0.0))
+    assert peak is not None and abs(peak - 300.0) <= 4.0
+    starts = [s.to_dict()["resonance"] for s in candidate_starts("resonance", rec, P, EffectSet(), 0.0)]
+    assert {"fn_hz": peak, "zeta": PEAK_ZETAS[0]} in starts
 
 
 TYPED = (
@@ -301,7 +330,7 @@ def test_starts_of_the_new_effects():
     # ε·span² = b·span for each bend b: the square bends the stroke by that share of the span.
     span = float(np.ptp(rec.x))
     assert starts("electrostriction") == [{"epsilon_per_um": b / span} for b in STROKE_BENDS]
-    assert _same_starts(starts("resonance2"), STARTS["resonance"])
+    assert _same_starts(starts("resonance2"), _with_peak("resonance2", STARTS["resonance"], others))
     assert starts("saturation") == [{"min_um": float(rec.x.min()), "max_um": float(rec.x.max())}]
     # 50 and 60 Hz, three harmonics each below the 500 Hz Nyquist frequency, the
     # amplitudes fitted to the residual of the current model.

@@ -8,8 +8,9 @@ from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
+from scipy.signal import welch
 
-from .base import Context, Effect, Start
+from .base import Context, Effect, Start, simulate_chain
 
 __all__ = ["FN_MAX_NYQUIST_FRACTION", "ZETA_BOUNDS", "Resonance"]
 
@@ -19,6 +20,35 @@ __all__ = ["FN_MAX_NYQUIST_FRACTION", "ZETA_BOUNDS", "Resonance"]
 ZETA_BOUNDS = (1e-3, 1.0)
 #: fn is kept below this fraction of the sampling rate (Nyquist = 0.5).
 FN_MAX_NYQUIST_FRACTION = 0.45
+#: Damping ratios started at the peak of the current residual's spectrum (a lightly
+#: damped mode rings at its own frequency; the grid's nearest point may be a few
+#: tenths of an octave away, too far for a sharp peak to be found from there).
+PEAK_ZETAS = (0.03, 0.1)
+#: A bin of the input's spectrum this many times its median is one of the input's lines.
+INPUT_LINE = 10.0
+
+
+def residual_peak_hz(at: Start) -> float | None:
+    """The frequency [Hz] of the largest peak of the current model's residual spectrum
+    (Welch, segments of 0.25 s), above 2 % of the sampling rate and below
+    :data:`FN_MAX_NYQUIST_FRACTION` of it, away from the input's own lines (bins where
+    the input's spectrum stands :data:`INPUT_LINE` × above its median: what the model
+    misses there follows the input, and a mode rings at its own frequency); None when
+    the model cannot be simulated, the record is too short or no bin is left."""
+    rec = at.record
+    xs = simulate_chain(at.params, at.effects, rec.u, rec.dt, at.h0)
+    if xs is None or rec.u.size < 64:
+        return None
+    r = rec.x - xs
+    nperseg = min(r.size, max(64, int(0.25 / rec.dt)))
+    f, pxx = welch(r - r.mean(), fs=1.0 / rec.dt, nperseg=nperseg)
+    _, puu = welch(rec.u - rec.u.mean(), fs=1.0 / rec.dt, nperseg=nperseg)
+    sel = (f > 0.02 / rec.dt) & (f < FN_MAX_NYQUIST_FRACTION / rec.dt)
+    if np.any(sel):
+        sel &= ~(puu > INPUT_LINE * np.median(puu[sel]))
+    if not np.any(sel):
+        return None
+    return float(f[sel][int(np.argmax(pxx[sel]))])
 
 
 @dataclass(frozen=True)
@@ -64,4 +94,7 @@ class Resonance(Effect):
         fns = np.geomspace(5.0 / duration, FN_MAX_NYQUIST_FRACTION * 0.9 / dt, 16)
         pairs = [(float(f), z) for f in fns for z in (0.03, 0.15, 0.5)]
         pairs.append((FN_MAX_NYQUIST_FRACTION * 0.98 / dt, 0.7))  # the mildest resonance
+        peak = residual_peak_hz(at)
+        if peak is not None:
+            pairs += [(peak, z) for z in PEAK_ZETAS]
         return [cls(fn_hz=f, zeta=z) for f, z in pairs]
