@@ -525,10 +525,7 @@ pub(crate) fn advance_seeded<const M: usize, const FIRST: usize, const INPUT: us
     dt: f64,
     forced: Option<u32>,
 ) -> Dual<M> {
-    match Seeded::<M, FIRST, INPUT>::new(p, &u0.du, &u1.du) {
-        Some(law) => advance_forced(p, &law, h, u0, u1, dt, forced),
-        None => advance_forced(p, &Coefficients::seeded(p, FIRST), h, u0, u1, dt, forced),
-    }
+    advance_seeded_carrying::<M, FIRST, INPUT>(p, h, None, u0, u1, dt, forced).0
 }
 
 /// |h|^n and ln|h| of a state, carried from one interval to the next.
@@ -546,10 +543,11 @@ pub(crate) fn advance_seeded_carrying<const M: usize, const FIRST: usize, const 
     u0: Dual<M>,
     u1: Dual<M>,
     dt: f64,
+    forced: Option<u32>,
 ) -> (Dual<M>, Option<Power>) {
     match Seeded::<M, FIRST, INPUT>::new(p, &u0.du, &u1.du) {
-        Some(law) => advance_from_power(p, &law, h, power, u0, u1, dt, None),
-        None => advance_from_power(p, &Coefficients::seeded(p, FIRST), h, power, u0, u1, dt, None),
+        Some(law) => advance_from_power(p, &law, h, power, u0, u1, dt, forced),
+        None => advance_from_power(p, &Coefficients::seeded(p, FIRST), h, power, u0, u1, dt, forced),
     }
 }
 

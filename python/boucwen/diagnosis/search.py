@@ -768,10 +768,10 @@ def _look_alike_swap(
     (:mod:`~boucwen.diagnosis.lookalike`), tried in its place from ``rest`` like a
     trial, with its scored fit and credit, where it earns its parameters and its
     credit is within :data:`LOOKALIKE_MARGIN` of ``name``'s or above (its credit records
-    what the test named, ``test_named``); else None. With
-    ``every`` (a record short enough not to be screened) each other member of the group
-    is tried too, and one the test does not name takes the place only with a credit
-    above ``name``'s; the best credit wins. A look-alike kept in an earlier round,
+    what the test named, ``test_named``); else None. With ``every`` (a record short
+    enough not to be screened) each other member of the group is tried too, and one the
+    test does not name takes the place only with a credit above ``name``'s; the best
+    credit wins. A look-alike kept in an earlier round,
     before the effect it was paired with was in the model, is thus told apart the way a
     round tells two apart. (The resonance modes are not swapped: their peak is its own
     evidence. Delay and input lag only where ``phase``: on the record itself, not on a

@@ -396,8 +396,15 @@ impl HorizonIdentifier {
             } else {
                 Dual::cst(e.u)
             };
-            (self.pass.h, self.pass.power) =
-                advance_seeded_carrying::<ND, 0, { I_LN_FC - 2 }>(&p, self.pass.h, self.pass.power, ua0, ua1, self.dt);
+            (self.pass.h, self.pass.power) = advance_seeded_carrying::<ND, 0, { I_LN_FC - 2 }>(
+                &p,
+                self.pass.h,
+                self.pass.power,
+                ua0,
+                ua1,
+                self.dt,
+                None,
+            );
             self.pass.ua = ua1;
         }
         let h = self.pass.h;
