@@ -61,10 +61,7 @@ def test_an_effect_the_base_model_imitates_is_refitted_from_a_fresh_base_model()
     # (kv ≈ 81 µm/V) and its rate term integrating into a ramp; the drift trial starts in
     # that basin and leaves 0.088 µm, too little explained to be named. Refitted from a
     # base model fitted afresh to the record less the drift, it leaves the noise.
-    rec = make_suite_record(
-        (("drift", 0.3),), "sine_bursts", 181, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.001
-    )
-    d = diagnose(rec.u, rec.x, rec.dt, seed=181)
+    rec, d = _diagnosed((("drift", 0.3),), "sine_bursts", 181, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.001)
     assert d.effects == ["drift"], d.evidence.get("partial")
     rebased = d.evidence["rebased"]
     assert rebased["fresh_rms_um"] < 0.1 * rebased["rms_um"]
@@ -77,19 +74,24 @@ def test_a_drift_the_base_model_bends_to_follow_starts_its_trial_at_the_trend():
     # trial, and the record was left with 7× the noise and nothing named. Started from
     # the model refitted to the record less a multiple of the least-squares trend, the
     # drift explains it down to the noise.
-    rec = make_suite_record((("drift", 0.3),), "triangle", 187, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02)
-    d = diagnose(rec.u, rec.x, rec.dt, seed=187)
+    rec, d = _diagnosed((("drift", 0.3),), "triangle", 187, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02)
     assert d.effects == ["drift"]
     assert d.unexplained is not None and d.unexplained.consistent_with_noise
     assert _rms(d.x_extended - rec.x_true) < 0.2 * _rms(d.x_base - rec.x_true)
+
+
+def _diagnosed(effects, family, seed, **record):
+    """A suite record (:func:`make_suite_record`; ``record``: its sampling rate, parameter
+    set and noise) and its diagnosis with the record's seed."""
+    rec = make_suite_record(effects, family, seed, **record)
+    return rec, diagnose(rec.u, rec.x, rec.dt, seed=seed)
 
 
 def _two_modes(size_um, family, seed, fs_hz, param_set):
     """A suite record with two resonance modes of nominal size ``size_um`` [µm] at 20 nm
     of noise, and its diagnosis."""
     effects = (("resonance", size_um), ("resonance2", size_um))
-    rec = make_suite_record(effects, family, seed, fs_hz=fs_hz, param_set=param_set, noise_um=0.02)
-    return rec, diagnose(rec.u, rec.x, rec.dt, seed=seed)
+    return _diagnosed(effects, family, seed, fs_hz=fs_hz, param_set=param_set, noise_um=0.02)
 
 
 def test_two_modes_near_nyquist_earn_their_parameters():
@@ -130,10 +132,7 @@ def test_an_effect_kept_first_whose_work_a_later_one_does_is_dropped():
     # element imitates the lag, is kept first; the lag then explains everything. Taken
     # out, creep costs the lag nothing (the model is better without it), and it goes;
     # the lag earns its place.
-    rec = make_suite_record(
-        (("input_lag", 0.3),), "staircase", 65, fs_hz=20_000.0, param_set="paper_200hz", noise_um=0.001
-    )
-    d = diagnose(rec.u, rec.x, rec.dt, seed=65)
+    _, d = _diagnosed((("input_lag", 0.3),), "staircase", 65, fs_hz=20_000.0, param_set="paper_200hz", noise_um=0.001)
     assert d.effects == ["input_lag"]
     pruned = d.evidence["pruned"]
     assert pruned["creep"]["gain_over_null"] < 0.03 and pruned["input_lag"]["gain_over_null"] > MIN_GAIN
@@ -147,8 +146,7 @@ def test_a_look_alike_kept_before_its_partner_is_swapped_for_the_one_the_test_na
     # its credit (+88 % over the others refitted without it). The residual without it
     # follows time, and a drift in its place fits the noise.
     effects = (("resonance", 0.08), ("drift", 0.08))
-    rec = make_suite_record(effects, "single_step", 284, fs_hz=20_000.0, param_set="paper_200hz", noise_um=0.005)
-    d = diagnose(rec.u, rec.x, rec.dt, seed=284)
+    _, d = _diagnosed(effects, "single_step", 284, fs_hz=20_000.0, param_set="paper_200hz", noise_um=0.005)
     assert sorted(d.effects) == ["drift", "resonance"]
     assert "drift" in d.evidence["pruned"]["gain_drift"]["swapped_for"]
     assert d.unexplained is not None and d.unexplained.consistent_with_noise
@@ -160,8 +158,7 @@ def test_on_a_short_record_every_look_alike_is_tried_in_the_backward_step():
     # drift again; the gain drift tried in its place all the same earns more (+76.0 %
     # against +75.5 %). A record short enough not to be screened affords the trial.
     effects = (("gain_drift", 0.08), ("delay", 0.08))
-    rec = make_suite_record(effects, "single_step", 276, fs_hz=5_000.0, param_set="paper_1hz", noise_um=0.02)
-    d = diagnose(rec.u, rec.x, rec.dt, seed=276)
+    _, d = _diagnosed(effects, "single_step", 276, fs_hz=5_000.0, param_set="paper_1hz", noise_um=0.02)
     assert sorted(d.effects) == ["delay", "gain_drift"]
     assert d.evidence["pruned"]["drift"]["swapped_for"]["gain_drift"]["test_named"] == "drift"
 
@@ -172,10 +169,7 @@ def test_a_trial_still_converging_when_its_effort_ends_goes_on():
     # after its first stage, 0.026 after its second, while creep converges to 0.012
     # and was named). Still falling when its effort ran out, beside a null trial that
     # converged, it gets a third stage and fits the noise.
-    rec = make_suite_record(
-        (("gain_drift", 0.3),), "single_step", 90, fs_hz=5_000.0, param_set="paper_1hz", noise_um=0.001
-    )
-    d = diagnose(rec.u, rec.x, rec.dt, seed=90)
+    _, d = _diagnosed((("gain_drift", 0.3),), "single_step", 90, fs_hz=5_000.0, param_set="paper_1hz", noise_um=0.001)
     assert d.effects == ["gain_drift"]
     assert d.unexplained is not None and d.unexplained.ratio_to_noise < 1.2
 
@@ -187,8 +181,7 @@ def test_a_sharp_mode_is_started_at_the_peak_of_the_residual_spectrum():
     # (3.49 kHz, ζ = 0.40, +3.9 %), so the record ended with the lag alone and the
     # ringing left. Started at the residual's spectral peak, the trial finds the mode.
     effects = (("input_lag", 0.08), ("resonance", 0.08))
-    rec = make_suite_record(effects, "single_step", 268, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02)
-    d = diagnose(rec.u, rec.x, rec.dt, seed=268)
+    _, d = _diagnosed(effects, "single_step", 268, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02)
     assert sorted(d.effects) == ["input_lag", "resonance"]
     assert d.unexplained is not None and d.unexplained.consistent_with_noise
 
@@ -199,10 +192,9 @@ def test_a_strong_electrostriction_the_base_model_imitates_is_found_from_a_bent_
     # started at ε = 0 stays in that bend (+0.1 %), and the record was named nothing.
     # Started where the square bends the stroke by a share of its span, the best start
     # by the first-order refit promises a cut, and the trial takes it to near the noise.
-    rec = make_suite_record(
+    rec, d = _diagnosed(
         (("electrostriction", 0.3),), "triangle", 115, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02
     )
-    d = diagnose(rec.u, rec.x, rec.dt, seed=115)
     assert d.effects == ["electrostriction"]
     assert d.rms_after < 0.3 * d.rms_before
     assert _rms(d.x_extended - rec.x_true) < 0.2 * _rms(d.x_base - rec.x_true)

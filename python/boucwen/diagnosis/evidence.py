@@ -7,11 +7,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import welch
 
 from ..checks import FloatArray, as_float_vector
 from ..effects import ExtendedFit, best_delay
-from ..metrics import rms
+from ..metrics import rms, spectrum
 from ..record import Record, validate_record
 
 __all__ = ["delay_evidence", "residual_evidence", "residual_evidence_record"]
@@ -128,7 +127,7 @@ def residual_evidence_record(record: Record, x_model: FloatArray) -> dict[str, A
     ev["input_lag"] = {"lag_s": tau, "corr_with_rate": -c, "band_ratio": _band_ratios(r, xm, dt)}
 
     try:
-        f, pxx = welch(r - r.mean(), fs=1.0 / dt, nperseg=min(n, max(64, int(0.25 / dt))))
+        f, pxx = spectrum(r, dt)
         sel = f > max(4.0 * f[1] if f.size > 1 else 0.0, 0.02 / dt)
         if np.any(sel) and np.median(pxx[sel]) > 0:
             k = int(np.argmax(pxx[sel]))

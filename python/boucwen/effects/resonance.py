@@ -8,8 +8,8 @@ from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
-from scipy.signal import welch
 
+from ..metrics import spectrum
 from .base import Context, Effect, Start, simulate_chain
 
 __all__ = ["FN_MAX_NYQUIST_FRACTION", "ZETA_BOUNDS", "Resonance"]
@@ -39,10 +39,8 @@ def residual_peak_hz(at: Start) -> float | None:
     xs = simulate_chain(at.params, at.effects, rec.u, rec.dt, at.h0)
     if xs is None or rec.u.size < 64:
         return None
-    r = rec.x - xs
-    nperseg = min(r.size, max(64, int(0.25 / rec.dt)))
-    f, pxx = welch(r - r.mean(), fs=1.0 / rec.dt, nperseg=nperseg)
-    _, puu = welch(rec.u - rec.u.mean(), fs=1.0 / rec.dt, nperseg=nperseg)
+    f, pxx = spectrum(rec.x - xs, rec.dt)
+    _, puu = spectrum(rec.u, rec.dt)
     sel = (f > 0.02 / rec.dt) & (f < FN_MAX_NYQUIST_FRACTION / rec.dt)
     if np.any(sel):
         sel &= ~(puu > INPUT_LINE * np.median(puu[sel]))
