@@ -4,6 +4,7 @@ error under blocked cross-validation, while it earns its parameters (procedure i
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 import time
@@ -31,7 +32,7 @@ from ..effects import (
     simulate_chain,
     solve_extended_record,
 )
-from ..effects.base import with_effect, without
+from ..effects.base import params_of, set_of, with_effect, without
 from ..fit import fit_record
 from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
@@ -93,7 +94,10 @@ LOOKALIKE_MARGIN = 0.01
 PEAK_ZETA = 1.0 / math.sqrt(2.0)
 #: Groups of look-alikes (:data:`~boucwen.diagnosis.lookalike.GROUPS`) whose member
 #: already in the model bars another unless the group's test on the current residual
-#: names that other: what the first member leaves resembles the others.
+#: names that other: what the first member leaves resembles the others. A test that
+#: names none of them bars them only beside creep, which leaves a slow relaxation of
+#: its own (its time constants are fixed); a drift or a gain drift, exact forms,
+#: leave none that would be mistaken for the other.
 FOLLOWS_GUARDED = ("follows",)
 #: Effects that leave a residual not consistent with noise are named only when they
 #: remove at least this share of the base model's mean-square error beyond the noise
@@ -111,6 +115,12 @@ STILL_FALLING = 0.5
 #: Look-alikes the backward step may swap for one another (:func:`_look_alike_swap`).
 SWAP_FOLLOWS = GROUPS["follows"]
 SWAP_PHASE = ("delay", "input_lag")
+#: Where no effect earns alone, the effects whose single trials cut the in-sample error
+#: most, at most this many, are tried two at a time (:func:`_pair_round`).
+PAIR_POOL = 4
+#: ... where what the current model leaves is at least this multiple of the noise
+#: (RMS): near the noise, one of the many pairs fits its structure by chance.
+PAIR_RATIO = 2.0
 #: Whole-sample delays whose shifted base fit a delay trial compares.
 DELAY_STARTS = 2
 #: Iteration limit of the refit of a kept effect from a fresh base model (:func:`_rebased`).
@@ -395,12 +405,16 @@ class Round:
             ``fitted``, or why it is not a candidate), ``competing`` (the candidates,
             best first, with their scores), ``lookalike`` (the tests of
             :mod:`~boucwen.diagnosis.lookalike` on the current residual and, where
-            they decided, ``lookalike_decision``), ``most_likely`` and ``kept``.
+            they decided, ``lookalike_decision``; the effects a look-alike in the model
+            bars, ``lookalike_barred``), where no effect earned alone the ``pairs``
+            tried (:func:`_pair_round`), ``most_likely`` and ``kept``.
         kept: the fit of the kept effect, or None.
         ranked: the candidates' fits, best first (those that earn their parameters).
         kept_jacobian: ∂x̂/∂z of ``kept`` over the round's record (µm per unit of each
             unknown of its :class:`~boucwen.effects.Layout`), or None.
         null: the null trial, scored over the round's record.
+        reference: the better of the current model and the null trial (the one each
+            effect is credited against), scored over the round's record.
     """
 
     evidence: dict[str, Any]
@@ -408,6 +422,7 @@ class Round:
     ranked: list[tuple[str, ExtendedFit]]
     kept_jacobian: Any = None
     null: _Scored | None = None
+    reference: _Scored | None = None
 
 
 def candidates(present: Sequence[str]) -> tuple[str, ...]:
@@ -560,13 +575,9 @@ def score_round(
     earning = [k for k in ranked if _earns(trials[k], min_gain)]
     lookalike = lookalike_tests(record, reference_fit.x)
     present = set(current.effects.names)
-    refused = {}
-    for test in FOLLOWS_GUARDED:
-        members, said = GROUPS[test], lookalike[test].get("follows", lookalike[test].get("shape"))
-        if present & set(members):
-            for k in [k for k in earning if k in members and k != said]:
-                earning.remove(k)
-                refused[k] = f"a look-alike is in the model and the {test!r} test names {said!r}"
+    barred = _barred(lookalike, present)
+    refused = {k: why for k, why in barred.items() if k in earning}
+    earning = [k for k in earning if k not in barred]
     pair, lone = trials.get("resonance2", {}), trials.get("resonance", {})
     if (
         "resonance" in earning
@@ -600,6 +611,7 @@ def score_round(
         "lookalike": lookalike,
         "lookalike_decision": decision,
         "lookalike_refused": refused,
+        "lookalike_barred": sorted(barred),
         "most_likely": best,
         "kept": keep,
     }
@@ -609,7 +621,101 @@ def score_round(
         ranked=[(k, fits[k].fit) for k in earning],
         kept_jacobian=fits[best].jacobian if keep and best is not None else None,
         null=scored_null,
+        reference=reference_fit,
     )
+
+
+def _pair_round(
+    record: Record,
+    current: ExtendedFit,
+    round_: Round,
+    *,
+    folds: int,
+    min_gain: float,
+    workers: int | None,
+    say: Callable[[str], None],
+) -> Round | None:
+    """Effects that explain only together, where none earns alone (a gain drift beside
+    electrostriction: each alone bends the hysteresis to take the other's share, and
+    extrapolates worse than the model without it). The :data:`PAIR_POOL` effects whose
+    single trials in ``round_`` cut the in-sample error most are added two at a time,
+    each at its single trial's fit, and refitted with the null trial's effort (an effect
+    a look-alike in the model bars is not paired). The pair with the largest credit
+    against the round's reference that earns its parameters by the rule of a single
+    effect (:func:`_earns`) and cuts the cross-validated error of each of its members'
+    single trials by ``min_gain`` (two effects earn their second parameter only beyond
+    either alone) is kept; the backward step then asks each to earn its place beside
+    the other. Adds the pairs' credits to ``round_``'s evidence (``pairs``); returns the
+    round with the pair kept, or None when none earns."""
+    trials, ref, null = round_.evidence["trials"], round_.reference, round_.null
+    if ref is None or null is None:
+        return None
+    barred = round_.evidence["lookalike_barred"]
+    tried = [
+        k
+        for k, t in trials.items()
+        if "fitted" in t and t["in_sample_gain"] > 0 and k != "resonance2" and k not in barred
+    ]
+    pool = sorted(tried, key=lambda k: -trials[k]["in_sample_gain"])[:PAIR_POOL]
+    effort = _first_stage(TRIAL_NFEV) + TRIAL_NFEV
+    credits: dict[str, Any] = {}
+    best: tuple[str, _Scored] | None = None
+    for a, b in itertools.combinations(pool, 2):
+        t0 = time.perf_counter()
+        both = set_of({**params_of(current.effects), a: trials[a]["fitted"], b: trials[b]["fitted"]})
+        try:
+            solved = solve_extended_record(
+                record,
+                current.params,
+                both,
+                current.h0,
+                max_nfev=effort,
+                tol=TRIAL_TOL,
+                workers=workers,
+            )
+        except ValueError:
+            continue
+        scored = _scored(record, solved, folds)
+        pair = f"{a}+{b}"
+        c = credits[pair] = _credit(scored, ref, ref.cv.rms_um, min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um))
+        say(
+            f"  + {pair}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
+            f"where they act {c['local_gain']:+.1%}; {time.perf_counter() - t0:.1f} s)"
+        )
+        alone = min(trials[a]["cv_rms_um"], trials[b]["cv_rms_um"])
+        beyond = scored.cv.rms_um <= (1.0 - min_gain) * alone
+        if (
+            beyond
+            and _earns(c, min_gain)
+            and (best is None or c["gain_over_null"] > credits[best[0]]["gain_over_null"])
+        ):
+            best = (pair, scored)
+    round_.evidence["pairs"] = credits
+    if best is None:
+        return None
+    return Round(
+        evidence={**round_.evidence, "most_likely": best[0], "kept": True},
+        kept=best[1].fit,
+        ranked=[(best[0], best[1].fit)],
+        kept_jacobian=best[1].jacobian,
+        null=null,
+        reference=ref,
+    )
+
+
+def _barred(lookalike: dict[str, Any], present: set[str]) -> dict[str, str]:
+    """The effects a look-alike in the model bars (:data:`FOLLOWS_GUARDED`), with why:
+    the other members of a guarded group with a member ``present``, but the one the
+    group's test (``lookalike``, :func:`lookalike_tests`) names on the current residual.
+    A test that names none bars them only beside creep."""
+    barred = {}
+    for test in FOLLOWS_GUARDED:
+        members, said = GROUPS[test], lookalike[test].get("follows", lookalike[test].get("shape"))
+        if present & set(members) and (said != "none" or "creep" in present):
+            for k in members:
+                if k != said and k not in present:
+                    barred[k] = f"a look-alike is in the model and the {test!r} test names {said!r}"
+    return barred
 
 
 def _delay_hopeless(record: Record, current: Solved, folds: int) -> bool:
@@ -988,6 +1094,13 @@ def diagnose_record(
             )
             if todo:
                 round_.evidence["screening"] = screened.evidence
+        if round_.kept is None and q == 1:
+            residual = left_now if left_now is not None else unexplained(record, current.simulate(u, dt))
+            if residual.ratio_to_noise >= PAIR_RATIO:
+                round_ = (
+                    _pair_round(record, current, round_, folds=folds, min_gain=min_gain, workers=workers, say=say)
+                    or round_
+                )
         evidence["rounds"].append(round_.evidence)
         if round_.kept is None:
             fresh = None
