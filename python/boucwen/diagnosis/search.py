@@ -121,7 +121,9 @@ PAIR_POOL = 4
 #: ... where what the current model leaves is at least this multiple of the noise
 #: (RMS): near the noise, one of the many pairs fits its structure by chance.
 PAIR_RATIO = 2.0
-#: Whole-sample delays whose shifted base fit a delay trial compares.
+#: Whole-sample delays whose shifted base fit a delay trial compares, the best by the
+#: first-order refit, on a screened record (on one not screened: every delay up to
+#: :data:`MAX_DELAY_SAMPLES`, :func:`_delay_starts`).
 DELAY_STARTS = 2
 #: Iteration limit of the refit of a kept effect from a fresh base model (:func:`_rebased`).
 REBASE_NFEV = 20
@@ -215,7 +217,7 @@ def _trial_fit(
     fit, or why there is none."""
     pair = _two_modes(name, current)
     starts, predicted = ranked("resonance" if pair else name)
-    starts = starts[: DELAY_STARTS if name == "delay" else 1]
+    starts = starts[: _delay_starts(record) if name == "delay" else 1]
     p0, h0, start = current.params, current.h0, starts[0]
     if pair:
         # Two modes where the data hold two peaks close together (or one double peak),
@@ -269,6 +271,16 @@ def _trial_fit(
             # a candidate.
             return f"no resonance peak: fitted zeta {got['zeta']:.3g} ≥ 1/√2"
     return solved
+
+
+def _delay_starts(record: Record) -> int:
+    """How many whole-sample delays a delay trial refits the current model to the record
+    shifted by (:func:`_delay_shift`): the :data:`DELAY_STARTS` best by the first-order
+    refit on a screened record, every one on a record not screened. That refit ranks the
+    delays poorly where the base model has absorbed the delay: under a triangle (|u̇|
+    constant, where a delay is an offset the hysteresis takes up, except at the
+    reversals) its cost rises from 1 sample on while the delay is 8."""
+    return DELAY_STARTS if _screen_factor(record) > 1 else MAX_DELAY_SAMPLES
 
 
 def _first_stage(trial_nfev: int) -> int:
