@@ -285,8 +285,14 @@ def _delay_starts(record: Record) -> int:
 
 def _first_stage(trial_nfev: int) -> int:
     """Evaluations of a trial's first stage (:func:`_trial_fit`); the null trial gets
-    both stages' (this plus ``trial_nfev``)."""
+    both stages' (:func:`_null_effort`)."""
     return max(3, trial_nfev // 3)
+
+
+def _null_effort(trial_nfev: int = TRIAL_NFEV) -> int:
+    """Evaluations of the null trial: both stages of a trial of ``trial_nfev``; the
+    refits of the backward step and the pairs get the same."""
+    return _first_stage(trial_nfev) + trial_nfev
 
 
 def _refits_beside_null(
@@ -496,7 +502,7 @@ def score_round(
     scored_cur = _scored(record, _solved_at(record, current, workers, current_jacobian), folds)
     cur_cv = scored_cur.cv
     basis = _refit_basis(scored_cur.jacobian)
-    null_nfev = _first_stage(trial_nfev) + trial_nfev
+    null_nfev = _null_effort(trial_nfev)
 
     def null_trial() -> _Scored:
         null = solve_extended_record(
@@ -669,7 +675,7 @@ def _pair_round(
         if "fitted" in t and t["in_sample_gain"] > 0 and k != "resonance2" and k not in barred
     ]
     pool = sorted(tried, key=lambda k: -trials[k]["in_sample_gain"])[:PAIR_POOL]
-    effort = _first_stage(TRIAL_NFEV) + TRIAL_NFEV
+    effort = _null_effort()
     credits: dict[str, Any] = {}
     best: tuple[str, _Scored] | None = None
     for a, b in itertools.combinations(pool, 2):
@@ -821,7 +827,7 @@ def _backward_step(
     effects left; ``evidence["pruned"]`` gets each credit (and any swap)."""
     simulable = _screenable(current, screen)
     on = screen if simulable else record
-    effort = _first_stage(TRIAL_NFEV) + TRIAL_NFEV
+    effort = _null_effort()
 
     def refit(effects: EffectSet) -> _Scored:
         solved = solve_extended_record(on, current.params, effects, current.h0, max_nfev=effort, workers=workers)
