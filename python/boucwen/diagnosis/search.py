@@ -657,14 +657,15 @@ def _pair_round(
     electrostriction: each alone bends the hysteresis to take the other's share, and
     extrapolates worse than the model without it). The :data:`PAIR_POOL` effects whose
     single trials in ``round_`` cut the in-sample error most are added two at a time,
-    each at its single trial's fit, and refitted with the null trial's effort (an effect
-    a look-alike in the model bars is not paired). The pair with the largest credit
-    against the round's reference that earns its parameters by the rule of a single
-    effect (:func:`_earns`) and cuts the cross-validated error of each of its members'
-    single trials by ``min_gain`` (two effects earn their second parameter only beyond
-    either alone) is kept; the backward step then asks each to earn its place beside
-    the other. Adds the pairs' credits to ``round_``'s evidence (``pairs``); returns the
-    round with the pair kept, or None when none earns."""
+    each at its single trial's fit, and refitted with the null trial's effort, side by
+    side on the ``workers`` threads (an effect a look-alike in the model bars is not
+    paired). The pair with the largest credit against the round's reference that earns
+    its parameters by the rule of a single effect (:func:`_earns`) and cuts the
+    cross-validated error of each of its members' single trials by ``min_gain`` (two
+    effects earn their second parameter only beyond either alone) is kept; the backward
+    step then asks each to earn its place beside the other. Adds the pairs' credits to
+    ``round_``'s evidence (``pairs``); returns the round with the pair kept, or None when
+    none earns."""
     trials, ref, null = round_.evidence["trials"], round_.reference, round_.null
     if ref is None or null is None:
         return None
@@ -676,29 +677,32 @@ def _pair_round(
     ]
     pool = sorted(tried, key=lambda k: -trials[k]["in_sample_gain"])[:PAIR_POOL]
     effort = _null_effort()
-    credits: dict[str, Any] = {}
-    best: tuple[str, _Scored] | None = None
-    for a, b in itertools.combinations(pool, 2):
+
+    def fitted(pair: tuple[str, str]) -> tuple[_Scored, float] | None:
+        """The pair added at its members' single fits, refitted and scored; seconds taken."""
         t0 = time.perf_counter()
+        a, b = pair
         both = set_of({**params_of(current.effects), a: trials[a]["fitted"], b: trials[b]["fitted"]})
         try:
             solved = solve_extended_record(
-                record,
-                current.params,
-                both,
-                current.h0,
-                max_nfev=effort,
-                tol=TRIAL_TOL,
-                workers=workers,
+                record, current.params, both, current.h0, max_nfev=effort, tol=TRIAL_TOL, workers=workers
             )
         except ValueError:
+            return None
+        return _scored(record, solved, folds), time.perf_counter() - t0
+
+    pairs = list(itertools.combinations(pool, 2))
+    credits: dict[str, Any] = {}
+    best: tuple[str, _Scored] | None = None
+    for (a, b), outcome in zip(pairs, thread_map(fitted, pairs, workers)):
+        if outcome is None:
             continue
-        scored = _scored(record, solved, folds)
+        scored, took = outcome
         pair = f"{a}+{b}"
         c = credits[pair] = _credit(scored, ref, ref.cv.rms_um, min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um))
         say(
             f"  + {pair}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
-            f"where they act {c['local_gain']:+.1%}; {time.perf_counter() - t0:.1f} s)"
+            f"where they act {c['local_gain']:+.1%}; {took:.1f} s)"
         )
         alone = min(trials[a]["cv_rms_um"], trials[b]["cv_rms_um"])
         beyond = scored.cv.rms_um <= (1.0 - min_gain) * alone
