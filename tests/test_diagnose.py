@@ -13,10 +13,19 @@ import json
 import numpy as np
 import pytest
 
-from boucwen import EffectSet, Params, diagnose
+from boucwen import EffectSet, Params, diagnose, simulate_extended
 from boucwen.cli import main
 from boucwen.diagnosis import residual_evidence
-from boucwen.diagnosis.search import MIN_GAIN, _barred, _decimated, _earns, _screenable
+from boucwen.diagnosis.search import (
+    LOCAL_FLOOR,
+    MIN_GAIN,
+    PARTIAL_SHARE,
+    _barred,
+    _decimated,
+    _earns,
+    _lagged,
+    _screenable,
+)
 from boucwen.effects import ExtendedFit
 from boucwen.experiments.suite_records import make_suite_record
 from boucwen.experiments.undeclared_records import make_record
@@ -236,6 +245,35 @@ def test_a_look_alike_in_the_model_bars_the_others_the_test_does_not_name():
     assert _barred(test("none"), {"resonance"}) == {}
 
 
+def test_an_effect_that_leaves_only_the_noise_earns_below_the_least_gain():
+    # A delay of 0.02 µm under a triangle at 20 nm noise (5 kHz): the base model takes
+    # up most of it and leaves 1.05× the noise; the delay removes all of the error
+    # beyond the noise, in every fold, but the RMS error falls by less than the least
+    # gain (the noise stays), and nothing was named.
+    _, d = _diagnosed((("delay", 0.02),), "triangle", 195, fs_hz=5_000.0, param_set="paper_1hz", noise_um=0.02)
+    trial = d.evidence["rounds"][0]["trials"]["delay"]
+    assert LOCAL_FLOOR <= trial["gain_over_null"] < MIN_GAIN and trial["noise_share"] >= PARTIAL_SHARE
+    assert d.effects == ["delay"]
+
+
+def test_to_the_noise_an_effect_earns_only_with_every_fold():
+    credit = {"gain_over_null": 0.05, "local_gain": 0.1, "noise_share": 0.95, "fold_gains": [0.04, 0.06, 0.05, 0.05]}
+    assert _earns(credit, MIN_GAIN)
+    assert not _earns({**credit, "fold_gains": [0.2, 0.01, -0.01, 0.01]}, MIN_GAIN)
+    assert not _earns({**credit, "noise_share": 0.5}, MIN_GAIN)
+    assert not _earns({**credit, "gain_over_null": 0.02}, MIN_GAIN)
+
+
+def test_a_lag_the_phase_cannot_tell_from_a_delay_is_named_by_its_score():
+    # An input lag at 5.5 kHz under a multisine (20 kHz, 20 nm noise): below it a lag
+    # turns the phase as a delay does (misfits 0.002716 and 0.002715 rad) and the
+    # test's hair's breadth named the delay over the lag's higher score (+23.5 % vs
+    # +22.5 %). Undecided, the test leaves the choice to the scores.
+    _, d = _diagnosed((("input_lag", 0.02),), "multisine", 53, fs_hz=20_000.0, param_set="paper_200hz", noise_um=0.02)
+    assert not d.evidence["rounds"][0]["lookalike"]["phase"]["lag_or_delay_apart"]
+    assert d.effects == ["input_lag"]
+
+
 def test_every_whole_sample_delay_is_refitted_on_a_record_not_screened():
     # A delay of 8 samples under a triangle (10 kHz, 5 nm noise): the base model takes
     # it up as an offset on each ramp, and the first-order refit ranks 1 and 2 samples
@@ -244,6 +282,26 @@ def test_every_whole_sample_delay_is_refitted_on_a_record_not_screened():
     _, d = _diagnosed((("delay", 0.3),), "triangle", 211, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.005)
     assert d.effects == ["delay"]
     assert d.params["delay"]["samples"] == 8
+
+
+def test_a_lag_the_base_model_bent_to_follow_starts_its_trial_from_a_refit_to_lagged_u():
+    # An input lag at 98 Hz under a triangle (10 kHz, 20 nm noise): the base model takes
+    # it up as an offset on each ramp and leaves 1.2× the noise; every real corner added
+    # to that bend misfits before the refit, the first-order ranking put no lag first,
+    # and the trial was hopeless. Refitted to u lagged at each corner, it starts right.
+    _, d = _diagnosed((("input_lag", 0.3),), "triangle", 70, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02)
+    assert d.effects == ["input_lag"]
+    assert 50.0 < d.params["input_lag"]["fc_hz"] < 200.0
+
+
+def test_u_lagged_for_a_trial_start_is_the_cores_input_lag():
+    rec = make_record("none", 0, "paper_1hz", 0.0)
+    p, lag = Params.paper_1hz(), 70.0
+    with_lag = simulate_extended(p, EffectSet(input_lag={"fc_hz": lag}), rec.u, rec.dt)
+    lagged = _lagged(validate_record(rec.u, rec.x, rec.dt), lag)
+    # The same u_a (the core integrates the hysteresis over finer steps within a
+    # sample, where its u_a is not a straight line).
+    assert np.max(np.abs(simulate_extended(p, EffectSet(), lagged.u, rec.dt) - with_lag)) < 1e-3 * np.ptp(with_lag)
 
 
 def test_a_model_with_a_delay_is_not_screened():

@@ -83,6 +83,25 @@ def test_phase_shape_tells_delay_lag_and_resonance_apart(smooth_record, effects,
         assert out["delay_s"] == pytest.approx(3 * dt, rel=0.1)
 
 
+@pytest.mark.parametrize(
+    "effects, apart",
+    [
+        ({"input_lag": {"fc_hz": 120.0}}, True),
+        ({"delay": {"samples": 3}}, True),
+        ({"input_lag": {"fc_hz": 3000.0}}, False),
+        ({"delay": {"samples": 1}}, False),
+    ],
+)
+def test_a_lag_far_above_the_band_is_not_told_from_a_delay(smooth_record, effects, apart):
+    # Below its corner a lag turns the phase by f/fc, as a delay of 1/(2π·fc) does: with
+    # the input's lines at 3–97 Hz, a lag at 3 kHz and a delay of one sample (0.2 ms)
+    # fit the phase alike; a lag at 120 Hz and a delay of three samples do not.
+    u, xm, dt = smooth_record
+    x = boucwen.simulate_extended(PARAM_SETS["paper_1hz"], boucwen.EffectSet(**effects), u, dt)
+    noise = 0.005 * np.random.default_rng(0).standard_normal(u.size)
+    assert phase_shape(validate_record(u, x + noise, dt), xm)["lag_or_delay_apart"] is apart
+
+
 def test_lookalike_tests_are_json_ready(smooth_record):
     u, xm, dt = smooth_record
     out = lookalike_tests(validate_record(u, xm, dt), xm)

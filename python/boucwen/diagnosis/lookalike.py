@@ -18,7 +18,10 @@ what distinguishes its members:
   misfit [rad] of the best delay and of the best lag to the measured phase, and the
   largest gain, are reported; the shape named is ``resonance`` where the gain exceeds
   1 by more than 5 % at bins of coherence above 0.99 where x̂ has power (neither a
-  delay nor a lag amplifies), else the one of least phase misfit.
+  delay nor a lag amplifies), else the one of least phase misfit. Below its corner a
+  lag turns the phase as a delay of 1/(2π·fc) does: where neither misfit undercuts the
+  other by :data:`PHASE_MARGIN`, ``lag_or_delay_apart`` is False and the test does not
+  choose between the two.
 
 :data:`GROUPS` lists the groups; :func:`lookalike_tests` runs both tests and returns
 their outcomes (JSON-ready).
@@ -50,6 +53,9 @@ RESONANCE_COHERENCE = 0.99
 #: ... and at least this share of the largest power of x̂ (the weak bins between the
 #: input's lines hold what the hysteresis makes, not a transfer).
 RESONANCE_POWER = 1e-3
+#: Least share [-] by which one phase misfit must undercut the other to tell a delay
+#: from a lag (within it the phase is as straight as both: a lag far above the band).
+PHASE_MARGIN = 0.1
 #: Least phase [rad] the shapes are told apart at (smaller: ``"none"``).
 MIN_PHASE_RAD = 2e-3
 
@@ -126,6 +132,9 @@ def phase_shape(record: Record, x_model: FloatArray) -> dict[str, Any]:
         out["shape"] = "resonance"
     else:
         out["shape"] = "delay" if delay_misfit <= misfits[k] else "input_lag"
+        out["lag_or_delay_apart"] = min(delay_misfit, misfits[k]) <= (1.0 - PHASE_MARGIN) * max(
+            delay_misfit, misfits[k]
+        )
     return out
 
 

@@ -15,6 +15,7 @@ from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.signal import lfilter, lfilter_zi
 
 from .._core import EffectSet, Params
 from ..checks import check_int, check_number
@@ -41,7 +42,7 @@ from ..record import Record, validate_record
 from .evidence import delay_evidence, residual_evidence_record
 from .lookalike import GROUPS, lookalike_tests, phase_shape, what_it_follows
 from .report import Diagnosis, jsonable
-from .unexplained import Unexplained, unexplained
+from .unexplained import Unexplained, noise_level, unexplained
 from .validation import FOLDS, CrossValidation, blocked_cv
 
 __all__ = [
@@ -235,6 +236,11 @@ def _trial_fit(
         p0, h0, start = shift
     elif name == "drift":
         p0, h0, start = _drift_start(record, current, start, workers=workers, nfev=trial_nfev)
+    elif name == "input_lag" and _screen_factor(record) == 1:
+        # Ten refits: on a record not screened, as every whole-sample delay is.
+        lag = _lag_start(record, current, ranked(name)[0], workers=workers, nfev=trial_nfev)
+        if lag is not None:
+            p0, h0, start = lag
     first = _first_stage(trial_nfev)
     try:
         solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
@@ -347,6 +353,44 @@ def _delay_shift(
     return refits[best].params, refits[best].h0, starts[best - 1]
 
 
+def _lagged(record: Record, fc_hz: float) -> Record:
+    """``record`` with its command u passed through an input lag of corner ``fc_hz``
+    [Hz] (the core's discretisation: u a straight line between samples, u_a = u[0] at
+    the first sample)."""
+    a = math.exp(-2.0 * math.pi * fc_hz * record.dt)
+    c = 1.0 / (2.0 * math.pi * fc_hz * record.dt)
+    b = np.array([1.0 - c * (1.0 - a), c * (1.0 - a) - a])
+    den = np.array([1.0, -a])
+    ua, _ = lfilter(b, den, record.u, zi=lfilter_zi(b, den) * record.u[0])
+    return Record._of_checked(record.t, ua, record.x, record.dt, record.name)
+
+
+def _lag_start(
+    record: Record,
+    current: ExtendedFit,
+    starts: list[EffectSet],
+    *,
+    workers: int | None,
+    nfev: int,
+) -> tuple[Params, float, EffectSet] | None:
+    """Where an input-lag trial starts when its best-ranked start (``starts``, best
+    first) is almost no lag (a corner at the sampling rate or above): the current model
+    refitted to the record with u lagged at each corner of ``starts`` below the sampling
+    rate, beside the null (:func:`_refits_beside_null`); the base parameters, h0 and the
+    start of the best, or None when the best start is a real lag or no refit fits better
+    by :data:`LOCAL_FLOOR`.
+
+    The current fit has bent its hysteresis to follow the lag (under a triangle a lag
+    is an offset on each ramp, which h takes up), and every real corner added to that
+    bend misfits before the refit: the first-order ranking then puts no lag first."""
+    real = [s for s in starts if s.to_dict()["input_lag"]["fc_hz"] < 1.0 / record.dt]
+    if not real or real[0] is starts[0]:
+        return None
+    variants = [lambda r, s=s: _lagged(r, s.to_dict()["input_lag"]["fc_hz"]) for s in real]
+    refits, best, wins = _refits_beside_null(record, current, variants, workers=workers, nfev=nfev)
+    return (refits[best].params, refits[best].h0, real[best - 1]) if wins else None
+
+
 def _drift_start(
     record: Record,
     current: ExtendedFit,
@@ -378,14 +422,18 @@ def _drift_start(
     return fitted.params, fitted.h0, with_effect(current.effects, Drift(rate_um_per_s=rates[best - 1]))
 
 
-def _credit(trial: _Scored, reference: _Scored, ref_rms: float, ref_in_sample: float) -> dict[str, Any]:
+def _credit(
+    trial: _Scored, reference: _Scored, ref_rms: float, ref_in_sample: float, noise_um: float
+) -> dict[str, Any]:
     """What a trial is credited with against the reference (the better of the current
     model and the null trial): overall, per fold and where it acts. ``gain_over_null``
     is the cut of the cross-validated error (against ``ref_rms``), but no more than the
     cut of the in-sample error against ``ref_in_sample`` (the lower of the current
     model's and the null trial's): an effect that fits the record no better than the
     model without it is not credited with refits of the blocks that happen to
-    extrapolate better with one more unknown beside them."""
+    extrapolate better with one more unknown beside them. ``noise_share``: the share of
+    the reference's in-sample mean-square error beyond the record's noise ``noise_um``
+    [µm] that the trial removes (:func:`_explained_share`)."""
     cv, ref = trial.cv, reference.cv
     acts = np.abs(trial.x - reference.x)
     k = max(1, round(LOCAL_SHARE * acts.size))
@@ -401,13 +449,15 @@ def _credit(trial: _Scored, reference: _Scored, ref_rms: float, ref_in_sample: f
         "gain_over_null": min(cv_gain, in_sample_gain),
         "fold_gains": [1.0 - a / b if b > 0 else 0.0 for a, b in zip(cv.fold_rms_um, ref.fold_rms_um)],
         "local_gain": 1.0 - rms(cv.residual[where]) / local_ref if local_ref > 0 else 0.0,
+        "noise_share": _explained_share(ref_in_sample, cv.in_sample_rms_um, noise_um),
     }
 
 
 def _earns(c: dict[str, Any], min_gain: float) -> bool:
     overall = bool(c["gain_over_null"] >= min_gain)
     local = c["local_gain"] >= LOCAL_MIN_GAIN and c["gain_over_null"] >= LOCAL_FLOOR
-    return overall or bool(local)
+    to_noise = c["noise_share"] >= PARTIAL_SHARE and c["gain_over_null"] >= LOCAL_FLOOR and min(c["fold_gains"]) > 0
+    return overall or bool(local) or bool(to_noise)
 
 
 @dataclass(frozen=True, eq=False)
@@ -481,7 +531,10 @@ def score_round(
     of the cross-validated RMS error beyond both the current model and the null trial
     (``gain_over_null``), overall and where it acts (``local_gain``); it earns its
     parameters when the first is at least ``min_gain``, or the second at least
-    :data:`LOCAL_MIN_GAIN` with the first at least :data:`LOCAL_FLOOR`. ``starts``
+    :data:`LOCAL_MIN_GAIN` with the first at least :data:`LOCAL_FLOOR`, or when it
+    removes :data:`PARTIAL_SHARE` of the error beyond the record's noise
+    (``noise_share``) with the first at least :data:`LOCAL_FLOOR` and a gain in every
+    fold (an effect near the noise cannot cut the RMS error by more). ``starts``
     gives, per effect, a fit to start its trial from instead of its own starts;
     ``current_jacobian``, ∂x̂/∂z of ``current`` over ``record`` when already known
     (:attr:`Round.kept_jacobian` of the round that kept it on the same record).
@@ -503,6 +556,7 @@ def score_round(
     cur_cv = scored_cur.cv
     basis = _refit_basis(scored_cur.jacobian)
     null_nfev = _null_effort(trial_nfev)
+    noise_um = noise_level(record.x).sigma_um
 
     def null_trial() -> _Scored:
         null = solve_extended_record(
@@ -556,7 +610,7 @@ def score_round(
             return fr
         scored = _scored(record, fr, folds)
         ref = reference()
-        c = _credit(scored, ref, ref.cv.rms_um, in_sample_reference())
+        c = _credit(scored, ref, ref.cv.rms_um, in_sample_reference(), noise_um)
         tell(
             f"  + {name:9s}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
             f"where it acts {c['local_gain']:+.1%}; {time.perf_counter() - t0:.1f} s)"
@@ -586,7 +640,7 @@ def score_round(
             continue
         fits[name] = outcome
         trials[name] = {
-            **_credit(outcome, reference_fit, ref_rms, in_sample_reference()),
+            **_credit(outcome, reference_fit, ref_rms, in_sample_reference(), noise_um),
             "fitted": outcome.fit.effects.to_dict().get(name),
         }
     ranked = sorted(fits, key=lambda k: -trials[k]["gain_over_null"])
@@ -612,7 +666,8 @@ def score_round(
         close = trials[a]["gain_over_null"] - trials[b]["gain_over_null"] < LOOKALIKE_MARGIN
         for test, members in GROUPS.items():
             said = lookalike[test].get("follows", lookalike[test].get("shape"))
-            if close and a in members and b in members and said == b:
+            undecided = {a, b} == set(SWAP_PHASE) and not lookalike[test].get("lag_or_delay_apart", True)
+            if close and a in members and b in members and said == b and not undecided:
                 earning[0], earning[1] = b, a
                 decision = {"test": test, "between": [a, b], "chose": b}
     best = earning[0] if earning else (ranked[0] if ranked else None)
@@ -699,7 +754,8 @@ def _pair_round(
             continue
         scored, took = outcome
         pair = f"{a}+{b}"
-        c = credits[pair] = _credit(scored, ref, ref.cv.rms_um, min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um))
+        ref_in_sample = min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um)
+        c = credits[pair] = _credit(scored, ref, ref.cv.rms_um, ref_in_sample, noise_level(record.x).sigma_um)
         say(
             f"  + {pair}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
             f"where they act {c['local_gain']:+.1%}; {took:.1f} s)"
@@ -843,7 +899,7 @@ def _backward_step(
         if name == "resonance" and "resonance2" in current.effects.names:
             continue
         rest = refit(without(current.effects, name))
-        c = _credit(full, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um)
+        c = _credit(full, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um, noise_level(on.x).sigma_um)
         credits[name] = c
         say(
             f"  backward {name:9s}: over the others refitted without it {c['gain_over_null']:+.1%}, "
@@ -907,7 +963,8 @@ def _look_alike_swap(
     if name in SWAP_FOLLOWS:
         group, said = SWAP_FOLLOWS, what_it_follows(on, rest.x)["follows"]
     elif name in SWAP_PHASE and phase:
-        group, said = SWAP_PHASE, phase_shape(on, rest.x)["shape"]
+        shape = phase_shape(on, rest.x)
+        group, said = SWAP_PHASE, shape["shape"] if shape.get("lag_or_delay_apart", True) else "none"
     else:
         return None
     others = [k for k in group if k != name and k not in rest.fit.effects.names and (every or k == said)]
@@ -927,7 +984,7 @@ def _look_alike_swap(
         if isinstance(fr, str):
             continue
         scored = _scored(on, fr, folds)
-        c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um)
+        c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um, noise_level(on.x).sigma_um)
         floor = credit["gain_over_null"] - (LOOKALIKE_MARGIN if other == said else 0.0)
         if not _earns(c, min_gain) or not c["gain_over_null"] > floor:
             continue
