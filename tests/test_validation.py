@@ -5,7 +5,7 @@ import pytest
 from scipy.optimize import least_squares
 
 import boucwen
-from boucwen.diagnosis.lookalike import lookalike_tests, phase_shape, what_it_follows
+from boucwen.diagnosis.lookalike import lookalike_tests, named, phase_shape, what_it_follows
 from boucwen.diagnosis.validation import blocked_cv, fold_slices
 from boucwen.experiments.undeclared_records import PARAM_SETS
 from boucwen.experiments.undeclared_records import test_input as make_input  # not a test
@@ -99,7 +99,10 @@ def test_a_lag_far_above_the_band_is_not_told_from_a_delay(smooth_record, effect
     u, xm, dt = smooth_record
     x = boucwen.simulate_extended(PARAM_SETS["paper_1hz"], boucwen.EffectSet(**effects), u, dt)
     noise = 0.005 * np.random.default_rng(0).standard_normal(u.size)
-    assert phase_shape(validate_record(u, x + noise, dt), xm)["lag_or_delay_apart"] is apart
+    out = phase_shape(validate_record(u, x + noise, dt), xm)
+    assert out["lag_or_delay_apart"] is apart
+    assert named(out, ("delay", "input_lag")) == (out["shape"] if apart else "none")
+    assert named(out, ("delay", "resonance")) == out["shape"]
 
 
 def test_lookalike_tests_are_json_ready(smooth_record):

@@ -24,12 +24,13 @@ what distinguishes its members:
   choose between the two.
 
 :data:`GROUPS` lists the groups; :func:`lookalike_tests` runs both tests and returns
-their outcomes (JSON-ready).
+their outcomes (JSON-ready); :func:`named` reads what an outcome names.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from typing import Any
 
 import numpy as np
@@ -38,7 +39,7 @@ from scipy.signal import coherence, csd, lfilter, welch
 from ..checks import FloatArray
 from ..record import Record
 
-__all__ = ["GROUPS", "lookalike_tests", "phase_shape", "what_it_follows"]
+__all__ = ["GROUPS", "lookalike_tests", "named", "phase_shape", "what_it_follows"]
 
 #: The groups of look-alike effects and the test that separates each.
 GROUPS: dict[str, tuple[str, ...]] = {
@@ -136,6 +137,17 @@ def phase_shape(record: Record, x_model: FloatArray) -> dict[str, Any]:
             delay_misfit, misfits[k]
         )
     return out
+
+
+def named(outcome: dict[str, Any], among: Collection[str] = ()) -> str:
+    """What a test's ``outcome`` (:func:`what_it_follows` or :func:`phase_shape`) names
+    when it is to choose ``among`` some effects: its ``follows`` or ``shape``, but
+    ``"none"`` where both a delay and an input lag are among them and the phase test
+    cannot tell the two apart (``lag_or_delay_apart`` False)."""
+    said: str = outcome.get("follows", outcome.get("shape", "none"))
+    if not outcome.get("lag_or_delay_apart", True) and {"delay", "input_lag"} <= set(among):
+        return "none"
+    return said
 
 
 def lookalike_tests(record: Record, x_model: FloatArray) -> dict[str, Any]:

@@ -40,7 +40,7 @@ from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
 from .evidence import delay_evidence, residual_evidence_record
-from .lookalike import GROUPS, lookalike_tests, phase_shape, what_it_follows
+from .lookalike import GROUPS, lookalike_tests, named, phase_shape, what_it_follows
 from .report import Diagnosis, jsonable
 from .unexplained import Unexplained, noise_level, unexplained
 from .validation import FOLDS, CrossValidation, blocked_cv
@@ -665,9 +665,7 @@ def score_round(
         a, b = earning[0], earning[1]
         close = trials[a]["gain_over_null"] - trials[b]["gain_over_null"] < LOOKALIKE_MARGIN
         for test, members in GROUPS.items():
-            said = lookalike[test].get("follows", lookalike[test].get("shape"))
-            undecided = {a, b} == set(SWAP_PHASE) and not lookalike[test].get("lag_or_delay_apart", True)
-            if close and a in members and b in members and said == b and not undecided:
+            if close and a in members and b in members and named(lookalike[test], (a, b)) == b:
                 earning[0], earning[1] = b, a
                 decision = {"test": test, "between": [a, b], "chose": b}
     best = earning[0] if earning else (ranked[0] if ranked else None)
@@ -747,6 +745,8 @@ def _pair_round(
         return _scored(record, solved, folds), time.perf_counter() - t0
 
     pairs = list(itertools.combinations(pool, 2))
+    noise_um = noise_level(record.x).sigma_um
+    ref_in_sample = min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um)
     credits: dict[str, Any] = {}
     best: tuple[str, _Scored] | None = None
     for (a, b), outcome in zip(pairs, thread_map(fitted, pairs, workers)):
@@ -754,8 +754,7 @@ def _pair_round(
             continue
         scored, took = outcome
         pair = f"{a}+{b}"
-        ref_in_sample = min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um)
-        c = credits[pair] = _credit(scored, ref, ref.cv.rms_um, ref_in_sample, noise_level(record.x).sigma_um)
+        c = credits[pair] = _credit(scored, ref, ref.cv.rms_um, ref_in_sample, noise_um)
         say(
             f"  + {pair}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c['gain_over_null']:+.1%}, "
             f"where they act {c['local_gain']:+.1%}; {took:.1f} s)"
@@ -788,7 +787,7 @@ def _barred(lookalike: dict[str, Any], present: set[str]) -> dict[str, str]:
     A test that names none bars them only beside creep."""
     barred = {}
     for test in FOLLOWS_GUARDED:
-        members, said = GROUPS[test], lookalike[test].get("follows", lookalike[test].get("shape"))
+        members, said = GROUPS[test], named(lookalike[test])
         if present & set(members) and (said != "none" or "creep" in present):
             for k in members:
                 if k != said and k not in present:
@@ -894,12 +893,13 @@ def _backward_step(
         return _scored(on, solved, folds)
 
     full = null if null is not None and simulable else refit(current.effects)
+    noise_um = noise_level(on.x).sigma_um
     credits: dict[str, Any] = {}
     for name in list(added):
         if name == "resonance" and "resonance2" in current.effects.names:
             continue
         rest = refit(without(current.effects, name))
-        c = _credit(full, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um, noise_level(on.x).sigma_um)
+        c = _credit(full, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um, noise_um)
         credits[name] = c
         say(
             f"  backward {name:9s}: over the others refitted without it {c['gain_over_null']:+.1%}, "
@@ -961,14 +961,14 @@ def _look_alike_swap(
     evidence. Delay and input lag only where ``phase``: on the record itself, not on a
     screened copy, where a delay of whole samples is not the record's.)"""
     if name in SWAP_FOLLOWS:
-        group, said = SWAP_FOLLOWS, what_it_follows(on, rest.x)["follows"]
+        group, said = SWAP_FOLLOWS, named(what_it_follows(on, rest.x))
     elif name in SWAP_PHASE and phase:
-        shape = phase_shape(on, rest.x)
-        group, said = SWAP_PHASE, shape["shape"] if shape.get("lag_or_delay_apart", True) else "none"
+        group, said = SWAP_PHASE, named(phase_shape(on, rest.x), SWAP_PHASE)
     else:
         return None
     others = [k for k in group if k != name and k not in rest.fit.effects.names and (every or k == said)]
     basis = _refit_basis(rest.jacobian) if others else None
+    noise_um = noise_level(on.x).sigma_um
     best: tuple[str, _Scored, dict[str, Any]] | None = None
     for other in others:
         fr = _trial_fit(
@@ -984,7 +984,7 @@ def _look_alike_swap(
         if isinstance(fr, str):
             continue
         scored = _scored(on, fr, folds)
-        c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um, noise_level(on.x).sigma_um)
+        c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um, noise_um)
         floor = credit["gain_over_null"] - (LOOKALIKE_MARGIN if other == said else 0.0)
         if not _earns(c, min_gain) or not c["gain_over_null"] > floor:
             continue
