@@ -13,11 +13,15 @@ not told what it contains, and:
    the registry at run time) not yet in the model: adds it and refits everything on
    the whole record with a small iteration budget (a *trial*), from the start of the
    effect's that fits best once the current model's unknowns are refitted to first
-   order (the current fit has bent itself to follow what the effect describes); a
-   trial no better than the null trial (step 5) after a third of its budget stops
-   there, unless that first-order refit promised a cut of at least 3 %, and one whose
-   second stage left less than half the error of its first, without converging, gets
-   a third (it is judged where it converges, not where its budget happened to end); a
+   order (the current fit has bent itself to follow what the effect describes: a
+   delay starts from the model refitted to the record shifted by whole samples, a
+   drift from it refitted to the record less a trend, an input lag whose best start
+   is almost none, on a record not screened, from it refitted to u lagged at each
+   corner of its grid); a trial no better than the null trial (step 5) after a third
+   of its budget stops there, unless that first-order refit promised a cut of at
+   least 3 %, and one whose second stage left less than half the error of its first,
+   without converging, gets a third (it is judged where it converges, not where its
+   budget happened to end); a
    second resonance mode is tried beside a first, and while the model has none its
    trial adds both at once (two peaks close together, or one double peak, which a
    lone mode cannot fit), kept over the lone mode only when it beats it by
@@ -38,12 +42,17 @@ not told what it contains, and:
    more unknown beside them. It earns its
    parameters when that cut is at least ``min_gain`` (10 %), or — for evidence that is
    local — when it cuts the cross-validated error by at least 30 % on the 10 % of
-   samples it changes most and by at least 3 % overall;
+   samples it changes most and by at least 3 % overall, or — near the noise, where the
+   RMS error cannot fall by 10 % — when it removes 9/10 of the in-sample mean-square
+   error beyond the record's noise, cuts the error by at least 3 % and gains in every
+   fold;
 6. of the effects that earn their parameters the one of largest credit is
    kept; when the first two belong to one group of look-alikes (creep / drift / gain
    drift; delay / input lag / resonance) and their credits differ by less than
    1 point, the group's test decides (:mod:`~boucwen.diagnosis.lookalike`: creep
-   follows u, a drift follows time; a delay has a flat group delay, a lag does not).
+   follows u, a drift follows time; a delay has a flat group delay, a lag does not —
+   told apart only where one fits the phase 10 % better: below its corner a lag turns
+   the phase as a delay does).
    Once creep, drift or gain drift is in the model, another of the three is kept only
    when that test on the current residual names it. Then it repeats from 3 until
    nothing earns its parameters, or what the effects kept leave is consistent with
