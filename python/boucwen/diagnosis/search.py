@@ -383,12 +383,13 @@ def _lag_start(
     The current fit has bent its hysteresis to follow the lag (under a triangle a lag
     is an offset on each ramp, which h takes up), and every real corner added to that
     bend misfits before the refit: the first-order ranking then puts no lag first."""
-    real = [s for s in starts if s.to_dict()["input_lag"]["fc_hz"] < 1.0 / record.dt]
-    if not real or real[0] is starts[0]:
+    corners = [s.to_dict()["input_lag"]["fc_hz"] for s in starts]
+    real = [k for k, fc in enumerate(corners) if fc < 1.0 / record.dt]
+    if not real or real[0] == 0:
         return None
-    variants = [lambda r, s=s: _lagged(r, s.to_dict()["input_lag"]["fc_hz"]) for s in real]
+    variants = [lambda r, fc=corners[k]: _lagged(r, fc) for k in real]
     refits, best, wins = _refits_beside_null(record, current, variants, workers=workers, nfev=nfev)
-    return (refits[best].params, refits[best].h0, real[best - 1]) if wins else None
+    return (refits[best].params, refits[best].h0, starts[real[best - 1]]) if wins else None
 
 
 def _drift_start(
@@ -1099,6 +1100,7 @@ def diagnose_record(
     if not np.ptp(u) > 0:
         raise ValueError("u is constant; the diagnosis needs a varying voltage")
     screen, q = _screen_copy(record)
+    noise_um = noise_level(x).sigma_um
 
     say(f"fitting the base model on {n} samples")
     base = fit_record(record, seed=seed, workers=workers, decimate=q if q > 1 else None)
@@ -1173,13 +1175,11 @@ def diagnose_record(
             )
             if todo:
                 round_.evidence["screening"] = screened.evidence
-        if round_.kept is None and q == 1:
-            residual = left_now if left_now is not None else unexplained(record, current.simulate(u, dt))
-            if residual.ratio_to_noise >= PAIR_RATIO:
-                round_ = (
-                    _pair_round(record, current, round_, folds=folds, min_gain=min_gain, workers=workers, say=say)
-                    or round_
-                )
+        left_rms = round_.evidence["current"]["in_sample_rms_um"]  # over the full record where q == 1
+        if round_.kept is None and q == 1 and left_rms >= PAIR_RATIO * noise_um:
+            round_ = (
+                _pair_round(record, current, round_, folds=folds, min_gain=min_gain, workers=workers, say=say) or round_
+            )
         evidence["rounds"].append(round_.evidence)
         if round_.kept is None:
             fresh = None
