@@ -17,12 +17,14 @@ not told what it contains, and:
    delay starts from the model refitted to the record shifted by whole samples, a
    drift from it refitted to the record less a trend, an input lag whose best start
    is almost none, on a record not screened, from it refitted to u lagged at each
-   corner of its grid); a trial no better than the null trial (step 5) after a third
-   of its budget stops there, unless that first-order refit promised a cut of at
-   least 3 %, and one whose second stage left less than half the error of its first,
-   without converging, gets a third (it is judged where it converges, not where its
-   budget happened to end); a
-   second resonance mode is tried beside a first, and while the model has none its
+   corner of its grid; a resonance also starts at the peak of the residual's spectrum
+   over the record and over the 20 ms stretch where its energy is largest, where a
+   mode rings after a step or a sharp start); a trial no better than the null trial
+   (step 5) after a third of its budget stops there, unless that first-order refit
+   promised a cut of at least 3 %, and one whose second stage left less than half the
+   error of its first, without converging, gets a third (it is judged where it
+   converges, not where its budget happened to end); a second resonance mode is
+   tried beside a first, and while the model has none its
    trial adds both at once (two peaks close together, or one double peak, which a
    lone mode cannot fit), kept over the lone mode only when it beats it by
    ``min_gain``;

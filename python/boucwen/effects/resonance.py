@@ -8,7 +8,9 @@ from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
+from scipy.signal import detrend
 
+from ..checks import FloatArray
 from ..metrics import spectrum
 from .base import Context, Effect, Start, simulate_chain
 
@@ -24,29 +26,53 @@ FN_MAX_NYQUIST_FRACTION = 0.45
 #: damped mode rings at its own frequency; the grid's nearest point may be a few
 #: tenths of an octave away, too far for a sharp peak to be found from there).
 PEAK_ZETAS = (0.03, 0.1)
+#: The stretch [s] of the residual where a burst of ringing is looked for (a mode of
+#: a few hundred Hz damped by ζ ≈ 0.05 has died out within it).
+BURST_S = 0.02
 #: A bin of the input's spectrum this many times its median is one of the input's lines.
 INPUT_LINE = 10.0
 
 
-def residual_peak_hz(at: Start) -> float | None:
-    """The frequency [Hz] of the largest peak of the current model's residual spectrum
-    (Welch, segments of 0.25 s), above 2 % of the sampling rate and below
-    :data:`FN_MAX_NYQUIST_FRACTION` of it, away from the input's own lines (bins where
-    the input's spectrum stands :data:`INPUT_LINE` × above its median: what the model
-    misses there follows the input, and a mode rings at its own frequency); None when
-    the model cannot be simulated, the record is too short or no bin is left."""
+def residual_peaks_hz(at: Start) -> list[float]:
+    """Where a mode may ring [Hz], from the current model's residual r: the largest peak
+    of r's spectrum over the whole record (Welch, segments of 0.25 s), away from the
+    input's own lines (bins where the input's spectrum stands :data:`INPUT_LINE` × above
+    its median: what the model misses there follows the input, and a mode rings at its
+    own frequency); and the largest peak of r over the :data:`BURST_S` stretch where r's
+    energy is largest (ringing after a step or a sharp start dies out within it, and a
+    whole-record spectrum averages it away). Both above 2 % of the sampling rate and
+    below :data:`FN_MAX_NYQUIST_FRACTION` of it; none when the model cannot be simulated
+    or the record is too short."""
     rec = at.record
     xs = simulate_chain(at.params, at.effects, rec.u, rec.dt, at.h0)
     if xs is None or rec.u.size < 64:
-        return None
-    f, pxx = spectrum(rec.x - xs, rec.dt)
+        return []
+    r = rec.x - xs
+    band = (0.02 / rec.dt, FN_MAX_NYQUIST_FRACTION / rec.dt)
+    f, pxx = spectrum(r, rec.dt)
     _, puu = spectrum(rec.u, rec.dt)
-    sel = (f > 0.02 / rec.dt) & (f < FN_MAX_NYQUIST_FRACTION / rec.dt)
+    sel = (f > band[0]) & (f < band[1])
     if np.any(sel):
         sel &= ~(puu > INPUT_LINE * np.median(puu[sel]))
-    if not np.any(sel):
+    peaks = [float(f[sel][int(np.argmax(pxx[sel]))])] if np.any(sel) else []
+    burst = _burst_peak_hz(r, rec.dt, band)
+    return [*peaks, burst] if burst is not None and burst not in peaks else peaks
+
+
+def _burst_peak_hz(r: FloatArray, dt: float, band: tuple[float, float]) -> float | None:
+    """The largest peak within ``band`` [Hz] of the periodogram of ``r`` over the
+    :data:`BURST_S` stretch (at least 64 samples) of largest energy, less its linear
+    trend, zero-padded to 8× its length."""
+    n = max(64, round(BURST_S / dt))
+    if r.size < n:
         return None
-    return float(f[sel][int(np.argmax(pxx[sel]))])
+    running = np.concatenate(([0.0], np.cumsum(r * r)))
+    k = int(np.argmax(running[n:] - running[:-n]))
+    seg = detrend(r[k : k + n])
+    f = np.fft.rfftfreq(8 * n, dt)
+    power = np.abs(np.fft.rfft(seg, 8 * n)) ** 2
+    sel = (f > band[0]) & (f < band[1])
+    return float(f[sel][int(np.argmax(power[sel]))]) if np.any(sel) else None
 
 
 @dataclass(frozen=True)
@@ -92,7 +118,5 @@ class Resonance(Effect):
         fns = np.geomspace(5.0 / duration, FN_MAX_NYQUIST_FRACTION * 0.9 / dt, 16)
         pairs = [(float(f), z) for f in fns for z in (0.03, 0.15, 0.5)]
         pairs.append((FN_MAX_NYQUIST_FRACTION * 0.98 / dt, 0.7))  # the mildest resonance
-        peak = residual_peak_hz(at)
-        if peak is not None:
-            pairs += [(peak, z) for z in PEAK_ZETAS]
+        pairs += [(peak, z) for peak in residual_peaks_hz(at) for z in PEAK_ZETAS]
         return [cls(fn_hz=f, zeta=z) for f, z in pairs]
