@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.signal import detrend
 
 from ..checks import FloatArray
@@ -51,12 +52,11 @@ def residual_peaks_hz(at: Start) -> list[float]:
     band = (0.02 / rec.dt, FN_MAX_NYQUIST_FRACTION / rec.dt)
     f, pxx = spectrum(r, rec.dt)
     _, puu = spectrum(rec.u, rec.dt)
-    sel = (f > band[0]) & (f < band[1])
+    sel = _in_band(f, band)
     if np.any(sel):
         sel &= ~(puu > INPUT_LINE * np.median(puu[sel]))
-    peaks = [float(f[sel][int(np.argmax(pxx[sel]))])] if np.any(sel) else []
-    burst = _burst_peak_hz(r, rec.dt, band)
-    return [*peaks, burst] if burst is not None and burst not in peaks else peaks
+    peaks = (_largest_hz(f, pxx, sel), _burst_peak_hz(r, rec.dt, band))
+    return list(dict.fromkeys(p for p in peaks if p is not None))
 
 
 def _burst_peak_hz(r: FloatArray, dt: float, band: tuple[float, float]) -> float | None:
@@ -68,11 +68,20 @@ def _burst_peak_hz(r: FloatArray, dt: float, band: tuple[float, float]) -> float
         return None
     running = np.concatenate(([0.0], np.cumsum(r * r)))
     k = int(np.argmax(running[n:] - running[:-n]))
-    seg = detrend(r[k : k + n])
-    f = np.fft.rfftfreq(8 * n, dt)
-    power = np.abs(np.fft.rfft(seg, 8 * n)) ** 2
-    sel = (f > band[0]) & (f < band[1])
-    return float(f[sel][int(np.argmax(power[sel]))]) if np.any(sel) else None
+    f = np.fft.rfftfreq(8 * n, dt).astype(np.float64)
+    power = np.abs(np.fft.rfft(detrend(r[k : k + n]), 8 * n)) ** 2
+    return _largest_hz(f, power, _in_band(f, band))
+
+
+def _in_band(f: FloatArray, band: tuple[float, float]) -> NDArray[np.bool_]:
+    """Where the frequencies ``f`` [Hz] lie strictly within ``band`` [Hz]."""
+    inside: NDArray[np.bool_] = (f > band[0]) & (f < band[1])
+    return inside
+
+
+def _largest_hz(f: FloatArray, power: FloatArray, keep: NDArray[np.bool_]) -> float | None:
+    """The frequency [Hz] of the largest ``power`` where ``keep``; None where none is kept."""
+    return float(f[keep][int(np.argmax(power[keep]))]) if np.any(keep) else None
 
 
 @dataclass(frozen=True)
