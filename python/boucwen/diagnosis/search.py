@@ -702,6 +702,7 @@ def _pair_round(
     current: ExtendedFit,
     round_: Round,
     *,
+    noise_um: float,
     folds: int,
     min_gain: float,
     workers: int | None,
@@ -717,9 +718,10 @@ def _pair_round(
     its parameters by the rule of a single effect (:func:`_earns`) and cuts the
     cross-validated error of each of its members' single trials by ``min_gain`` (two
     effects earn their second parameter only beyond either alone) is kept; the backward
-    step then asks each to earn its place beside the other. Adds the pairs' credits to
-    ``round_``'s evidence (``pairs``); returns the round with the pair kept, or None when
-    none earns."""
+    step then asks each to earn its place beside the other (``noise_um``: the record's
+    noise [µm], :func:`noise_level`, for the credit's ``noise_share``). Adds the pairs'
+    credits to ``round_``'s evidence (``pairs``); returns the round with the pair kept, or
+    None when none earns."""
     trials, ref, null = round_.evidence["trials"], round_.reference, round_.null
     if ref is None or null is None:
         return None
@@ -746,7 +748,6 @@ def _pair_round(
         return _scored(record, solved, folds), time.perf_counter() - t0
 
     pairs = list(itertools.combinations(pool, 2))
-    noise_um = noise_level(record.x).sigma_um
     ref_in_sample = min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um)
     credits: dict[str, Any] = {}
     best: tuple[str, _Scored] | None = None
@@ -1178,7 +1179,10 @@ def diagnose_record(
         left_rms = round_.evidence["current"]["in_sample_rms_um"]  # over the full record where q == 1
         if round_.kept is None and q == 1 and left_rms >= PAIR_RATIO * noise_um:
             round_ = (
-                _pair_round(record, current, round_, folds=folds, min_gain=min_gain, workers=workers, say=say) or round_
+                _pair_round(
+                    record, current, round_, noise_um=noise_um, folds=folds, min_gain=min_gain, workers=workers, say=say
+                )
+                or round_
             )
         evidence["rounds"].append(round_.evidence)
         if round_.kept is None:
