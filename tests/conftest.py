@@ -1,10 +1,40 @@
-"""Shared test helpers."""
+"""Shared test helpers, and the hypothesis profiles.
+
+Property tests run under a named hypothesis profile, chosen by the environment
+variable ``HYPOTHESIS_PROFILE``:
+
+* ``ci`` (the default, used by ``scripts/test.sh`` and ``.ci/run``): derandomized, so
+  the same examples are drawn on every run and every machine; no example database.
+* ``explore``: random seeds and the example database, for local runs that look for
+  new counter-examples (``HYPOTHESIS_PROFILE=explore python -m pytest tests``). Every
+  counter-example found this way is kept in its test as an explicit ``@example``.
+"""
 
 from __future__ import annotations
 
+import json
+import os
+from pathlib import Path
 from typing import Any
 
+from hypothesis import settings
+
 import boucwen
+
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile("explore", derandomize=False, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+#: Counter-examples found by property tests, kept as files (tests/regressions/).
+REGRESSIONS = Path(__file__).parent / "regressions"
+
+
+def regression_case(name: str) -> dict[str, Any]:
+    """The counter-example ``tests/regressions/<name>.json``."""
+    with (REGRESSIONS / f"{name}.json").open() as f:
+        case: dict[str, Any] = json.load(f)
+    return case
+
 
 #: One of each of the first five effects of the vocabulary (whose fit layout and starts
 #: the tests pin), as ``EffectSet`` keyword arguments.

@@ -356,7 +356,10 @@ def fit_record(
             say(f"start {k + 1}/{len(starts)}: rms {fit_rms:.4g} µm after {res.nfev} steps")
             if best is not None and abs(res.cost - best.cost) <= _SAME_COST * max(best.cost, 1e-300):
                 confirmed = True
-            if best is None or res.cost < best.cost:
+            # A later start replaces the best only beyond _SAME_COST: within it the two
+            # are the same optimum, and the earlier start keeps it whichever way the
+            # last bits of the arithmetic fall.
+            if best is None or res.cost < (1.0 - _SAME_COST) * best.cost:
                 best = res
             if confirmed and k + 1 < len(starts):
                 say("optimum reached from two starts; skipping the rest")

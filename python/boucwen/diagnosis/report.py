@@ -39,6 +39,8 @@ class Diagnosis:
             noise estimated from the record, the signals, spectral lines and time spans
             it follows, and whether it is consistent with noise
             (:class:`~boucwen.diagnosis.unexplained.Unexplained`; None if not computed).
+        confidence: per effect named, ``{"level": "confident" | "tentative", "why",
+            "competing"}`` (:mod:`~boucwen.diagnosis.confidence`).
     """
 
     effects: list[str]
@@ -52,6 +54,16 @@ class Diagnosis:
     x_extended: FloatArray
     effect_set: EffectSet = field(default_factory=EffectSet)
     unexplained: Unexplained | None = None
+    confidence: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @property
+    def close_calls(self) -> list[dict[str, Any]]:
+        """The choices closer than the margin of :mod:`~boucwen.diagnosis.margins`,
+        decided by its stated rule: ``{"decision", "value", "against", "chose", "kind"}``
+        each (``kind``: ``"answer"`` for what the answer holds, ``"path"`` for a trial's
+        way there; the summary counts the first)."""
+        calls: list[dict[str, Any]] = self.evidence.get("close_calls", [])
+        return calls
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON report (without the arrays)."""
@@ -64,14 +76,22 @@ class Diagnosis:
             "params": self.params,
             "evidence": self.evidence,
             "unexplained": None if self.unexplained is None else jsonable(self.unexplained.to_dict()),
+            "confidence": self.confidence,
+            "close_calls": self.close_calls,
         }
 
     def summary(self) -> str:
         """One line: effects and errors."""
-        named = ", ".join(self.effects) if self.effects else "none"
+        named = (
+            ", ".join(f"{k} ({self.confidence[k]['level']})" if k in self.confidence else k for k in self.effects)
+            if self.effects
+            else "none"
+        )
+        on_answer = [c for c in self.close_calls if c.get("kind") == "answer"]
+        close = f"; {len(on_answer)} close call(s)" if on_answer else ""
         return (
             f"effects: {named}; RMS {self.rms_before:.4g} → {self.rms_after:.4g} µm, "
-            f"max {self.max_before:.4g} → {self.max_after:.4g} µm"
+            f"max {self.max_before:.4g} → {self.max_after:.4g} µm{close}"
         )
 
     def __repr__(self) -> str:

@@ -39,8 +39,10 @@ from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
+from .confidence import confidence
 from .evidence import delay_evidence, residual_evidence_record
 from .lookalike import GROUPS, lookalike_tests, named, phase_shape, what_it_follows
+from .margins import CLOSE_GAIN, CLOSE_REL, PATH, CloseCalls, Compare, at_least, at_most, decide, first_of_best
 from .report import Diagnosis, jsonable
 from .unexplained import Unexplained, noise_level, unexplained
 from .validation import FOLDS, CrossValidation, blocked_cv
@@ -179,18 +181,36 @@ def _scored(record: Record, solved: Solved, folds: int) -> _Scored:
 
 
 def _ranked_starts(
-    name: str, record: Record, current: ExtendedFit, basis: Any, workers: int | None
+    name: str,
+    record: Record,
+    current: ExtendedFit,
+    basis: Any,
+    workers: int | None,
+    calls: CloseCalls | None = None,
 ) -> tuple[list[EffectSet], float]:
     """The starts of a trial adding ``name`` to ``current``, best first: least
     :func:`_cost` beyond the first-order refit of ``basis`` (when given), simulated side
     by side when there is more than one worker; and what the best leaves [µm] (∞ when
-    not known: one start, or no basis)."""
+    not known: one start, or no basis). Starts whose costs tie with the least within
+    :data:`~boucwen.diagnosis.margins.CLOSE_REL` are taken in the order the effect
+    lists them (a close call, noted in ``calls``)."""
     starts = candidate_starts(name, record, current.params, current.effects, current.h0, max_delay=MAX_DELAY_SAMPLES)
     if len(starts) <= 1:
         return starts, math.inf
     costs = thread_map(lambda s: _cost(record, current, s, basis), starts, workers)
-    order = [int(k) for k in np.argsort(costs)]
-    return [starts[k] for k in order], float(costs[order[0]]) if basis is not None else math.inf
+    best = first_of_best(
+        range(len(starts)),
+        lambda k: costs[k],
+        higher=False,
+        margin=CLOSE_REL,
+        relative=True,
+        decision=f"{name}: best start",
+        calls=calls,
+        name=lambda k: f"start {k}",
+        kind=PATH,
+    )
+    order = [best] + [int(k) for k in np.argsort(costs, kind="stable") if k != best]
+    return [starts[k] for k in order], float(costs[best]) if basis is not None else math.inf
 
 
 def _trial_fit(
@@ -203,6 +223,7 @@ def _trial_fit(
     workers: int | None,
     trial_nfev: int,
     basis: Any = None,
+    calls: CloseCalls | None = None,
 ) -> Solved | str:
     """Adds ``name`` to ``current`` from its best start (``ranked``: the starts of an
     effect best first and what the best leaves, :func:`_ranked_starts`) and refits
@@ -230,15 +251,15 @@ def _trial_fit(
         if not predicted <= (1.0 - LOCAL_FLOOR) * alone:
             return "hopeless: two modes promise no more than the first alone"
     if name == "delay":
-        shift = _delay_shift(record, current, starts, workers=workers, nfev=trial_nfev)
+        shift = _delay_shift(record, current, starts, workers=workers, nfev=trial_nfev, calls=calls)
         if isinstance(shift, str):
             return shift
         p0, h0, start = shift
     elif name == "drift":
-        p0, h0, start = _drift_start(record, current, start, workers=workers, nfev=trial_nfev)
+        p0, h0, start = _drift_start(record, current, start, workers=workers, nfev=trial_nfev, calls=calls)
     elif name == "input_lag" and _screen_factor(record) == 1:
         # Ten refits: on a record not screened, as every whole-sample delay is.
-        lag = _lag_start(record, current, ranked(name)[0], workers=workers, nfev=trial_nfev)
+        lag = _lag_start(record, current, ranked(name)[0], workers=workers, nfev=trial_nfev, calls=calls)
         if lag is not None:
             p0, h0, start = lag
     first = _first_stage(trial_nfev)
@@ -246,9 +267,16 @@ def _trial_fit(
         solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
         fr = solved.fit
         null_rms = null().rms_um
-        if fr.rms_um >= null_rms and not predicted <= (1.0 - LOCAL_FLOOR) * null_rms:
+
+        def goes_on(c: Compare) -> bool:
             # A start whose first-order refit promises a cut goes on: its first steps
             # may still be finding their way (a second mode beside the first).
+            if not null_rms > 0:
+                return False
+            better = c.le(fr.rms_um / null_rms, 1.0, CLOSE_REL)
+            return better or c.le(predicted / null_rms, 1.0 - LOCAL_FLOOR, CLOSE_REL)
+
+        if not decide(goes_on, f"{name}: trial goes on after stage 1", calls, yes="goes on", no="stopped", kind=PATH):
             return "hopeless: no better than the null trial after a third of the effort"
         if not fr.success:
             solved = solve_extended_record(
@@ -261,7 +289,10 @@ def _trial_fit(
                 workers=workers,
             )
             went = solved.fit
-            if not went.success and went.rms_um < STILL_FALLING * fr.rms_um and null().success:
+            falling = fr.rms_um > 0 and at_most(
+                went.rms_um / fr.rms_um, STILL_FALLING, CLOSE_REL, f"{name}: still falling after stage 2", calls, PATH
+            )
+            if not went.success and falling and null().success:
                 # Still falling fast when its effort ran out: a trial judged there would
                 # be credited with where it happened to stop, not with what it explains.
                 solved = solve_extended_record(
@@ -308,12 +339,16 @@ def _refits_beside_null(
     *,
     workers: int | None,
     nfev: int,
+    calls: CloseCalls | None = None,
+    what: str = "",
 ) -> tuple[list[ExtendedFit], int, bool]:
     """The current model refitted to the record itself (the null, first) and to each
     variant of it (same effort), on the record's screened copy (:func:`_screen_copy`:
     a variant is made of the full record, then decimated as the copy is), side by side
     when there is more than one worker. Returns the refits, the index of the best
-    variant's and whether it beats the null's RMS error by :data:`LOCAL_FLOOR`."""
+    variant's (of variants that tie within the margin, the first listed) and whether it
+    beats the null's RMS error by :data:`LOCAL_FLOOR` (close calls noted in ``calls``,
+    ``what``: the effect whose trial starts there)."""
     q = _screen_factor(record)
 
     def refit(variant: Callable[[Record], Record] | None) -> ExtendedFit:
@@ -323,8 +358,22 @@ def _refits_beside_null(
         )
 
     refits = thread_map(refit, [None, *variants], workers)
-    best = 1 + int(np.argmin([f.rms_um for f in refits[1:]]))
-    return refits, best, refits[best].rms_um <= (1.0 - LOCAL_FLOOR) * refits[0].rms_um
+    best = 1 + first_of_best(
+        refits[1:],
+        lambda f: f.rms_um,
+        higher=False,
+        margin=CLOSE_REL,
+        relative=True,
+        decision=f"{what}: best refit start",
+        calls=calls,
+        name=lambda f: what,
+        kind=PATH,
+    )
+    null_rms = refits[0].rms_um
+    wins = null_rms > 0 and at_most(
+        refits[best].rms_um / null_rms, 1.0 - LOCAL_FLOOR, CLOSE_REL, f"{what}: refit start beats the null", calls, PATH
+    )
+    return refits, best, wins
 
 
 def _delay_shift(
@@ -334,6 +383,7 @@ def _delay_shift(
     *,
     workers: int | None,
     nfev: int,
+    calls: CloseCalls | None = None,
 ) -> tuple[Params, float, EffectSet] | str:
     """The current model refitted to the record shifted by each delay of ``starts`` and,
     as the null, not shifted (:func:`_refits_beside_null`): the base parameters, h0 and
@@ -347,7 +397,9 @@ def _delay_shift(
     its screened copy."""
     delays = [s.to_dict()["delay"]["samples"] for s in starts]
     variants = [lambda r, d=d: r.realigned(d) for d in delays]
-    refits, best, wins = _refits_beside_null(record, current, variants, workers=workers, nfev=nfev)
+    refits, best, wins = _refits_beside_null(
+        record, current, variants, workers=workers, nfev=nfev, calls=calls, what="delay"
+    )
     if not wins:
         return f"hopeless: the best shift ({delays[best - 1]} samples) fits no better than none"
     return refits[best].params, refits[best].h0, starts[best - 1]
@@ -372,6 +424,7 @@ def _lag_start(
     *,
     workers: int | None,
     nfev: int,
+    calls: CloseCalls | None = None,
 ) -> tuple[Params, float, EffectSet] | None:
     """Where an input-lag trial starts when its best-ranked start (``starts``, best
     first) is almost no lag (a corner at the sampling rate or above): the current model
@@ -388,7 +441,9 @@ def _lag_start(
     if not real or real[0] == 0:
         return None
     variants = [lambda r, fc=corners[k]: _lagged(r, fc) for k in real]
-    refits, best, wins = _refits_beside_null(record, current, variants, workers=workers, nfev=nfev)
+    refits, best, wins = _refits_beside_null(
+        record, current, variants, workers=workers, nfev=nfev, calls=calls, what="input_lag"
+    )
     return (refits[best].params, refits[best].h0, starts[real[best - 1]]) if wins else None
 
 
@@ -399,6 +454,7 @@ def _drift_start(
     *,
     workers: int | None,
     nfev: int,
+    calls: CloseCalls | None = None,
 ) -> tuple[Params, float, EffectSet]:
     """Where a drift trial starts: the current model refitted to the record less a trend
     r·t for each rate r of :data:`DRIFT_PROFILE` × the least-squares trend of x on
@@ -416,7 +472,9 @@ def _drift_start(
         return current.params, current.h0, start
     rates = [f * trend for f in DRIFT_PROFILE]
     variants = [lambda r, rate=rate: validate_record(r.u, r.x - rate * t, r.dt) for rate in rates]
-    refits, best, wins = _refits_beside_null(record, current, variants, workers=workers, nfev=nfev)
+    refits, best, wins = _refits_beside_null(
+        record, current, variants, workers=workers, nfev=nfev, calls=calls, what="drift"
+    )
     if not wins:
         return current.params, current.h0, start
     fitted = refits[best]
@@ -454,11 +512,23 @@ def _credit(
     }
 
 
-def _earns(c: dict[str, Any], min_gain: float) -> bool:
-    overall = bool(c["gain_over_null"] >= min_gain)
-    local = c["local_gain"] >= LOCAL_MIN_GAIN and c["gain_over_null"] >= LOCAL_FLOOR
-    to_noise = c["noise_share"] >= PARTIAL_SHARE and c["gain_over_null"] >= LOCAL_FLOOR and min(c["fold_gains"]) > 0
-    return overall or bool(local) or bool(to_noise)
+def _earns(c: dict[str, Any], min_gain: float, calls: CloseCalls | None = None, what: str = "") -> bool:
+    """A credit ``c`` (:func:`_credit`) earns its parameters: a cut of at least
+    ``min_gain`` overall, or :data:`LOCAL_MIN_GAIN` where it acts with
+    :data:`LOCAL_FLOOR` overall, or :data:`PARTIAL_SHARE` of the error beyond the noise
+    with :data:`LOCAL_FLOOR` overall and a gain in every fold. Each comparison with
+    the margin of :mod:`~boucwen.diagnosis.margins`: a credit it decides does not earn
+    (a close call noted in ``calls`` as ``what``)."""
+
+    def rule(cmp: Compare) -> bool:
+        gain = c["gain_over_null"]
+        overall = cmp.ge(gain, min_gain)
+        local = cmp.ge(c["local_gain"], LOCAL_MIN_GAIN) and cmp.ge(gain, LOCAL_FLOOR)
+        folds = cmp.ge(min(c["fold_gains"]), 0.0) and min(c["fold_gains"]) > 0
+        to_noise = cmp.ge(c["noise_share"], PARTIAL_SHARE) and cmp.ge(gain, LOCAL_FLOOR) and folds
+        return overall or local or to_noise
+
+    return decide(rule, f"{what}: earns its parameters", calls, yes="earns", no="does not earn")
 
 
 @dataclass(frozen=True, eq=False)
@@ -520,6 +590,7 @@ def score_round(
     trial_nfev: int = TRIAL_NFEV,
     starts: dict[str, ExtendedFit] | None = None,
     current_jacobian: Any = None,
+    calls: CloseCalls | None = None,
 ) -> Round:
     """Tries every effect of the vocabulary not yet in ``current`` (or those in
     ``names``) on ``record``.
@@ -539,6 +610,7 @@ def score_round(
     gives, per effect, a fit to start its trial from instead of its own starts;
     ``current_jacobian``, ∂x̂/∂z of ``current`` over ``record`` when already known
     (:attr:`Round.kept_jacobian` of the round that kept it on the same record).
+    ``calls`` records the round's close calls (:mod:`~boucwen.diagnosis.margins`).
 
     The null trial and the trials are independent (a trial only waits for the null
     trial's error at the end of its first stage): with more than one worker they run
@@ -569,9 +641,10 @@ def score_round(
         return scored
 
     def reference() -> _Scored:
-        """The better of the current model and the null trial (waits for the latter)."""
+        """The better of the current model and the null trial (waits for the latter);
+        the current model where the two tie within the margin."""
         scored_null = null_run.result()
-        return scored_cur if cur_cv.rms_um <= scored_null.cv.rms_um else scored_null
+        return scored_null if scored_null.cv.rms_um < (1.0 - CLOSE_REL) * cur_cv.rms_um else scored_cur
 
     def in_sample_reference() -> float:
         """The lower in-sample RMS error [µm] of the current model and the null trial."""
@@ -585,7 +658,7 @@ def score_round(
     def starts_of(name: str) -> tuple[list[EffectSet], float]:
         with rank_locks[name]:
             if name not in rankings:
-                rankings[name] = _ranked_starts(name, record, current, basis, workers)
+                rankings[name] = _ranked_starts(name, record, current, basis, workers, calls)
             return rankings[name]
 
     def trial(name: str) -> _Scored | str:
@@ -605,6 +678,7 @@ def score_round(
                 workers=workers,
                 trial_nfev=trial_nfev,
                 basis=basis,
+                calls=calls,
             )
         if isinstance(fr, str):
             tell(f"  - {name:9s}: {fr} ({time.perf_counter() - t0:.1f} s)")
@@ -645,7 +719,22 @@ def score_round(
             "fitted": outcome.fit.effects.to_dict().get(name),
         }
     ranked = sorted(fits, key=lambda k: -trials[k]["gain_over_null"])
-    earning = [k for k in ranked if _earns(trials[k], min_gain)]
+    earning = [k for k in ranked if _earns(trials[k], min_gain, calls, k)]
+    if earning:
+        # Credits that tie within the margin: the effect first in the vocabulary.
+        listed = [k for k in VOCABULARY if k in earning]
+        top = listed[
+            first_of_best(
+                listed,
+                lambda k: trials[k]["gain_over_null"],
+                higher=True,
+                margin=CLOSE_GAIN,
+                relative=False,
+                decision="the effect that explains most",
+                calls=calls,
+            )
+        ]
+        earning = [top] + [k for k in earning if k != top]
     lookalike = lookalike_tests(record, reference_fit.x)
     present = set(current.effects.names)
     barred = _barred(lookalike, present)
@@ -656,7 +745,7 @@ def score_round(
         "resonance" in earning
         and "resonance2" in earning
         and "resonance" not in present
-        and pair["cv_rms_um"] > (1.0 - min_gain) * lone["cv_rms_um"]
+        and not at_most(pair["cv_rms_um"] / lone["cv_rms_um"], 1.0 - min_gain, CLOSE_REL, "two modes beyond one", calls)
     ):
         # Both modes at once earn their two more parameters only beyond the lone mode.
         earning.remove("resonance2")
@@ -707,6 +796,7 @@ def _pair_round(
     min_gain: float,
     workers: int | None,
     say: Callable[[str], None],
+    calls: CloseCalls | None = None,
 ) -> Round | None:
     """Effects that explain only together, where none earns alone (a gain drift beside
     electrostriction: each alone bends the hysteresis to take the other's share, and
@@ -750,7 +840,7 @@ def _pair_round(
     pairs = list(itertools.combinations(pool, 2))
     ref_in_sample = min(ref.cv.in_sample_rms_um, null.cv.in_sample_rms_um)
     credits: dict[str, Any] = {}
-    best: tuple[str, _Scored] | None = None
+    earning: list[tuple[str, _Scored]] = []
     for (a, b), outcome in zip(pairs, thread_map(fitted, pairs, workers)):
         if outcome is None:
             continue
@@ -762,16 +852,27 @@ def _pair_round(
             f"where they act {c['local_gain']:+.1%}; {took:.1f} s)"
         )
         alone = min(trials[a]["cv_rms_um"], trials[b]["cv_rms_um"])
-        beyond = scored.cv.rms_um <= (1.0 - min_gain) * alone
-        if (
-            beyond
-            and _earns(c, min_gain)
-            and (best is None or c["gain_over_null"] > credits[best[0]]["gain_over_null"])
-        ):
-            best = (pair, scored)
+        beyond = alone > 0 and at_most(
+            scored.cv.rms_um / alone, 1.0 - min_gain, CLOSE_REL, f"{pair}: beyond either alone", calls
+        )
+        if beyond and _earns(c, min_gain, calls, pair):
+            earning.append((pair, scored))
     round_.evidence["pairs"] = credits
-    if best is None:
+    if not earning:
         return None
+    # Pairs whose credits tie within the margin: the one listed first.
+    best = earning[
+        first_of_best(
+            earning,
+            lambda e: credits[e[0]]["gain_over_null"],
+            higher=True,
+            margin=CLOSE_GAIN,
+            relative=False,
+            decision="the pair that explains most",
+            calls=calls,
+            name=lambda e: e[0],
+        )
+    ]
     return Round(
         evidence={**round_.evidence, "most_likely": best[0], "kept": True},
         kept=best[1].fit,
@@ -847,8 +948,10 @@ def _rebased(record: Record, kept: ExtendedFit, *, seed: int, workers: int | Non
 def _partial(before_um: float, after_um: float, left: Unexplained) -> bool:
     """The model with the effects kept leaves a residual ``left`` not consistent with
     noise and removes less than :data:`PARTIAL_SHARE` of the base model's mean-square
-    error beyond the noise (RMS errors before and after [µm])."""
-    return not left.consistent_with_noise and _explained_share(before_um, after_um, left.noise_um) < PARTIAL_SHARE
+    error beyond the noise (RMS errors before and after [µm]); a share within the
+    margin of it counts as less (the simpler report: nothing named)."""
+    share = _explained_share(before_um, after_um, left.noise_um)
+    return not left.consistent_with_noise and not at_least(share, PARTIAL_SHARE, CLOSE_GAIN, "", None)
 
 
 def _explained_share(before_um: float, after_um: float, noise_um: float) -> float:
@@ -873,6 +976,7 @@ def _backward_step(
     min_gain: float,
     workers: int | None,
     say: Callable[[str], None],
+    calls: CloseCalls | None = None,
 ) -> tuple[ExtendedFit, list[str]]:
     """The backward step: each effect kept, in the order kept, is taken out and the
     others refitted with the null trial's effort; an effect that the model with it,
@@ -907,7 +1011,7 @@ def _backward_step(
             f"  backward {name:9s}: over the others refitted without it {c['gain_over_null']:+.1%}, "
             f"where it acts {c['local_gain']:+.1%}"
         )
-        if not _earns(c, min_gain):
+        if not _earns(c, min_gain, calls, f"backward {name}"):
             say(f"dropped {name}: it does not earn its parameters beside the effects kept after it")
             current, full = rest.fit, rest
             added = [k for k in added if k != name]
@@ -922,6 +1026,7 @@ def _backward_step(
             min_gain=min_gain,
             folds=folds,
             workers=workers,
+            calls=calls,
         )
         if swap is not None:
             other, scored, c_other = swap
@@ -947,6 +1052,7 @@ def _look_alike_swap(
     min_gain: float,
     folds: int,
     workers: int | None,
+    calls: CloseCalls | None = None,
 ) -> tuple[str, _Scored, dict[str, Any]] | None:
     """For a kept creep, drift or gain drift, or a kept delay or input lag (``name``,
     credited with ``credit`` against ``rest``, the others refitted without it): the
@@ -971,28 +1077,41 @@ def _look_alike_swap(
     others = [k for k in group if k != name and k not in rest.fit.effects.names and (every or k == said)]
     basis = _refit_basis(rest.jacobian) if others else None
     noise_um = noise_level(on.x).sigma_um
-    best: tuple[str, _Scored, dict[str, Any]] | None = None
+    earning: list[tuple[str, _Scored, dict[str, Any]]] = []
     for other in others:
         fr = _trial_fit(
             other,
             on,
             rest.fit,
             lambda: rest.fit,
-            lambda n: _ranked_starts(n, on, rest.fit, basis, workers),
+            lambda n: _ranked_starts(n, on, rest.fit, basis, workers, calls),
             workers=workers,
             trial_nfev=TRIAL_NFEV,
             basis=basis,
+            calls=calls,
         )
         if isinstance(fr, str):
             continue
         scored = _scored(on, fr, folds)
         c = _credit(scored, rest, rest.cv.rms_um, rest.cv.in_sample_rms_um, noise_um)
         floor = credit["gain_over_null"] - (LOOKALIKE_MARGIN if other == said else 0.0)
-        if not _earns(c, min_gain) or not c["gain_over_null"] > floor:
-            continue
-        if best is None or c["gain_over_null"] > best[2]["gain_over_null"]:
-            best = (other, scored, {**c, "test_named": said})
-    return best
+        takes = at_least(c["gain_over_null"], floor, CLOSE_GAIN, f"{other} in place of {name}", calls)
+        if _earns(c, min_gain, calls, f"{other} in place of {name}") and takes:
+            earning.append((other, scored, {**c, "test_named": said}))
+    if not earning:
+        return None
+    return earning[
+        first_of_best(
+            earning,
+            lambda e: e[2]["gain_over_null"],
+            higher=True,
+            margin=CLOSE_GAIN,
+            relative=False,
+            decision=f"the look-alike in place of {name}",
+            calls=calls,
+            name=lambda e: e[0],
+        )
+    ]
 
 
 def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool:
@@ -1121,7 +1240,15 @@ def diagnose_record(
     }
     evidence["residual"]["delay"] = delay_evidence(record, current, MAX_DELAY_SAMPLES)
     added: list[str] = []
-    opts: dict[str, Any] = {"folds": folds, "min_gain": min_gain, "seed": seed, "workers": workers, "say": say}
+    calls = CloseCalls()
+    opts: dict[str, Any] = {
+        "folds": folds,
+        "min_gain": min_gain,
+        "seed": seed,
+        "workers": workers,
+        "say": say,
+        "calls": calls,
+    }
     # ∂x̂/∂z of the current model over the full record, once known (a round on the
     # full record that keeps an effect has it).
     current_jac: Any = None
@@ -1180,7 +1307,15 @@ def diagnose_record(
         if round_.kept is None and q == 1 and left_rms >= PAIR_RATIO * noise_um:
             round_ = (
                 _pair_round(
-                    record, current, round_, noise_um=noise_um, folds=folds, min_gain=min_gain, workers=workers, say=say
+                    record,
+                    current,
+                    round_,
+                    noise_um=noise_um,
+                    folds=folds,
+                    min_gain=min_gain,
+                    workers=workers,
+                    say=say,
+                    calls=calls,
                 )
                 or round_
             )
@@ -1192,7 +1327,7 @@ def diagnose_record(
                 # fresh base model, the search goes on from there if that fits better.
                 fresh = _rebased(record, current, seed=seed, workers=workers, q=q)
                 evidence["rebased"] = {"rms_um": current.rms_um, "fresh_rms_um": fresh.rms_um if fresh else None}
-                if fresh is not None and fresh.rms_um >= current.rms_um:
+                if fresh is not None and not fresh.rms_um < (1.0 - CLOSE_REL) * current.rms_um:
                     fresh = None
             if fresh is None:
                 say("nothing left that earns its parameters under cross-validation")
@@ -1224,6 +1359,7 @@ def diagnose_record(
             min_gain=min_gain,
             workers=workers,
             say=say,
+            calls=calls,
         )
     if added:
         say("refitting on the whole record")
@@ -1257,6 +1393,10 @@ def diagnose_record(
     params["base_only"] = {"base": base.params.to_dict(), "h0_um": base.h0}
     err_b, err_e = x - x_base, x - x_ext
     say(left.summary())
+    evidence["close_calls"] = calls.to_list()
+    on_answer = sorted({c["decision"] for c in calls.to_list() if c["kind"] != PATH})
+    if on_answer:
+        say(f"close call(s) on the answer, decided by the margin rule: {', '.join(on_answer)}")
     evidence["elapsed_s"] = time.perf_counter() - started
     result = Diagnosis(
         effects=added,
@@ -1270,6 +1410,7 @@ def diagnose_record(
         x_extended=x_ext,
         effect_set=effect_set,
         unexplained=left,
+        confidence=confidence(added, evidence, LOOKALIKE_MARGIN),
     )
     say(result.summary())
     return result
