@@ -346,7 +346,13 @@ def test_result_fields_and_json():
         "params",
         "evidence",
         "unexplained",
+        "confidence",
+        "close_calls",
+        "unseen",
+        "at_bounds",
     }
+    assert doc["confidence"]["drift"]["level"] in ("confident", "tentative")
+    assert doc["unseen"]["cv_rms_after_um"] < doc["unseen"]["cv_rms_before_um"]
     # What is left: the noise the record was made with, estimated from x alone, and a
     # verdict on it (at 5 nm of noise the generator's 2 nm discretisation misfit
     # shows; tests/test_unexplained.py tests the verdict itself).

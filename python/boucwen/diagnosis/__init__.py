@@ -78,10 +78,26 @@ not told what it contains, and:
    against what could explain it (:func:`~boucwen.diagnosis.unexplained.unexplained`):
    ``Diagnosis.unexplained`` says whether the residual is consistent with noise and,
    if not, which signals, spectral lines and time spans it follows — also when no
-   effect of the vocabulary accounts for it. Effects that leave a residual not
-   consistent with noise and remove less than 9/10 of the base model's mean-square
-   error beyond the noise are not named (``evidence["partial"]`` lists them): they
-   fit part of something the vocabulary does not hold.
+   effect of the vocabulary accounts for it. The returned model holds every effect
+   that earned its parameters on unseen data, whatever stays unexplained: the residual
+   is reported beside the names, never instead of them;
+9. reports how sure it is and what the model predicts of data it did not see: each
+   named effect is ``confident`` or ``tentative`` with the reason and the competing
+   explanation (:mod:`~boucwen.diagnosis.confidence`; tentative, among other reasons,
+   where the effects leave a residual not consistent with noise and remove less than
+   9/10 of the base model's mean-square error beyond it: they may stand in for
+   something the vocabulary does not hold, ``evidence["partial"]``); the blocked
+   cross-validated error of the base model and of the returned one, and, given a
+   second record of the same device (``validate``), both models' errors on it, where
+   each effect must also earn its place (:mod:`~boucwen.diagnosis.unseen`); the
+   parameters that ended on a bound of the fit (``at_bounds``).
+
+Every comparison behind a decision is made with a margin
+(:mod:`~boucwen.diagnosis.margins`): where two choices are closer than the arithmetic
+can tell (a credit within 1e-4 of its threshold or of another credit, two errors
+within 1e-4 of each other), the simpler side is taken by a stated rule, and the report
+lists the call (``close_calls``), so that the answer does not depend on the machine's
+BLAS kernel, its number of threads or the last bits of the record.
 
 Long records (more than 50 000 samples) sampled faster than 5 kHz are *screened* (for
 speed): the trials of step 3 run on a copy holding every q-th sample (about 2.5 kHz),
@@ -110,6 +126,9 @@ Modules: :mod:`~boucwen.diagnosis.evidence` (the residual statistics),
 :mod:`~boucwen.diagnosis.lookalike` (the tests that tell look-alikes apart),
 :mod:`~boucwen.diagnosis.unexplained` (what the final model leaves, step 7),
 :mod:`~boucwen.diagnosis.search` (the procedure above),
+:mod:`~boucwen.diagnosis.margins` (decisions with margins),
+:mod:`~boucwen.diagnosis.confidence` (how sure each name is),
+:mod:`~boucwen.diagnosis.unseen` (errors on unseen data),
 :mod:`~boucwen.diagnosis.report` (:class:`Diagnosis`, its JSON and CSV files); the
 figure is :func:`boucwen.plots.plot_diagnosis`.
 """

@@ -52,10 +52,14 @@ def _concerns(call: dict[str, Any], name: str) -> bool:
     return name in subject or call["chose"] == name
 
 
-def confidence(names: Sequence[str], evidence: dict[str, Any], margin: float) -> dict[str, dict[str, Any]]:
+def confidence(
+    names: Sequence[str], evidence: dict[str, Any], margin: float, explained: float | None = None
+) -> dict[str, dict[str, Any]]:
     """Per effect in ``names``: ``{"level": "confident" | "tentative", "why": str,
     "competing": str | None}``, read from the diagnosis's ``evidence`` (``margin``: the
-    look-alike margin on credits)."""
+    look-alike margin on credits). ``explained``: the share of the error beyond the
+    noise the effects explain, where what they leave is not noise and that share is
+    small (they may stand in for an effect outside the vocabulary): each is tentative."""
     out: dict[str, dict[str, Any]] = {}
     calls = evidence.get("close_calls", [])
     for name in names:
@@ -74,6 +78,8 @@ def confidence(names: Sequence[str], evidence: dict[str, Any], margin: float) ->
         close = [c["decision"] for c in calls if _concerns(c, name)]
         if close:
             why.append("close call: " + "; ".join(close))
+        if explained is not None:
+            why.append(f"the effects explain {explained:.0%} of the error beyond the noise; the rest is unexplained")
         out[name] = {
             "level": "tentative" if why else "confident",
             "why": "; ".join(why) if why else "gains in every fold, no look-alike near it",

@@ -41,6 +41,8 @@ class Diagnosis:
             (:class:`~boucwen.diagnosis.unexplained.Unexplained`; None if not computed).
         confidence: per effect named, ``{"level": "confident" | "tentative", "why",
             "competing"}`` (:mod:`~boucwen.diagnosis.confidence`).
+        at_bounds: the returned model's unknowns that ended on a bound of the fit:
+            ``{"parameter", "value", "bound", "side"}`` each.
     """
 
     effects: list[str]
@@ -55,6 +57,7 @@ class Diagnosis:
     effect_set: EffectSet = field(default_factory=EffectSet)
     unexplained: Unexplained | None = None
     confidence: dict[str, dict[str, Any]] = field(default_factory=dict)
+    at_bounds: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def close_calls(self) -> list[dict[str, Any]]:
@@ -64,6 +67,15 @@ class Diagnosis:
         way there; the summary counts the first)."""
         calls: list[dict[str, Any]] = self.evidence.get("close_calls", [])
         return calls
+
+    @property
+    def unseen(self) -> dict[str, Any]:
+        """Errors on data the fits did not see [µm]: ``cv_rms_before_um`` and
+        ``cv_rms_after_um`` (blocked cross-validation over ``folds`` contiguous folds,
+        base model and returned model) and, with a validation record, ``validation``:
+        ``{"samples", "before", "after"}`` (RMS, max and re-estimated offset of each)."""
+        unseen: dict[str, Any] = self.evidence.get("unseen", {})
+        return unseen
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON report (without the arrays)."""
@@ -78,6 +90,8 @@ class Diagnosis:
             "unexplained": None if self.unexplained is None else jsonable(self.unexplained.to_dict()),
             "confidence": self.confidence,
             "close_calls": self.close_calls,
+            "unseen": self.unseen,
+            "at_bounds": self.at_bounds,
         }
 
     def summary(self) -> str:
@@ -89,9 +103,20 @@ class Diagnosis:
         )
         on_answer = [c for c in self.close_calls if c.get("kind") == "answer"]
         close = f"; {len(on_answer)} close call(s)" if on_answer else ""
+        unseen = self.unseen
+        cv = (
+            f"; unseen ({unseen['folds']}-fold CV) RMS {unseen['cv_rms_before_um']:.4g} → "
+            f"{unseen['cv_rms_after_um']:.4g} µm"
+            if unseen.get("cv_rms_before_um") is not None and unseen.get("cv_rms_after_um") is not None
+            else ""
+        )
+        val = unseen.get("validation")
+        if val and val.get("before") and val.get("after"):
+            cv += f"; validation record RMS {val['before']['rms_um']:.4g} → {val['after']['rms_um']:.4g} µm"
+        bounds = "".join(f"; {b['parameter']} = {b['value']:.4g} on its {b['side']} bound" for b in self.at_bounds)
         return (
             f"effects: {named}; RMS {self.rms_before:.4g} → {self.rms_after:.4g} µm, "
-            f"max {self.max_before:.4g} → {self.max_after:.4g} µm{close}"
+            f"max {self.max_before:.4g} → {self.max_after:.4g} µm{cv}{bounds}{close}"
         )
 
     def __repr__(self) -> str:

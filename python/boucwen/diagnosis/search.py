@@ -34,7 +34,7 @@ from ..effects import (
     solve_extended_record,
 )
 from ..effects.base import params_of, set_of, with_effect, without
-from ..fit import fit_record
+from ..fit import FitResult, fit_record
 from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
@@ -45,6 +45,7 @@ from .lookalike import GROUPS, lookalike_tests, named, phase_shape, what_it_foll
 from .margins import CLOSE_GAIN, CLOSE_REL, PATH, CloseCalls, Compare, at_least, at_most, decide, first_of_best
 from .report import Diagnosis, jsonable
 from .unexplained import Unexplained, noise_level, unexplained
+from .unseen import judged_on, prediction_error
 from .validation import FOLDS, CrossValidation, blocked_cv
 
 __all__ = [
@@ -1124,6 +1125,31 @@ def _peak_beyond(record: Record, current: ExtendedFit, screen_dt: float) -> bool
     return bool(peak["peak_hz"] > FN_MAX_NYQUIST_FRACTION / screen_dt and peak["peak_over_median"] > PEAK_OVER_MEDIAN)
 
 
+def _base_fit(base: FitResult) -> ExtendedFit:
+    """The base model's fit as an extended fit with no effect."""
+    return ExtendedFit(base.params, EffectSet(), base.h0, base.rms_um, base.max_um, base.nfev, base.success)
+
+
+def _cv_rms(record: Record, fit: ExtendedFit, folds: int, workers: int | None) -> float:
+    """The blocked cross-validated RMS error [µm] of ``fit`` over ``record``: what it
+    predicts of each block when refitted without it (:mod:`~boucwen.diagnosis.validation`)."""
+    return _scored(record, _solved_at(record, fit, workers), folds).cv.rms_um
+
+
+def on_bounds(fit: ExtendedFit, record: Record) -> list[dict[str, Any]]:
+    """The unknowns of ``fit`` that ended on a bound of the fit over ``record``
+    (within 1e-6 of its size): ``{"parameter", "value", "bound", "side"}`` each."""
+    layout = Layout.of(fit.effects, record.dt, record.dt * max(len(record) - 1, 1))
+    z = layout.pack(fit.params, fit.effects, fit.h0)
+    lo, hi = layout.bounds()
+    out = []
+    for label, v, a, b in zip(layout.labels(), z, lo, hi):
+        for bound, side in ((a, "lower"), (b, "upper")):
+            if math.isfinite(bound) and abs(v - bound) <= 1e-6 * max(1.0, abs(bound)):
+                out.append({"parameter": label, "value": float(v), "bound": float(bound), "side": side})
+    return out
+
+
 def _screenable(current: ExtendedFit, screen: Record) -> bool:
     """The current model means on the screened copy what it means on the record: it
     simulates there (a resonance above the copy's Nyquist frequency does not), and it
@@ -1162,6 +1188,7 @@ def diagnose(
     max_effects: int = 3,
     seed: int = 0,
     workers: int | None = None,
+    validate: tuple[ArrayLike, ArrayLike, float] | None = None,
 ) -> Diagnosis:
     """Finds which effects of the vocabulary the record holds beyond the base model.
 
@@ -1178,6 +1205,9 @@ def diagnose(
         seed: seed of :func:`boucwen.fit`'s random starts.
         workers: threads for the trials of a round and for each fit's Jacobian
             (default: the number of CPUs; 1 runs everything in turn).
+        validate: a second record of the same device, ``(u [V], x [µm], dt [s])``: each
+            effect must also predict it better (:mod:`~boucwen.diagnosis.unseen`), and the
+            report gives both models' errors on it.
 
     Returns:
         A :class:`~boucwen.diagnosis.Diagnosis`; the procedure is described in
@@ -1194,6 +1224,7 @@ def diagnose(
         max_effects=max_effects,
         seed=seed,
         workers=workers,
+        validate=None if validate is None else validate_record(*validate),
     )
 
 
@@ -1206,8 +1237,10 @@ def diagnose_record(
     max_effects: int = 3,
     seed: int = 0,
     workers: int | None = None,
+    validate: Record | None = None,
 ) -> Diagnosis:
-    """:func:`diagnose` on a checked :class:`~boucwen.record.Record` (same options, same result)."""
+    """:func:`diagnose` on a checked :class:`~boucwen.record.Record` (same options, same
+    result; ``validate`` a checked record too)."""
     started = time.perf_counter()
     say = reporter(progress, "diagnose", started)
     folds = check_int("folds", folds, 2, 10)
@@ -1224,7 +1257,7 @@ def diagnose_record(
 
     say(f"fitting the base model on {n} samples")
     base = fit_record(record, seed=seed, workers=workers, decimate=q if q > 1 else None)
-    current = ExtendedFit(base.params, EffectSet(), base.h0, base.rms_um, base.max_um, base.nfev, base.success)
+    current = _base_fit(base)
     x_base = base.x_fit
     say(
         f"base model: RMS {base.rms_um:.4g} µm; {folds} folds"
@@ -1361,6 +1394,15 @@ def diagnose_record(
             say=say,
             calls=calls,
         )
+    if validate is not None and added:
+        say(f"judging {', '.join(added)} on the validation record ({len(validate)} samples)")
+
+        def refit(effects: EffectSet) -> ExtendedFit:
+            return fit_extended_record(
+                record, current.params, effects, current.h0, workers=workers, max_nfev=_null_effort(), tol=TRIAL_TOL
+            )
+
+        current, added, evidence["validation"] = judged_on(validate, current, added, refit, say)
     if added:
         say("refitting on the whole record")
         ext = fit_extended_record(
@@ -1375,21 +1417,30 @@ def diagnose_record(
         effect_set = EffectSet()
     left = unexplained(record, x_ext)
     share = _explained_share(rms(x - x_base), rms(x - x_ext), left.noise_um)
-    if added and _partial(rms(x - x_base), rms(x - x_ext), left):
-        # The effects kept explain too little of the error beyond the noise for their
-        # names to be the explanation: the record is reported as unexplained instead.
-        say(f"{', '.join(added)}: {share:.0%} of the error beyond the noise explained; not named")
-        evidence["partial"] = {
-            "effects": list(added),
-            "explained_share": share,
-            "rms_um": rms(x - x_ext),
-            "params": params,
+    evidence["explained_share"] = share
+    partial = bool(added) and _partial(rms(x - x_base), rms(x - x_ext), left)
+    if partial:
+        # The effects earned their parameters on unseen data and stay in the model;
+        # what they leave is not noise, so they may stand in for something else
+        # (their confidence says so, and ``unexplained`` what is left).
+        say(f"{', '.join(added)}: {share:.0%} of the error beyond the noise explained; the rest is unexplained")
+        evidence["partial"] = {"effects": list(added), "explained_share": share, "rms_um": rms(x - x_ext)}
+    base_fit = _base_fit(base)
+    final = ext if added else base_fit
+    cv_before = _cv_rms(record, base_fit, folds, workers)
+    unseen: dict[str, Any] = {
+        "folds": folds,
+        "cv_rms_before_um": cv_before,
+        "cv_rms_after_um": _cv_rms(record, final, folds, workers) if added else cv_before,
+    }
+    if validate is not None:
+        on_val_base, on_val = prediction_error(base_fit, validate), prediction_error(final, validate)
+        unseen["validation"] = {
+            "samples": len(validate),
+            "before": None if on_val_base is None else on_val_base.to_dict(),
+            "after": None if on_val is None else on_val.to_dict(),
         }
-        added = []
-        x_ext = x_base.copy()
-        params = {"base": base.params.to_dict(), "h0_um": base.h0}
-        effect_set = EffectSet()
-        left = unexplained(record, x_ext)
+    evidence["unseen"] = unseen
     params["base_only"] = {"base": base.params.to_dict(), "h0_um": base.h0}
     err_b, err_e = x - x_base, x - x_ext
     say(left.summary())
@@ -1410,7 +1461,8 @@ def diagnose_record(
         x_extended=x_ext,
         effect_set=effect_set,
         unexplained=left,
-        confidence=confidence(added, evidence, LOOKALIKE_MARGIN),
+        confidence=confidence(added, evidence, LOOKALIKE_MARGIN, explained=share if partial else None),
+        at_bounds=on_bounds(final, record),
     )
     say(result.summary())
     return result

@@ -1,20 +1,31 @@
 """The diagnosis evaluation suite: generated records, what the diagnosis names, the
 confusion table and the figures it is held to.
 
-``python -m boucwen.experiments.diagnosis_suite [--quick] [--out DIR]`` generates the
-records of :func:`cases` (:mod:`boucwen.experiments.suite_records`), runs
+``python -m boucwen.experiments.diagnosis_suite [--quick] [--half H] [--out DIR]``
+generates the records of :func:`cases` (:mod:`boucwen.experiments.suite_records`), runs
 :func:`boucwen.diagnose` on each without telling it what is inside (one progress line
 per record on stderr), and prints the confusion table — true effect set × named effect
-set, and how many were flagged as unexplained — and the figures of :data:`TARGETS`:
+set, per half, and how many were flagged as unexplained — and the figures.
+
+The suite is a check, not a target. Its records are split by seed into a
+*development* half (even seeds) and a *held-out* half (odd seeds): a change to the
+diagnosis is looked at on the first, and the second is read only to judge it. Both are
+reported side by side; a gap between them is overfitting. The figures, per half:
 
 * ``inside_named``: records holding effects of the vocabulary (one, or a pair) whose
-  named set is exactly the true one;
-* ``clean_nothing``: clean records with nothing named;
+  named set is exactly the true one (reported, not targeted);
+* ``confident_right``: of all names given with confidence ``confident``, the share
+  that are effects the record holds;
+* ``clean_confident``: clean records with a confident name;
 * ``outside_flagged``: records holding an effect outside the vocabulary whose residual
   the diagnosis flags as not consistent with noise;
-* ``outside_wrong_name``: those records where an effect not in the record is named;
+* ``truth_rises``: records where the returned model is further from the noise-free
+  truth than the base model (by more than 1 %, a rise no user would call noise);
 * ``median_cut``: median over the records holding effects of the vocabulary of
   RMS(base model − noise-free truth) / RMS(diagnosed model − noise-free truth).
+
+The checks of :data:`TARGETS`: no clean record gets a confident name, ≥ 95 % of the
+held-out half's confident names are right, and the truth error never rises.
 
 The vocabulary is the registry's at run time (:data:`boucwen.effects.VOCABULARY`): an
 effect of :data:`~boucwen.experiments.suite_records.OUTSIDE_MAKERS` that the registry
@@ -52,16 +63,40 @@ from .suite_records import (
 )
 from .undeclared_records import PARAM_SETS
 
-__all__ = ["TARGETS", "Case", "cases", "confusion_table", "figures", "main", "run_case", "run_suite"]
+__all__ = [
+    "HALVES",
+    "TARGETS",
+    "Case",
+    "cases",
+    "checks",
+    "confusion_table",
+    "figures",
+    "figures_by_half",
+    "half_of",
+    "main",
+    "run_case",
+    "run_suite",
+]
 
-#: The figures the suite is held to: (name, bound, "min" or "max").
-TARGETS: tuple[tuple[str, float, str], ...] = (
-    ("inside_named", 0.95, "min"),
-    ("clean_nothing", 0.98, "min"),
-    ("outside_flagged", 0.90, "min"),
-    ("outside_wrong_name", 0.10, "max"),
-    ("median_cut", 5.0, "min"),
+#: The checks the suite is held to: (figure, half, bound, "min" or "max").
+TARGETS: tuple[tuple[str, str, float, str], ...] = (
+    ("clean_confident", "development", 0.0, "max"),
+    ("clean_confident", "held_out", 0.0, "max"),
+    ("confident_right", "held_out", 0.95, "min"),
+    ("truth_rises", "development", 0.0, "max"),
+    ("truth_rises", "held_out", 0.0, "max"),
 )
+#: The two halves of the suite, by seed parity.
+HALVES = ("development", "held_out")
+#: Relative rise of the truth error beyond which the returned model counts as worse.
+TRUTH_RISE = 0.01
+
+
+def half_of(seed: int) -> str:
+    """The half of the suite a record of ``seed`` belongs to (even: development)."""
+    return HALVES[seed % 2]
+
+
 #: Static nonlinearities, invisible under a single step (u takes two values, which an
 #: affine map of the model fits exactly): not generated under that family.
 _NEEDS_MORE_THAN_TWO_LEVELS = ("electrostriction", "saturation", "cubic_sensor")
@@ -180,9 +215,14 @@ def run_case(case: Case) -> dict[str, Any]:
     before, after = rms(d.x_base - rec.x_true), rms(d.x_extended - rec.x_true)
     kind = "outside" if rec.outside else ("inside" if rec.inside else "clean")
     flagged = d.unexplained is not None and not d.unexplained.consistent_with_noise
+    confident = sorted(k for k, c in d.confidence.items() if c["level"] == "confident")
     return {
         "label": rec.label,
+        "seed": case.seed,
+        "half": half_of(case.seed),
         "kind": kind,
+        "confident": confident,
+        "confident_wrong": sorted(set(confident) - truth),
         "inside": sorted(rec.inside),
         "outside": sorted(rec.outside),
         "sizes_um": rec.sizes_um,
@@ -206,20 +246,46 @@ def _share(rows: list[dict[str, Any]], key: str) -> float:
 
 
 def figures(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """The figures of :data:`TARGETS` (and the flag rates of the other records)."""
+    """The figures of the module's docstring over ``rows`` (one half, or any set)."""
     by = defaultdict(list)
     for r in rows:
         by[r["kind"]].append(r)
     inside, clean, outside = by["inside"], by["clean"], by["outside"]
+    confident = sum(len(r["confident"]) for r in rows)
+    wrong = sum(len(r["confident_wrong"]) for r in rows)
     return {
+        "records": float(len(rows)),
         "inside_named": _share(inside, "right"),
+        "confident_names": float(confident),
+        "confident_right": 1.0 - wrong / confident if confident else float("nan"),
+        "clean_confident": float(sum(bool(r["confident"]) for r in clean)),
         "clean_nothing": float(np.mean([not r["named"] for r in clean])) if clean else float("nan"),
         "outside_flagged": _share(outside, "flagged"),
         "outside_wrong_name": _share(outside, "wrong_name"),
+        "truth_rises": float(
+            sum(r["truth_rms_after_um"] > (1.0 + TRUTH_RISE) * r["truth_rms_before_um"] for r in rows)
+        ),
         "median_cut": float(np.median([r["cut"] for r in inside])) if inside else float("nan"),
         "clean_flagged": _share(clean, "flagged"),
         "inside_flagged": _share(inside, "flagged"),
     }
+
+
+def figures_by_half(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """:func:`figures` of each half of the suite (:data:`HALVES`)."""
+    return {h: figures([r for r in rows if r["half"] == h]) for h in HALVES}
+
+
+def checks(by_half: dict[str, dict[str, float]]) -> list[tuple[str, bool]]:
+    """Each check of :data:`TARGETS` as a line and whether it holds (a figure with no
+    record behind it, NaN, holds vacuously and says so)."""
+    out = []
+    for name, h, bound, how in TARGETS:
+        v = by_half[h][name]
+        ok = bool(np.isnan(v)) or (v >= bound if how == "min" else v <= bound)
+        sign = "≥" if how == "min" else "≤"
+        out.append((f"{name} [{h}]: {v:.3g} (check {sign} {bound:g}) {'holds' if ok else 'FAILS'}", ok))
+    return out
 
 
 def _set_label(names: Sequence[str], outside: Sequence[str] = ()) -> str:
@@ -233,18 +299,23 @@ def confusion_table(rows: list[dict[str, Any]]) -> str:
     groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for r in rows:
         groups[_set_label(r["inside"], r["outside"])].append(r)
-    lines = ["| true effects | records | named (count) | flagged unexplained |", "|---|---|---|---|"]
+    head = " | ".join(f"{h}: records, named (count), flagged" for h in HALVES)
+    lines = [f"| true effects | {head} |", "|---|" + "---|" * len(HALVES)]
     for label in sorted(groups, key=lambda k: (k != "none", "(outside)" in k, "+" in k, k)):
-        g = groups[label]
-        named = Counter(_set_label(sorted(r["named"])) for r in g)
-        cells = ", ".join(f"{k} {v}" for k, v in named.most_common())
-        lines.append(f"| {label} | {len(g)} | {cells} | {sum(r['flagged'] for r in g)} |")
+        cells = []
+        for h in HALVES:
+            g = [r for r in groups[label] if r["half"] == h]
+            named = Counter(_set_label(sorted(r["named"])) for r in g)
+            said = ", ".join(f"{k} {v}" for k, v in named.most_common()) or "-"
+            cells.append(f"{len(g)}: {said}; {sum(r['flagged'] for r in g)}")
+        lines.append(f"| {label} | {' | '.join(cells)} |")
     return "\n".join(lines)
 
 
-def run_suite(quick: bool = False, err: TextIO = sys.stderr) -> list[dict[str, Any]]:
-    """Runs every case (one progress line per record on ``err``); returns the rows."""
-    todo = cases(quick)
+def run_suite(quick: bool = False, err: TextIO = sys.stderr, half: str | None = None) -> list[dict[str, Any]]:
+    """Runs every case, or those of one ``half`` (one progress line per record on
+    ``err``); returns the rows."""
+    todo = [c for c in cases(quick) if half is None or half_of(c.seed) == half]
     skipped = [n for n in VOCABULARY if n not in VOCABULARY_MAKERS]
     if skipped:
         print(f"no maker for the vocabulary's {skipped}: not generated", file=err, flush=True)
@@ -279,6 +350,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="python -m boucwen.experiments.diagnosis_suite", description=(__doc__ or "").split("\n\n")[0]
     )
     parser.add_argument("--quick", action="store_true", help="the quick subset (the one CI runs)")
+    parser.add_argument("--half", choices=HALVES, help="one half of the suite only (default: both)")
     parser.add_argument("--out", help="folder for rows.json and table.md")
     parser.add_argument(
         "--speed",
@@ -290,17 +362,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.speed:
         return _speed()
     started = time.perf_counter()
-    rows = run_suite(args.quick)
+    rows = run_suite(args.quick, half=args.half)
     wall = time.perf_counter() - started
-    figs = figures(rows)
+    by_half = figures_by_half(rows)
     table = confusion_table(rows)
-    lines = [table, "", f"{len(rows)} records in {wall:.0f} s", ""]
-    for name, bound, how in TARGETS:
-        ok = figs[name] >= bound if how == "min" else figs[name] <= bound
-        lines.append(
-            f"{name}: {figs[name]:.3g} (target {'≥' if how == 'min' else '≤'} {bound:g}) {'met' if ok else 'NOT MET'}"
-        )
-    lines += [f"clean_flagged: {figs['clean_flagged']:.3g}", f"inside_flagged: {figs['inside_flagged']:.3g}"]
+    lines = [table, "", f"{len(rows)} records in {wall:.0f} s", "", "| figure | " + " | ".join(HALVES) + " |"]
+    lines.append("|---|" + "---|" * len(HALVES))
+    for name in next(iter(by_half.values())):
+        lines.append(f"| {name} | " + " | ".join(f"{by_half[h][name]:.3g}" for h in HALVES) + " |")
+    results = checks(by_half)
+    lines += ["", *(line for line, _ in results)]
     text = "\n".join(lines)
     print(text)
     if args.out:
@@ -308,7 +379,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         out.mkdir(parents=True, exist_ok=True)
         (out / "rows.json").write_text(json.dumps(rows, indent=1, default=float), encoding="utf-8")
         (out / "table.md").write_text(text + "\n", encoding="utf-8")
-    return 0
+    return 0 if all(ok for _, ok in results) else 1
 
 
 if __name__ == "__main__":

@@ -1,0 +1,79 @@
+"""Judging models on data their fit did not see (boucwen.diagnosis.unseen) and the
+diagnosis's report of it."""
+
+import math
+
+import numpy as np
+
+from boucwen import EffectSet, Params, diagnose, simulate_extended
+from boucwen.diagnosis.unseen import judged_on, prediction_error, sampling_margin
+from boucwen.effects import ExtendedFit
+from boucwen.record import validate_record
+
+DT = 2e-4
+
+
+def _voltage(n, seed):
+    """A voltage record [V] of two sines and a step, different for each seed."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * DT
+    u = 50 + 30 * np.sin(2 * np.pi * rng.uniform(2, 6) * t) + 10 * np.sin(2 * np.pi * rng.uniform(20, 40) * t)
+    u[n // 2 :] += 5.0
+    return u
+
+
+def _fit(effects):
+    p = Params.paper_1hz()
+    return ExtendedFit(p, effects, 0.0, 0.0, 0.0, 0, True)
+
+
+def test_a_prediction_is_judged_with_its_offset_reestimated():
+    p = Params.paper_1hz()
+    u = _voltage(4000, 1)
+    x = simulate_extended(p, EffectSet(), u, DT) + 0.5
+    err = prediction_error(_fit(EffectSet()), validate_record(u, x, DT))
+    assert err is not None
+    assert math.isclose(err.offset_um, 0.5, abs_tol=1e-9) and err.rms_um < 1e-9
+
+
+def test_the_sampling_margin_of_an_rms_error():
+    assert math.isclose(sampling_margin(5000), 0.01)
+    assert sampling_margin(20_000) < sampling_margin(5000)
+
+
+def test_on_a_second_record_an_effect_that_predicts_nothing_is_dropped_and_one_that_does_is_kept():
+    p = Params.paper_1hz()
+    lag = EffectSet(input_lag={"fc_hz": 30.0})
+    u = _voltage(6000, 2)
+    x = simulate_extended(p, lag, u, DT) + np.random.default_rng(3).normal(0, 0.002, u.size)
+    validation = validate_record(u, x, DT)
+    both = EffectSet(input_lag={"fc_hz": 30.0}, drift={"rate_um_per_s": 1e-9})
+
+    def refit(effects):
+        return _fit(effects)
+
+    said = []
+    fit, left, evidence = judged_on(validation, _fit(both), ["input_lag", "drift"], refit, said.append)
+    assert left == ["input_lag"]
+    assert list(fit.effects.names) == ["input_lag"]
+    assert evidence["input_lag"]["kept"] and not evidence["drift"]["kept"]
+    assert evidence["input_lag"]["without_rms_um"] > 10 * evidence["input_lag"]["with_rms_um"]
+
+
+def test_a_diagnosis_reports_its_errors_on_unseen_data_and_on_a_validation_record():
+    p = Params.paper_1hz()
+    lag = EffectSet(input_lag={"fc_hz": 40.0})
+    rng = np.random.default_rng(4)
+    u1, u2 = _voltage(6000, 5), _voltage(6000, 6)
+    x1 = simulate_extended(p, lag, u1, DT) + rng.normal(0, 0.003, u1.size)
+    x2 = simulate_extended(p, lag, u2, DT) + 0.2 + rng.normal(0, 0.003, u2.size)
+    d = diagnose(u1, x1, DT, validate=(u2, x2, DT), seed=1)
+    assert d.effects == ["input_lag"]
+    unseen = d.unseen
+    assert unseen["cv_rms_after_um"] < 0.5 * unseen["cv_rms_before_um"]
+    val = unseen["validation"]
+    assert val["samples"] == 6000
+    assert val["after"]["rms_um"] < 0.5 * val["before"]["rms_um"]
+    assert math.isclose(val["after"]["offset_um"], 0.2, abs_tol=0.02)
+    assert "validation record RMS" in d.summary() and "unseen" in d.summary()
+    assert d.to_dict()["unseen"] == unseen
