@@ -1,4 +1,4 @@
-"""Reading and writing records (boucwen.io) and the shipped datasets."""
+"""Reading and writing records (boucwen.io) and the measured datasets."""
 
 from importlib import resources
 
@@ -223,6 +223,14 @@ def test_record_checks_lengths():
 # ----------------------------------------------------------------------------- datasets
 
 
+def _dataset(name):
+    """The measured record, or a skip naming where it was looked for (on this machine and CI it is there)."""
+    try:
+        return datasets.load(name)
+    except datasets.DataNotFoundError as exc:
+        pytest.skip(f"measured data not on this machine: {exc}")
+
+
 def test_dataset_names():
     assert datasets.names() == ["micromanipulator", "micromanipulator_compensated"]
 
@@ -232,14 +240,61 @@ def test_unknown_dataset_lists_names():
         datasets.load("piezo")
 
 
-def test_data_files_are_package_resources():
-    root = resources.files("boucwen.datasets") / datasets.DATA_DIR
-    for name in ("Model_Vi_Do.dat", "Test_Vi_Do_Di.dat", "LICENSE", "README.md"):
-        assert (root / name).is_file(), name
+def test_package_ships_no_data():
+    assert not [
+        p.name
+        for p in resources.files("boucwen.datasets").iterdir()
+        if p.name != "__init__.py" and "cache" not in p.name
+    ]
+
+
+def test_missing_data_names_both_places(tmp_path, monkeypatch):
+    monkeypatch.setenv("BOUCWEN_DATA", str(tmp_path / "data"))
+    monkeypatch.setattr(datasets, "_shared_data_dir", lambda: tmp_path / "shared" / "data")
+    with pytest.raises(datasets.DataNotFoundError) as info:
+        datasets.load("micromanipulator")
+    msg = str(info.value)
+    assert "\n" not in msg and "Model_Vi_Do.dat" in msg
+    assert "$BOUCWEN_DATA/yan9a-piezo-micromanipulator/" in msg and str(tmp_path / "data") in msg
+    assert "../shared/data beside the repository" in msg and str(tmp_path / "shared" / "data") in msg
+    assert not datasets.available("micromanipulator")
+    monkeypatch.delenv("BOUCWEN_DATA")
+    with pytest.raises(datasets.DataNotFoundError, match="BOUCWEN_DATA not set"):
+        datasets.find("micromanipulator")
+
+
+def test_data_directory_from_environment(tmp_path, monkeypatch):
+    folder = tmp_path / datasets.FOLDER
+    folder.mkdir()
+    (folder / "Model_Vi_Do.dat").write_text("".join(f"{k * 0.1}\t0\t0\t0\t{-k}\t0\t0\n" for k in range(5)))
+    (folder / "LICENSE").write_text("MIT License (test)")
+    monkeypatch.setenv("BOUCWEN_DATA", str(tmp_path))
+    rec = datasets.load("micromanipulator")
+    assert len(rec) == 5 and rec.x[4] == -4.0 and rec.meta["licence_text"] == "MIT License (test)"
+    assert rec.meta["file"] == str(folder / "Model_Vi_Do.dat")
+    (folder / "Model_Vi_Do.dat").write_text("1 2 3\n4 5 6\n")
+    with pytest.raises(ValueError, match=r"expected the 7 columns of Model_Vi_Do\.dat, found 3"):
+        datasets.load("micromanipulator")
+
+
+def test_shared_data_beside_the_repository(tmp_path, monkeypatch):
+    repo = tmp_path / "repo" / "sub"
+    repo.mkdir(parents=True)
+    (tmp_path / "repo" / "pyproject.toml").write_text("")
+    monkeypatch.chdir(repo)
+    monkeypatch.delenv("BOUCWEN_DATA", raising=False)
+    assert datasets.data_dirs()[1][1] == tmp_path / "shared" / "data"
+
+
+def test_name_of_file():
+    assert datasets.name_of_file("../shared/data/yan9a-piezo-micromanipulator/Test_Vi_Do_Di.dat") == (
+        "micromanipulator_compensated"
+    )
+    assert datasets.name_of_file("loop.csv") is None
 
 
 def test_micromanipulator():
-    rec = datasets.load("micromanipulator")
+    rec = _dataset("micromanipulator")
     assert len(rec) == 8027
     assert rec.dt == 0.005
     assert rec.t[0] == 0.0 and rec.t[-1] == pytest.approx(8026 * 0.005)
@@ -255,7 +310,7 @@ def test_micromanipulator():
 
 
 def test_micromanipulator_compensated():
-    rec = datasets.load("micromanipulator_compensated")
+    rec = _dataset("micromanipulator_compensated")
     assert len(rec) == 14155
     assert rec.dt == 0.005
     desired = rec.meta["desired"]

@@ -205,7 +205,8 @@ def _add_diagnose(sub: _Subparsers) -> None:
         "--dataset",
         metavar="NAME",
         default=None,
-        help="use a shipped dataset instead of a CSV file (e.g. micromanipulator)",
+        help="use a measured record of boucwen.datasets (in $BOUCWEN_DATA or ../shared/data) instead of a file "
+        "(e.g. micromanipulator)",
     )
     p.add_argument("--json", metavar="REPORT.json", required=True, help="write the report here")
     p.add_argument("--predictions", metavar="PRED.csv", required=True, help="write t,x,x_base,x_extended here")
