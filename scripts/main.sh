@@ -2,8 +2,9 @@
 # The main job: the paper's experiment on the simulated bench (traditional vs online
 # identification, Tables 1 and 2, Figs. 6-9), the residual diagnosis of the measured
 # micromanipulator record (in $BOUCWEN_DATA or ../shared/data beside the repository;
-# skipped, and said so, where neither holds it), then the closed-loop tracking
-# experiment with hysteresis compensation.
+# skipped, and said so, where neither holds it), the measured-data benchmark (base vs
+# returned model on unseen data), then the closed-loop tracking experiment with
+# hysteresis compensation.
 # Results go to out/ (JSON, CSV and PNG figures).
 set -euo pipefail
 . "$(dirname "$0")/setup_env.sh"
@@ -19,5 +20,7 @@ else
   echo "== skipped: the diagnosis of the measured record ($data/Model_Vi_Do.dat is not on this machine;" \
     "set BOUCWEN_DATA to a folder holding yan9a-piezo-micromanipulator/)"
 fi
+echo "== python -m boucwen.experiments.measured --out out/measured"
+python -m boucwen.experiments.measured --out out/measured
 echo "== boucwen track --out out/track"
 boucwen track --out out/track
