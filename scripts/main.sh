@@ -13,8 +13,8 @@ echo "== boucwen reproduce --out out/reproduce"
 boucwen reproduce --out out/reproduce
 data="${BOUCWEN_DATA:-../shared/data}/yan9a-piezo-micromanipulator"
 if [ -f "$data/Model_Vi_Do.dat" ]; then
-  echo "== boucwen diagnose --dataset micromanipulator"
-  boucwen diagnose --dataset micromanipulator --json out/micromanipulator/report.json \
+  echo "== boucwen diagnose $data/Model_Vi_Do.dat"
+  boucwen diagnose "$data/Model_Vi_Do.dat" --json out/micromanipulator/report.json \
     --predictions out/micromanipulator/predictions.csv --plot out/micromanipulator/diagnosis.png
 else
   echo "== skipped: the diagnosis of the measured record ($data/Model_Vi_Do.dat is not on this machine;" \
