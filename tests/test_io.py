@@ -1,4 +1,4 @@
-"""Reading and writing records (boucwen.io) and the shipped datasets."""
+"""Reading and writing records (boucwen.io) and the measured datasets."""
 
 from importlib import resources
 
@@ -103,7 +103,7 @@ def test_header_only(tmp_path):
 def test_missing_column(tmp_path):
     msg = _expect(_write(tmp_path, "t,u,y\n" + _rows()), "line 1", "missing column 'x'", "found")
     assert "'y'" in msg
-    _expect(_write(tmp_path, "time,u\n0,1\n", name="b.csv"), "'t'", "'x'", "'time'")
+    _expect(_write(tmp_path, "time,u\n0,1\n", name="b.csv"), "missing column 'x'", "'time'", "pos", "--columns")
 
 
 def test_duplicate_column(tmp_path):
@@ -152,6 +152,114 @@ def test_time_not_increasing(tmp_path, times, line):
 def test_non_uniform_sampling(tmp_path):
     text = "t,u,x\n" + "".join(f"{t},1,2\n" for t in (0, 0.1, 0.2, 0.35, 0.4))
     _expect(_write(tmp_path, text), "non-uniform", "line 5", "tolerance")
+
+
+def test_no_header_line(tmp_path):
+    _expect(_write(tmp_path, "0.0 1 2\n" + _rows()), "no header line", "line 1", "t,u,x")
+    _expect(_write(tmp_path, _rows(), name="b.csv"), "no header line", "3 number(s)")
+
+
+# ----------------------------------------------------------------------------- column names, dt, resampling
+
+
+@pytest.mark.parametrize(
+    "header",
+    [
+        "t_s,u_V,x_um",
+        "Time,Voltage,Displacement",
+        "TIME_S,V,POS",
+        "t [s],u (V),x [µm]",
+        "time (s),voltage_v,position_um",
+        "T,U,X",
+        "x/um,t/s,u/V",
+    ],
+)
+def test_recognises_headers_with_units_in_any_case(tmp_path, header):
+    names = header.split(",")
+    order = [{"t": "t", "u": "u", "v": "u", "x": "x", "d": "x", "p": "x"}[h.strip().lower()[0]] for h in names]
+    rows = "".join(",".join(str({"t": k * 0.01, "u": 2.0 * k, "x": -k}[o]) for o in order) + "\n" for k in range(5))
+    rec = read_csv(_write(tmp_path, header + "\n" + rows))
+    np.testing.assert_array_equal(rec.u, [0, 2, 4, 6, 8])
+    np.testing.assert_array_equal(rec.x, [0, -1, -2, -3, -4])
+    assert rec.dt == pytest.approx(0.01)
+    assert rec.meta["read"] == {k: names[order.index(k)].strip() for k in "tux"}
+
+
+@pytest.mark.parametrize(
+    "header,words",
+    [
+        ("t_ms,u,x", ["'t_ms' is in ms", "time [s]", "--columns"]),
+        ("t,u,x_nm", ["'x_nm' is in nm", "displacement [µm]"]),
+        ("t,u_mV,x", ["'u_mV' is in mv", "voltage [V]"]),
+        ("t,u,voltage,x", ["'u', 'voltage' all name the voltage [V]", "--columns T,U,X"]),
+        ("time,t,u,x", ["'time', 't' all name the time [s]"]),
+    ],
+)
+def test_unit_and_ambiguous_headers(tmp_path, header, words):
+    width = header.count(",") + 1
+    rows = "".join(",".join([str(k * 0.1)] * width) + "\n" for k in range(4))
+    _expect(_write(tmp_path, header + "\n" + rows), "line 1", *words)
+
+
+def test_columns_named(tmp_path):
+    path = _write(tmp_path, "stamp,cmd,gap,other\n" + "".join(f"{k * 0.5},{k},{-k},9\n" for k in range(4)))
+    _expect(path, "missing columns 'u', 'x'", "'stamp'")
+    rec = read_csv(path, columns="stamp,CMD,gap")
+    np.testing.assert_array_equal(rec.u, [0, 1, 2, 3])
+    assert rec.dt == 0.5 and rec.meta["read"] == {"t": "stamp", "u": "cmd", "x": "gap"}
+    rec = read_csv(path, columns=("cmd", "gap"), dt=0.25)
+    np.testing.assert_array_equal(rec.t, [0, 0.25, 0.5, 0.75])
+    assert rec.meta["read"]["t"] is None
+    with pytest.raises(ValueError, match=r"column 'volts' named by columns \(--columns\) is not in the header"):
+        read_csv(path, columns="stamp,volts,gap")
+    with pytest.raises(ValueError, match="columns must name T,U,X"):
+        read_csv(path, columns="stamp")
+
+
+def test_record_without_time_takes_dt(tmp_path):
+    path = _write(tmp_path, "u,x\n" + "".join(f"{k},{2 * k}\n" for k in range(5)))
+    _expect(path, "no time column", "--dt DT", "dt=")
+    rec = read_csv(path, dt=0.002)
+    assert rec.dt == 0.002 and rec.t[-1] == pytest.approx(0.008) and len(rec) == 5
+    with pytest.raises(ValueError, match="dt must be finite and > 0"):
+        read_csv(path, dt=-1.0)
+    timed = _write(tmp_path, "t,u,x\n" + _rows(), name="timed.csv")
+    with pytest.raises(ValueError, match="has a time column 't'; dt"):
+        read_csv(timed, dt=0.001)
+
+
+def _jittered(tmp_path):
+    t = [0.0, 0.1, 0.25, 0.3, 0.4, 0.52, 0.6]
+    u = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    x = [0.0, 10.0, 25.0, 30.0, 40.0, 52.0, 60.0]
+    return _write(tmp_path, "t,u,x\n" + "".join(f"{a},{b},{c}\n" for a, b, c in zip(t, u, x)))
+
+
+def test_non_uniform_time_says_how_and_offers_resampling(tmp_path):
+    msg = _expect(_jittered(tmp_path), "non-uniform", "from 0.05 s to 0.15 s", "mean step 0.1 s", "spread 100%")
+    assert "--resample DT" in msg and "resample=DT" in msg and "line 4" in msg
+
+
+def test_resample_holds_u_and_interpolates_x(tmp_path):
+    rec = read_csv(_jittered(tmp_path), resample=0.05)
+    np.testing.assert_allclose(rec.t, np.arange(13) * 0.05)
+    # u: the last sample at or before each grid time; x: linear between samples (here x = 100 t).
+    np.testing.assert_array_equal(rec.u, [0, 0, 1, 1, 1, 2, 3, 3, 4, 4, 4, 5, 6])
+    np.testing.assert_allclose(rec.x, 100.0 * rec.t, atol=1e-9)
+    assert rec.dt == 0.05
+    info = rec.meta["resampled"]
+    assert info["samples_before"] == 7 and info["samples"] == 13
+    assert info["step_min_s"] == pytest.approx(0.05) and info["step_max_s"] == pytest.approx(0.15)
+    assert info["step_spread"] == pytest.approx(1.0)
+    for bad, words in ((0.0, "resample must be a step in s"), (0.5, "leaves 2 sample(s)")):
+        with pytest.raises(ValueError) as err:
+            read_csv(_jittered(tmp_path), resample=bad)
+        assert words in str(err.value)
+    decreasing = _write(tmp_path, "t,u,x\n0,1,2\n0.2,1,2\n0.1,1,2\n", name="dec.csv")
+    msg = _expect(decreasing, "strictly increasing")
+    assert "--resample" not in msg
+    with pytest.raises(ValueError, match="strictly increasing"):
+        read_csv(decreasing, resample=0.05)
 
 
 def test_not_utf8(tmp_path):
@@ -223,6 +331,14 @@ def test_record_checks_lengths():
 # ----------------------------------------------------------------------------- datasets
 
 
+def _dataset(name):
+    """The measured record, or a skip naming where it was looked for (on this machine and CI it is there)."""
+    try:
+        return datasets.load(name)
+    except datasets.DataNotFoundError as exc:
+        pytest.skip(f"measured data not on this machine: {exc}")
+
+
 def test_dataset_names():
     assert datasets.names() == ["micromanipulator", "micromanipulator_compensated"]
 
@@ -232,14 +348,61 @@ def test_unknown_dataset_lists_names():
         datasets.load("piezo")
 
 
-def test_data_files_are_package_resources():
-    root = resources.files("boucwen.datasets") / datasets.DATA_DIR
-    for name in ("Model_Vi_Do.dat", "Test_Vi_Do_Di.dat", "LICENSE", "README.md"):
-        assert (root / name).is_file(), name
+def test_package_ships_no_data():
+    assert not [
+        p.name
+        for p in resources.files("boucwen.datasets").iterdir()
+        if p.name != "__init__.py" and "cache" not in p.name
+    ]
+
+
+def test_missing_data_names_both_places(tmp_path, monkeypatch):
+    monkeypatch.setenv("BOUCWEN_DATA", str(tmp_path / "data"))
+    monkeypatch.setattr(datasets, "_shared_data_dir", lambda: tmp_path / "shared" / "data")
+    with pytest.raises(datasets.DataNotFoundError) as info:
+        datasets.load("micromanipulator")
+    msg = str(info.value)
+    assert "\n" not in msg and "Model_Vi_Do.dat" in msg
+    assert "$BOUCWEN_DATA/yan9a-piezo-micromanipulator/" in msg and str(tmp_path / "data") in msg
+    assert "../shared/data beside the repository" in msg and str(tmp_path / "shared" / "data") in msg
+    assert not datasets.available("micromanipulator")
+    monkeypatch.delenv("BOUCWEN_DATA")
+    with pytest.raises(datasets.DataNotFoundError, match="BOUCWEN_DATA not set"):
+        datasets.find("micromanipulator")
+
+
+def test_data_directory_from_environment(tmp_path, monkeypatch):
+    folder = tmp_path / datasets.FOLDER
+    folder.mkdir()
+    (folder / "Model_Vi_Do.dat").write_text("".join(f"{k * 0.1}\t0\t0\t0\t{-k}\t0\t0\n" for k in range(5)))
+    (folder / "LICENSE").write_text("MIT License (test)")
+    monkeypatch.setenv("BOUCWEN_DATA", str(tmp_path))
+    rec = datasets.load("micromanipulator")
+    assert len(rec) == 5 and rec.x[4] == -4.0 and rec.meta["licence_text"] == "MIT License (test)"
+    assert rec.meta["file"] == str(folder / "Model_Vi_Do.dat")
+    (folder / "Model_Vi_Do.dat").write_text("1 2 3\n4 5 6\n")
+    with pytest.raises(ValueError, match=r"expected the 7 columns of Model_Vi_Do\.dat, found 3"):
+        datasets.load("micromanipulator")
+
+
+def test_shared_data_beside_the_repository(tmp_path, monkeypatch):
+    repo = tmp_path / "repo" / "sub"
+    repo.mkdir(parents=True)
+    (tmp_path / "repo" / "pyproject.toml").write_text("")
+    monkeypatch.chdir(repo)
+    monkeypatch.delenv("BOUCWEN_DATA", raising=False)
+    assert datasets.data_dirs()[1][1] == tmp_path / "shared" / "data"
+
+
+def test_name_of_file():
+    assert datasets.name_of_file("../shared/data/yan9a-piezo-micromanipulator/Test_Vi_Do_Di.dat") == (
+        "micromanipulator_compensated"
+    )
+    assert datasets.name_of_file("loop.csv") is None
 
 
 def test_micromanipulator():
-    rec = datasets.load("micromanipulator")
+    rec = _dataset("micromanipulator")
     assert len(rec) == 8027
     assert rec.dt == 0.005
     assert rec.t[0] == 0.0 and rec.t[-1] == pytest.approx(8026 * 0.005)
@@ -255,7 +418,7 @@ def test_micromanipulator():
 
 
 def test_micromanipulator_compensated():
-    rec = datasets.load("micromanipulator_compensated")
+    rec = _dataset("micromanipulator_compensated")
     assert len(rec) == 14155
     assert rec.dt == 0.005
     desired = rec.meta["desired"]

@@ -3,12 +3,18 @@
 Subcommands:
 
 * ``boucwen fit DATA.csv [--json OUT.json]``: the traditional offline fit of a
-  record (CSV with a header line and columns t, u, x in s, V, µm; other columns
-  ignored); prints the parameters and the output error in µm.
+  record (CSV with a header line naming the time, voltage and displacement in s, V, µm:
+  ``t_s,u_V,x_um``, ``time,voltage,displacement``, … any case, see
+  :func:`boucwen.io.read_csv`; other columns ignored); prints the parameters and the
+  output error in µm. Record options (``fit`` and ``diagnose``): ``--columns T,U,X``
+  names the columns (``U,X`` without time), ``--dt DT`` gives the sampling interval of a
+  record without time, ``--resample DT`` puts non-uniform time stamps on a uniform grid.
+  A file of :mod:`boucwen.datasets` (e.g. ``Model_Vi_Do.dat``) is read as that record.
 * ``boucwen reproduce [--out DIR] [--quick]``: the paper's experiment on the
   simulated bench (:mod:`boucwen.experiments.reproduce`).
-* ``boucwen diagnose (DATA.csv | --dataset NAME) --json REPORT.json --predictions PRED.csv
-  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnosis`).
+* ``boucwen diagnose (DATA.csv | --dataset NAME) [--json REPORT.json] [--predictions PRED.csv]
+  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnosis`);
+  prints the report, writes the files asked for.
 * ``boucwen batch fit|diagnose SOURCE --out DIR [--scheduler ADDRESS] [--workers N]
   [--layout CSV]``: a fleet of records on Dask (:mod:`boucwen.batch`; exit code 1 when a
   record ended as an error or did not converge; needs ``pip install boucwen[fleet]``).
@@ -31,7 +37,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Callable, NoReturn
+from typing import TYPE_CHECKING, Any, Callable, NoReturn
 
 __all__ = ["SUBCOMMANDS", "build_parser", "main"]
 
@@ -51,8 +57,72 @@ class _Parser(argparse.ArgumentParser):
 
 
 if TYPE_CHECKING:
+    from .record import Record
+
     # What ``add_subparsers`` returns; each subcommand adds its parser to it.
     _Subparsers = argparse._SubParsersAction[_Parser]
+
+
+# --------------------------------------------------------------------------- records
+
+_DATA_HELP = (
+    "CSV file with a header line naming the time [s], voltage [V] and displacement [um] "
+    "(t_s,u_V,x_um; time,voltage,displacement; ... any case), or a file of boucwen.datasets"
+)
+
+
+def _add_record_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--columns",
+        metavar="T,U,X",
+        default=None,
+        help="names of the time, voltage and displacement columns (U,X for a record without time); "
+        "default: recognised from the header",
+    )
+    p.add_argument(
+        "--dt", type=float, metavar="DT", default=None, help="sampling interval [s] of a record without time"
+    )
+    p.add_argument(
+        "--resample",
+        type=float,
+        metavar="DT",
+        default=None,
+        help="put non-uniform time stamps on a uniform grid of step DT [s] (u held, x interpolated linearly)",
+    )
+
+
+def _read_record(args: argparse.Namespace) -> Record:
+    """The record of ``args.data``: a file of :mod:`boucwen.datasets` by its name, else a CSV file."""
+    from . import datasets
+    from .io import read_csv
+
+    name = datasets.name_of_file(args.data)
+    if name is not None and args.columns is None and args.dt is None and args.resample is None:
+        rec = datasets.load(name, args.data)
+        print(f"{args.data}: the measured record {name!r} of boucwen.datasets (u = column 1 [V], x = column 5 [um])")
+        return rec
+    rec = read_csv(args.data, columns=args.columns, dt=args.dt, resample=args.resample)
+    read = rec.meta["read"]
+    if read != {"t": "t", "u": "u", "x": "x"}:
+        t_col = f"t = {read['t']!r} [s]" if read["t"] is not None else f"no time column, dt = {rec.dt:.6g} s"
+        print(f"{args.data}: {t_col}, u = {read['u']!r} [V], x = {read['x']!r} [um]")
+    info = rec.meta.get("resampled")
+    if info is not None:
+        print(
+            f"resampled to dt = {info['dt_s']:.6g} s ({info['samples_before']} -> {info['samples']} samples): "
+            f"the steps ran from {info['step_min_s']:.6g} to {info['step_max_s']:.6g} s, "
+            f"spread {100.0 * info['step_spread']:.3g}% of their mean {info['step_mean_s']:.6g} s"
+        )
+    return rec
+
+
+def _source(args: argparse.Namespace, rec: Record) -> dict[str, Any]:
+    """Where a record came from, for the JSON files."""
+    doc: dict[str, Any] = {"path": str(args.data)}
+    for key in ("read", "resampled"):
+        if key in rec.meta:
+            doc[key] = rec.meta[key]
+    return doc
 
 
 # --------------------------------------------------------------------------- fit
@@ -60,10 +130,9 @@ if TYPE_CHECKING:
 
 def _cmd_fit(args: argparse.Namespace) -> int:
     from .fit import fit
-    from .io import read_csv
 
     _prepare_output(args.json)
-    rec = read_csv(args.data)
+    rec = _read_record(args)
     result = fit(rec.u, rec.x, rec.dt, n_starts=args.starts, seed=args.seed, progress=args.progress)
     p = result.params
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
@@ -82,7 +151,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     )
     if args.json:
         doc = result.to_dict()
-        doc["data"] = {"path": str(args.data), "samples": len(rec), "dt_s": rec.dt}
+        doc["data"] = {**_source(args, rec), "samples": len(rec), "dt_s": rec.dt}
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=2)
         print(f"wrote {args.json}")
@@ -97,7 +166,8 @@ def _add_fit(sub: _Subparsers) -> None:
         "Bouc-Wen model from a CSV record with columns t [s], u [V], "
         "x [um] by output-error least squares.",
     )
-    p.add_argument("data", help="CSV file with a header line and columns t,u,x")
+    p.add_argument("data", help=_DATA_HELP)
+    _add_record_options(p)
     p.add_argument("--json", metavar="OUT.json", help="also write the result as JSON")
     p.add_argument("--starts", type=int, default=4, help="local starts (default 4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random starts (default 0)")
@@ -159,20 +229,23 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if (args.data is None) == (args.dataset is None):
         raise ValueError("give either DATA.csv or --dataset NAME (exactly one)")
     if args.dataset is not None:
+        if args.columns is not None or args.dt is not None or args.resample is not None:
+            raise ValueError("--columns, --dt and --resample are for DATA.csv, not --dataset")
         from .datasets import load
 
         rec = load(args.dataset)
-        source = {"dataset": args.dataset, "citation": rec.meta.get("citation"), "licence": rec.meta.get("licence")}
+        source: dict[str, Any] = {"dataset": args.dataset}
     else:
-        from .io import read_csv
-
-        rec = read_csv(args.data)
-        source = {"path": str(args.data)}
+        rec = _read_record(args)
+        source = _source(args, rec)
+    if "citation" in rec.meta:
+        source.update(citation=rec.meta["citation"], licence=rec.meta["licence"])
     result = diagnose(rec.u, rec.x, rec.dt, progress=args.progress, seed=args.seed)
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
-    print(f"effects: {', '.join(result.effects) if result.effects else 'none'}")
+    print(f"effects: {', '.join(result.effects) if result.effects else 'none (base model only)'}")
     print(f"error before (base model): rms {result.rms_before:.4g} um, max {result.max_before:.4g} um")
-    print(f"error after (with effects): rms {result.rms_after:.4g} um, max {result.max_after:.4g} um")
+    after = f"with {', '.join(result.effects)}" if result.effects else "base model only, nothing added"
+    print(f"error after ({after}): rms {result.rms_after:.4g} um, max {result.max_after:.4g} um")
     partial = result.evidence.get("partial")
     if isinstance(partial, dict):
         print(
@@ -181,10 +254,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         )
     if result.unexplained is not None:
         print(result.unexplained.summary())
-    write_report(result, args.json, data={**source, "samples": len(rec), "dt_s": rec.dt})
-    print(f"wrote {args.json}")
-    write_predictions(result, rec.t, rec.x, args.predictions)
-    print(f"wrote {args.predictions}")
+    if args.json:
+        write_report(result, args.json, data={**source, "samples": len(rec), "dt_s": rec.dt})
+        print(f"wrote {args.json}")
+    if args.predictions:
+        write_predictions(result, rec.t, rec.x, args.predictions)
+        print(f"wrote {args.predictions}")
     if args.plot:
         plot_diagnosis(result, rec.t, rec.u, rec.x, args.plot, title=rec.name)
         print(f"wrote {args.plot}")
@@ -200,15 +275,17 @@ def _add_diagnose(sub: _Subparsers) -> None:
         "cross-validation over the whole record, and reports the error before "
         "and after [um].",
     )
-    p.add_argument("data", nargs="?", default=None, help="CSV file with a header line and columns t,u,x (s, V, um)")
+    p.add_argument("data", nargs="?", default=None, help=_DATA_HELP)
+    _add_record_options(p)
     p.add_argument(
         "--dataset",
         metavar="NAME",
         default=None,
-        help="use a shipped dataset instead of a CSV file (e.g. micromanipulator)",
+        help="use a measured record of boucwen.datasets (in $BOUCWEN_DATA or ../shared/data) instead of a file "
+        "(e.g. micromanipulator)",
     )
-    p.add_argument("--json", metavar="REPORT.json", required=True, help="write the report here")
-    p.add_argument("--predictions", metavar="PRED.csv", required=True, help="write t,x,x_base,x_extended here")
+    p.add_argument("--json", metavar="REPORT.json", default=None, help="also write the report here")
+    p.add_argument("--predictions", metavar="PRED.csv", default=None, help="also write t,x,x_base,x_extended here")
     p.add_argument(
         "--plot", metavar="FIG.png", default=None, help="also draw the residual before and after, and the loops"
     )

@@ -7,10 +7,19 @@ with the sample times ``t`` [s].
 CSV format read by :func:`read_csv`:
 
 * UTF-8 text, comma-separated, one header line, then one row per sample;
-* the header names the columns; ``t``, ``u`` and ``x`` must be present (any order,
-  names compared after stripping spaces, case-sensitive), other columns are ignored;
-* every field of the three columns is a finite decimal number;
-* at least 3 rows, ``t`` strictly increasing and uniformly sampled.
+* the header names the columns. The time [s], voltage [V] and displacement [µm] are
+  recognised in any order and case, with or without their unit (``t_s``, ``u [V]``,
+  ``x (um)``): time ``t``, ``time``; voltage ``u``, ``v``, ``voltage``; displacement
+  ``x``, ``displacement``, ``disp``, ``pos``, ``position`` (:data:`COLUMN_NAMES`); a
+  recognised name in another unit (``t_ms``, ``x_nm``) is an error, as are two columns
+  for one quantity. ``columns=("T", "U", "X")`` (``--columns T,U,X``) names them
+  instead, ``("U", "X")`` for a record without time. Other columns are ignored;
+* a record without a time column takes its sampling interval from ``dt``;
+* every field of the columns read is a finite decimal number;
+* at least 3 rows, the time strictly increasing and uniformly sampled — or, with
+  ``resample=DT``, put on a uniform grid of step DT [s] from its first sample: u held
+  from the last sample at or before each grid time (zero-order hold), x interpolated
+  linearly; ``meta["resampled"]`` says how much the steps varied.
 
 Uniform sampling means that every step ``t[k+1] - t[k]`` lies within
 ``1e-3·dt + 1e-8·max|t|`` of the mean step ``dt = (t[-1] - t[0]) / (N - 1)``.
@@ -26,19 +35,50 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .checks import check_dt
 from .record import Record, validate_samples
 
 # Record and validate_samples live in boucwen.record; they are importable from here too.
-__all__ = ["REQUIRED_COLUMNS", "Record", "read_csv", "sampling_interval", "validate_samples", "write_csv"]
+__all__ = [
+    "COLUMN_NAMES",
+    "REQUIRED_COLUMNS",
+    "Record",
+    "read_csv",
+    "resample_samples",
+    "sampling_interval",
+    "validate_samples",
+    "write_csv",
+]
 
 #: Columns :func:`read_csv` needs: time [s], voltage [V], displacement [µm].
 REQUIRED_COLUMNS = ("t", "u", "x")
+
+#: Per column: the names recognised (any case), the units accepted after them and what
+#: the column holds.
+COLUMN_NAMES: dict[str, tuple[tuple[str, ...], tuple[str, ...], str]] = {
+    "t": (("t", "time"), ("s", "sec"), "time [s]"),
+    "u": (("u", "v", "voltage"), ("v", "volt", "volts"), "voltage [V]"),
+    "x": (
+        ("x", "displacement", "disp", "pos", "position"),
+        ("um", "µm", "μm", "micron", "microns"),
+        "displacement [µm]",
+    ),
+}
+# Units a recognised name may carry that the record cannot take as they are.
+_OTHER_UNITS = {
+    "t": ("ms", "us", "µs", "μs", "ns", "min", "h"),
+    "u": ("mv", "kv", "µv", "uv"),
+    "x": ("m", "mm", "cm", "nm", "pm"),
+}
+# A name and an optional unit: "x", "x_um", "x [um]", "x (um)", "x/um".
+_NAME_UNIT = re.compile(r"^(?P<name>.+?)(?:\s*[\[(]\s*(?P<a>[^\])]*?)\s*[\])]|\s*[_/ ]\s*(?P<b>[^_/ ]+))?$")
 
 #: Relative tolerance on the sampling step (see the module docs).
 STEP_RTOL = 1e-3
@@ -61,21 +101,115 @@ def _parse_number(text: str) -> float:
     return float(text)
 
 
-def read_csv(path: str | os.PathLike[str]) -> Record:
+def _role(header_name: str) -> tuple[str | None, str | None]:
+    """(column it is, None) for a recognised name, (column, its unit) for a recognised
+    name in a unit the record cannot take, (None, None) for another column."""
+    match = _NAME_UNIT.match(header_name.strip().lower())
+    if match is None:  # pragma: no cover - the pattern matches every non-empty name
+        return None, None
+    whole = header_name.strip().lower()
+    name, unit = match["name"], match["a"] if match["a"] is not None else match["b"]
+    for key, (names, units, _) in COLUMN_NAMES.items():
+        if whole in names or (name in names and unit in units):
+            return key, None
+        if name in names and unit in _OTHER_UNITS[key]:
+            return key, unit
+    return None, None
+
+
+def _given_columns(path: Path, header: list[str], columns: Any, header_no: int) -> dict[str, int]:
+    """Indices of the columns named by ``columns`` (``(T, U, X)`` or ``(U, X)``)."""
+    names = [c.strip() for c in columns.split(",")] if isinstance(columns, str) else [str(c).strip() for c in columns]
+    if len(names) not in (2, 3) or not all(names):
+        raise _fail(path, f"columns must name T,U,X (or U,X for a record without time), got {columns!r}")
+    found = ", ".join(repr(h) for h in header)
+    cols = {}
+    for key, name in zip(REQUIRED_COLUMNS[3 - len(names) :], names):
+        hits = [i for i, h in enumerate(header) if h == name] or [
+            i for i, h in enumerate(header) if h.lower() == name.lower()
+        ]
+        if len(hits) != 1:
+            what = "is not in" if not hits else f"appears {len(hits)} times in"
+            raise _fail(
+                path, f"column {name!r} named by columns (--columns) {what} the header (found: {found})", header_no
+            )
+        cols[key] = hits[0]
+    return cols
+
+
+def _recognised_columns(path: Path, header: list[str], header_no: int) -> dict[str, int]:
+    """Indices of the time, voltage and displacement columns recognised in the header."""
+    hits: dict[str, list[int]] = {key: [] for key in REQUIRED_COLUMNS}
+    for i, name in enumerate(header):
+        key, unit = _role(name)
+        if key is not None and unit is not None:
+            raise _fail(
+                path,
+                f"column {name!r} is in {unit}; boucwen takes the {COLUMN_NAMES[key][2]}: convert it, "
+                "or name the columns with --columns T,U,X (Python: columns=)",
+                header_no,
+            )
+        if key is not None:
+            hits[key].append(i)
+    for key, idx in hits.items():
+        if len(idx) > 1:
+            names = [header[i] for i in idx]
+            what = (
+                f"column {names[0]!r} appears {len(idx)} times in the header"
+                if len(set(names)) == 1
+                else f"columns {', '.join(repr(n) for n in names)} all name the {COLUMN_NAMES[key][2]}"
+            )
+            raise _fail(path, f"{what}; name the columns with --columns T,U,X (Python: columns=)", header_no)
+    missing = [key for key in ("u", "x") if not hits[key]]
+    if missing:
+        found = ", ".join(repr(h) for h in header)
+        spelled = "; ".join(f"{key}: {', '.join(COLUMN_NAMES[key][0])}" for key in missing)
+        raise _fail(
+            path,
+            f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} "
+            f"(found: {found}; recognised, any case, with or without a unit: {spelled}; "
+            "or name the columns with --columns T,U,X)",
+            header_no,
+        )
+    return {key: idx[0] for key, idx in hits.items() if idx}
+
+
+def read_csv(
+    path: str | os.PathLike[str],
+    *,
+    columns: str | tuple[str, ...] | list[str] | None = None,
+    dt: float | None = None,
+    resample: float | None = None,
+) -> Record:
     """Reads a measured record from a CSV file (format in the module docs).
 
     Args:
         path: file to read.
+        columns: the names of the time, voltage and displacement columns, ``(T, U, X)``
+            or ``"T,U,X"``, or ``(U, X)`` for a record without time (exact names, else
+            any case); default: recognised from the header (:data:`COLUMN_NAMES`).
+        dt: sampling interval [s] of a record without a time column.
+        resample: step [s] of a uniform grid to put the record on (u held, x
+            interpolated linearly), for non-uniform time stamps.
 
     Returns:
         A :class:`Record` with ``t`` [s], ``u`` [V], ``x`` [µm], the mean step ``dt``
         [s], ``name`` = the file name without extension and ``meta`` =
-        ``{"path": ..., "columns": [...]}``.
+        ``{"path": ..., "columns": [...]}`` (the header), with ``"read": {"t": ..., "u":
+        ..., "x": ...}`` (the header names read, ``t`` None without a time column) and,
+        when resampled, ``"resampled"`` (:func:`resample`).
 
     Raises:
         ValueError: for every problem with the file, naming the file and, where it
-            applies, the line (1 = header) and column.
+            applies, the line (1 = header) and column; and for bad options.
     """
+    if dt is not None:
+        dt = check_dt(dt)
+    if resample is not None:
+        try:
+            resample = check_dt(resample)
+        except (TypeError, ValueError):
+            raise ValueError(f"resample must be a step in s, finite and > 0, got {resample!r}") from None
     path = Path(path)
     if not path.exists():
         raise ValueError(f"no such file: {path}")
@@ -94,6 +228,14 @@ def read_csv(path: str | os.PathLike[str]) -> Record:
         raise _fail(path, "empty file, expected a header line such as 't,u,x'")
     header_line = lines[first]
     header_no = first + 1
+    numbers = re.split(r"[,;\s]+", header_line.strip())
+    if all(_is_number(h) for h in numbers):
+        raise _fail(
+            path,
+            f"no header line: line {header_no} holds {len(numbers)} number(s); add a first line naming "
+            "the comma-separated columns (e.g. t,u,x: s, V, µm)",
+            header_no,
+        )
     if "," not in header_line:
         for sep, label in ((";", "';'"), ("\t", "tabs")):
             if sep in header_line:
@@ -110,21 +252,24 @@ def read_csv(path: str | os.PathLike[str]) -> Record:
             )
 
     header = [name.strip() for name in next(csv.reader([header_line]))]
-    for name in REQUIRED_COLUMNS:
-        if header.count(name) > 1:
-            raise _fail(path, f"column {name!r} appears {header.count(name)} times in the header", header_no)
-    missing = [name for name in REQUIRED_COLUMNS if name not in header]
-    if missing:
-        found = ", ".join(repr(h) for h in header)
+    cols = (
+        _recognised_columns(path, header, header_no)
+        if columns is None
+        else _given_columns(path, header, columns, header_no)
+    )
+    if "t" in cols and dt is not None:
+        raise _fail(path, f"has a time column {header[cols['t']]!r}; dt (--dt) is for a record without one", header_no)
+    if "t" not in cols and dt is None:
         raise _fail(
             path,
-            f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} (found: {found})",
+            "no time column (t, time, t_s, … in any case); give the sampling interval with --dt DT "
+            "(Python: dt=) [s], or name the columns with --columns T,U,X",
             header_no,
         )
-    cols = {name: header.index(name) for name in REQUIRED_COLUMNS}
+    read = [key for key in REQUIRED_COLUMNS if key in cols]
     width = len(header)
 
-    rows: list[tuple[float, float, float]] = []
+    rows: list[list[float]] = []
     line_nos: list[int] = []
     body = [(i + 1, s) for i, s in enumerate(lines) if i > first and s.strip()]
     for line_no, fields in zip((n for n, _ in body), csv.reader(s for _, s in body)):
@@ -136,8 +281,8 @@ def read_csv(path: str | os.PathLike[str]) -> Record:
                 path, f"expected {width} comma-separated fields as in the header, found {len(fields)}{hint}", line_no
             )
         values = []
-        for name in REQUIRED_COLUMNS:
-            raw = fields[cols[name]].strip()
+        for key in read:
+            name, raw = header[cols[key]], fields[cols[key]].strip()
             try:
                 value = _parse_number(raw)
             except ValueError:
@@ -145,7 +290,7 @@ def read_csv(path: str | os.PathLike[str]) -> Record:
             if not math.isfinite(value):
                 raise _fail(path, f"column {name!r}: non-finite value {raw!r}", line_no)
             values.append(value)
-        rows.append((values[0], values[1], values[2]))
+        rows.append(values)
         line_nos.append(line_no)
 
     if not rows:
@@ -154,12 +299,75 @@ def read_csv(path: str | os.PathLike[str]) -> Record:
         raise _fail(path, f"only {len(rows)} data row{'s' if len(rows) > 1 else ''}, at least 3 are needed")
 
     data = np.array(rows, dtype=np.float64)
-    t, u, x = data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy()
-    dt, problem = sampling_interval(t)
-    if problem is not None:
+    u, x = data[:, -2].copy(), data[:, -1].copy()
+    meta: dict[str, Any] = {
+        "path": str(path),
+        "columns": header,
+        "read": {key: header[cols[key]] if key in cols else None for key in REQUIRED_COLUMNS},
+    }
+    if dt is not None:
+        return Record(t=np.arange(u.size) * dt, u=u, x=x, dt=dt, name=path.stem, meta=meta)
+    t = data[:, 0].copy()
+    step, problem = sampling_interval(t)
+    if problem is not None and (resample is None or step == 0.0):
         k, message = problem
-        raise _fail(path, message, line_nos[k])
-    return Record(t=t, u=u, x=x, dt=dt, name=path.stem, meta={"path": str(path), "columns": header})
+        hint = "; put it on a uniform grid with --resample DT (Python: resample=DT) [s]" if step > 0.0 else ""
+        raise _fail(path, message + hint, line_nos[k])
+    if resample is not None:
+        try:
+            t, u, x, meta["resampled"] = resample_samples(t, u, x, resample)
+        except ValueError as exc:
+            raise _fail(path, str(exc)) from None
+        step = resample
+    return Record(t=t, u=u, x=x, dt=step, name=path.stem, meta=meta)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        _parse_number(text.strip())
+    except ValueError:
+        return False
+    return True
+
+
+def resample_samples(
+    t: np.ndarray, u: np.ndarray, x: np.ndarray, step: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    """Puts samples at strictly increasing times ``t`` [s] on the uniform grid
+    ``t[0] + k·step`` (k = 0, 1, … while within ``t[-1]``): ``u`` held from the last sample
+    at or before each grid time (zero-order hold), ``x`` interpolated linearly.
+
+    Returns:
+        ``(t, u, x, info)`` on the grid; ``info`` = ``{"dt_s", "samples_before",
+        "samples", "step_min_s", "step_max_s", "step_mean_s", "step_spread"}`` where the
+        spread is (largest − smallest step) / mean step of the samples given.
+
+    Raises:
+        ValueError: ``step`` not finite and > 0, or so long that the grid has fewer than 3
+            samples; ``t`` not strictly increasing.
+    """
+    step = check_dt(step)
+    steps = np.diff(t)
+    if np.any(steps <= 0.0):
+        raise ValueError("time not strictly increasing: cannot resample")
+    span = float(t[-1] - t[0])
+    n = math.floor(span / step * (1.0 + 1e-12)) + 1
+    if n < 3:
+        raise ValueError(f"resample step {step:g} s leaves {n} sample(s) over the record's {span:g} s, at least 3")
+    grid = t[0] + np.arange(n) * step
+    # The sample at or before each grid time (a grid time a rounding below a sample's is at it).
+    held = np.clip(np.searchsorted(t, grid + 1e-9 * step, side="right") - 1, 0, t.size - 1)
+    mean = span / (t.size - 1)
+    info = {
+        "dt_s": step,
+        "samples_before": int(t.size),
+        "samples": n,
+        "step_min_s": float(steps.min()),
+        "step_max_s": float(steps.max()),
+        "step_mean_s": mean,
+        "step_spread": float((steps.max() - steps.min()) / mean),
+    }
+    return grid, np.ascontiguousarray(u[held]), np.interp(grid, t, x), info
 
 
 def sampling_interval(t: np.ndarray) -> tuple[float, tuple[int, str] | None]:
@@ -186,9 +394,10 @@ def sampling_interval(t: np.ndarray) -> tuple[float, tuple[int, str] | None]:
     if dev[worst] > tol:
         return dt, (
             worst + 1,
-            f"non-uniform sampling: step {steps[worst]:.9g} s differs from the "
-            f"mean step {dt:.9g} s by {100.0 * dev[worst] / dt:.3g}% "
-            f"(tolerance {100.0 * tol / dt:.3g}%)",
+            f"non-uniform sampling: steps from {steps.min():.6g} s to {steps.max():.6g} s around the "
+            f"mean step {dt:.6g} s (spread {100.0 * (steps.max() - steps.min()) / dt:.3g}% of it; "
+            f"step {steps[worst]:.9g} s here is {100.0 * dev[worst] / dt:.3g}% off, "
+            f"tolerance {100.0 * tol / dt:.3g}%)",
         )
     return dt, None
 

@@ -138,7 +138,8 @@ def plot_diagnosis(
     ax_r = fig.add_subplot(grid[0, :])
     ax_l = fig.add_subplot(grid[1, 0])
     ax_s = fig.add_subplot(grid[1, 1])
-    named = ", ".join(result.effects) if result.effects else "none"
+    # The extended model's label: what was added, or that nothing was.
+    named = f"with {', '.join(result.effects)}" if result.effects else "base model only"
     ax_r.plot(
         t_arr,
         x_arr - result.x_base,
@@ -151,7 +152,7 @@ def plot_diagnosis(
         x_arr - result.x_extended,
         linewidth=0.7,
         color="tab:blue",
-        label=f"with {named} (RMS {result.rms_after:.3g} µm, max {result.max_after:.3g} µm)",
+        label=f"{named} (RMS {result.rms_after:.3g} µm, max {result.max_after:.3g} µm)",
     )
     ax_r.axhline(0.0, color="grey", linewidth=0.5)
     ax_r.set_xlabel("time t [s]")
@@ -161,7 +162,7 @@ def plot_diagnosis(
     ax_r.grid(True, alpha=0.3)
     ax_l.plot(u_arr, x_arr, color="black", linewidth=1.2, label="measured")
     ax_l.plot(u_arr, result.x_base, color="tab:red", linewidth=0.7, linestyle="--", label="base model")
-    ax_l.plot(u_arr, result.x_extended, color="tab:blue", linewidth=0.7, linestyle=":", label=f"with {named}")
+    ax_l.plot(u_arr, result.x_extended, color="tab:blue", linewidth=0.7, linestyle=":", label=named)
     ax_l.set_xlabel("voltage u [V]")
     ax_l.set_ylabel("displacement x [µm]")
     ax_l.set_title("(b) loops")
@@ -171,7 +172,7 @@ def plot_diagnosis(
     freqs = np.fft.rfftfreq(t_arr.size, dt)[1:]
     for err, color, label in (
         (x_arr - result.x_base, "tab:red", "base model"),
-        (x_arr - result.x_extended, "tab:blue", f"with {named}"),
+        (x_arr - result.x_extended, "tab:blue", named),
     ):
         amp = np.abs(np.fft.rfft(err - err.mean()))[1:] * 2.0 / t_arr.size
         ax_s.loglog(freqs, np.maximum(amp, 1e-12), color=color, linewidth=0.6, label=label)

@@ -1,4 +1,4 @@
-"""Measured piezo records shipped with the package.
+"""Measured piezo records, read from a data directory (the package ships no data).
 
 Available records (see :func:`names`):
 
@@ -14,24 +14,31 @@ Available records (see :func:`names`):
     command [V], ``x`` the displacement [µm], ``meta["desired"]`` the desired
     displacement [µm] (±20 µm). The sensor reading appears one sample late.
 
-Both come from Y. N. Aye and W. T. Ang (2018), MIT licence © 2019 Yan Naing Aye;
-the licence text is in ``meta["licence_text"]`` and the files sit unchanged in
-``boucwen/datasets/yan9a_micromanipulator/`` with their README and LICENSE.
+Both come from Y. N. Aye and W. T. Ang (2018), MIT licence © 2019 Yan Naing Aye; the
+files sit unchanged, with their README and LICENSE (``meta["licence_text"]``), in the
+folder :data:`FOLDER` of a data directory: the one named by the environment variable
+:data:`ENV_VAR` (``BOUCWEN_DATA``), else ``../shared/data`` beside the repository
+(the nearest folder above the working directory or the package holding a
+``pyproject.toml``), when it exists. :func:`find` raises :class:`DataNotFoundError`,
+naming both places, when neither holds the record.
 """
 
 from __future__ import annotations
 
-from importlib import resources
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..record import Record
 
-__all__ = ["DATA_DIR", "load", "names"]
+__all__ = ["ENV_VAR", "FOLDER", "DataNotFoundError", "available", "data_dirs", "find", "load", "name_of_file", "names"]
 
-#: Folder (inside this package) that holds the micromanipulator files.
-DATA_DIR = "yan9a_micromanipulator"
+#: Environment variable naming the data directory.
+ENV_VAR = "BOUCWEN_DATA"
+#: Folder of a data directory that holds the micromanipulator files.
+FOLDER = "yan9a-piezo-micromanipulator"
 
 _DT = 0.005  # s, 200 Hz
 _SOURCE = "github.com/yan9a/DiscreteBacklashOperator, commit 79fd060, folder MatLabCode/DiscreteBacklashModel/"
@@ -60,20 +67,84 @@ _RECORDS = {
 }
 
 
+class DataNotFoundError(FileNotFoundError):
+    """A record is in neither data directory (the message names both places)."""
+
+
 def names() -> list[str]:
     """Names accepted by :func:`load`."""
     return list(_RECORDS)
 
 
-def _read_text(filename: str) -> str:
-    return (resources.files(__name__) / DATA_DIR / filename).read_text(encoding="utf-8")
+def _shared_data_dir() -> Path:
+    """``../shared/data`` beside the repository: the nearest folder holding a
+    ``pyproject.toml`` above the working directory, else above this package."""
+    for start in (Path.cwd(), Path(__file__).resolve().parent):
+        for folder in (start, *start.parents):
+            if (folder / "pyproject.toml").is_file():
+                return folder.parent / "shared" / "data"
+    return Path.cwd().parent / "shared" / "data"
 
 
-def load(name: str) -> Record:
-    """Loads a shipped record.
+def data_dirs() -> list[tuple[str, Path | None]]:
+    """The places searched, in order: ``(label, folder)``, folder None when ``BOUCWEN_DATA`` is not set."""
+    env = os.environ.get(ENV_VAR, "").strip()
+    return [
+        (f"${ENV_VAR}", Path(env).expanduser() if env else None),
+        ("../shared/data beside the repository", _shared_data_dir()),
+    ]
+
+
+def find(name: str) -> Path:
+    """The file of record ``name`` in the first data directory that holds it.
+
+    Raises:
+        ValueError: unknown name (the message lists the available names).
+        DataNotFoundError: neither ``$BOUCWEN_DATA/<FOLDER>/`` nor
+            ``../shared/data/<FOLDER>/`` holds the file (the message names both).
+    """
+    if name not in _RECORDS:
+        raise ValueError(f"unknown dataset {name!r}; available: {', '.join(names())}")
+    filename = _RECORDS[name][0]
+    looked = []
+    for label, folder in data_dirs():
+        if folder is None:
+            looked.append(f"{label}/{FOLDER}/ ({ENV_VAR} not set)")
+            continue
+        path = folder / FOLDER / filename
+        if path.is_file():
+            return path
+        looked.append(
+            f"{label}/{FOLDER}/ ({folder / FOLDER}: {'no such file' if folder.is_dir() else 'no such folder'})"
+        )
+    raise DataNotFoundError(
+        f"dataset {name!r} ({filename}) not found: looked in {' and in '.join(looked)}; "
+        f"set {ENV_VAR} to a folder holding {FOLDER}/{filename}"
+    )
+
+
+def available(name: str) -> bool:
+    """Whether :func:`find` finds record ``name``."""
+    try:
+        find(name)
+    except DataNotFoundError:
+        return False
+    return True
+
+
+def name_of_file(path: str | os.PathLike[str]) -> str | None:
+    """The name of the record whose file is ``path`` (by file name), or None."""
+    filename = Path(path).name
+    return next((name for name, spec in _RECORDS.items() if spec[0] == filename), None)
+
+
+def load(name: str, path: str | os.PathLike[str] | None = None) -> Record:
+    """Loads a measured record.
 
     Args:
         name: one of :func:`names`.
+        path: the record's file; default :func:`find` ``(name)``. Its folder's
+            ``LICENSE`` fills ``meta["licence_text"]`` (empty when absent).
 
     Returns:
         A :class:`~boucwen.record.Record` with ``t`` [s] (0, 0.005, …), ``u`` = file column 1
@@ -83,21 +154,27 @@ def load(name: str) -> Record:
         ``"micromanipulator_compensated"``).
 
     Raises:
-        ValueError: unknown name (the message lists the available names).
+        ValueError: unknown name (the message lists the available names), or a file
+            of another shape.
+        DataNotFoundError: ``path`` not given and the record is in no data directory.
     """
-    if name not in _RECORDS:
+    file = find(name) if path is None else Path(path)
+    if name not in _RECORDS:  # a path was given with an unknown name
         raise ValueError(f"unknown dataset {name!r}; available: {', '.join(names())}")
     filename, ncols, description, notes = _RECORDS[name]
-    with resources.as_file(resources.files(__name__) / DATA_DIR / filename) as path:
-        data = np.loadtxt(path, dtype=np.float64, ndmin=2)
+    try:
+        data = np.loadtxt(file, dtype=np.float64, ndmin=2)
+    except ValueError as exc:
+        raise ValueError(f"{file}: not the whitespace-separated numbers of {filename}: {exc}") from None
     if data.shape[1] != ncols:
-        raise ValueError(f"{filename}: expected {ncols} columns, found {data.shape[1]}")
+        raise ValueError(f"{file}: expected the {ncols} columns of {filename}, found {data.shape[1]}")
+    licence = file.parent / "LICENSE"
     t = np.arange(data.shape[0], dtype=np.float64) * _DT
     meta: dict[str, Any] = {
         "source": _SOURCE,
-        "file": f"{DATA_DIR}/{filename}",
+        "file": str(file),
         "licence": "MIT, Copyright (c) 2019 Yan Naing Aye",
-        "licence_text": _read_text("LICENSE"),
+        "licence_text": licence.read_text(encoding="utf-8") if licence.is_file() else "",
         "citation": _CITATION,
         "units": {
             "t": "s",

@@ -116,7 +116,7 @@ ANCHORS: tuple[dict[str, str], ...] = (
         "max_error_pct": "23 -> < 2.5",
     },
     {
-        "method": "discrete backlash inverse, Aye & Ang 2018 (the shipped record micromanipulator_compensated)",
+        "method": "discrete backlash inverse, Aye & Ang 2018 (the measured record micromanipulator_compensated)",
         "max_error_pct": "9.9 -> 3-4",
         "rms_error_pct": "3.8 -> 0.65-1.15",
     },

@@ -1,0 +1,307 @@
+"""Measured-data benchmark: does the model :func:`boucwen.diagnose` returns predict unseen data better?
+
+Every measured record available (:mod:`boucwen.datasets`: ``$BOUCWEN_DATA`` or
+``../shared/data`` beside the repository) gives cases; each case diagnoses the *fitted*
+samples and predicts the *unseen* ones, open loop from u, with the base model (the
+diagnosis's ``params["base_only"]``) and with the returned model (``params["base"]``,
+``h0_um`` and :attr:`~boucwen.diagnosis.Diagnosis.effect_set`, simulated by
+:func:`boucwen.simulate_extended`):
+
+* **cross-record** (:data:`CROSS_RECORD`): fitted on the identification record
+  ``micromanipulator`` (``Model_Vi_Do.dat``), unseen = ``micromanipulator_compensated``
+  (``Test_Vi_Do_Di.dat``), a different input on the same device. Both models start
+  from their fitted h0 at the unseen record's first sample; the offset (a constant added
+  to each prediction) is re-estimated on the unseen record, as the mean of its residual.
+* **forward split**, every record: fitted = its first :data:`FIT_SHARE` (60 %), unseen
+  = the rest. Each model is simulated over the whole record from its fitted h0, so the
+  unseen part continues the state (h, the effects' filters, the drift's time) where the
+  fitted part left it; nothing is re-estimated.
+
+Errors are RMS and max |x − x̂| [µm] on the unseen samples (*unseen*) and on the fitted
+ones (*in-record*: the diagnosis's own before/after); time is the diagnosis's wall time.
+
+Targets (the tracker's issue), checked on the RMS errors:
+
+1. where the in-record fit improves by at least :data:`IN_RECORD_GAIN` (20 %), the
+   unseen-data error falls by at least :data:`UNSEEN_GAIN` (15 %);
+2. nowhere does the returned model predict unseen data worse than the base model by more
+   than :data:`WORSE_TOLERANCE` (2 %).
+
+``python -m boucwen.experiments.measured [--out DIR] [--progress]`` prints one table per
+case and whether the targets hold, and writes ``DIR/results.json``; without measured
+data it says what it skipped and exits 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from .. import datasets
+from .._core import Params, simulate, simulate_extended
+from ..checks import FloatArray
+from ..diagnosis import Diagnosis, diagnose
+from ..diagnosis.report import jsonable
+from ..metrics import max_abs, rms
+from ..record import Record
+
+__all__ = [
+    "CROSS_RECORD",
+    "DEFAULT_OUT",
+    "FIT_SHARE",
+    "IN_RECORD_GAIN",
+    "UNSEEN_GAIN",
+    "WORSE_TOLERANCE",
+    "Case",
+    "cases",
+    "check_targets",
+    "main",
+    "predictions",
+    "run",
+    "run_case",
+]
+
+DEFAULT_OUT = "out/measured"
+#: Share of a record fitted in the forward split (the rest is unseen).
+FIT_SHARE = 0.6
+#: (fitted record, unseen record) of the cross-record case.
+CROSS_RECORD = ("micromanipulator", "micromanipulator_compensated")
+#: Target 1: an in-record cut of the RMS error at least this large ...
+IN_RECORD_GAIN = 0.20
+#: ... must come with a cut of the unseen RMS error at least this large.
+UNSEEN_GAIN = 0.15
+#: Target 2: the returned model's unseen RMS error at most (1 + this) × the base model's.
+WORSE_TOLERANCE = 0.02
+
+
+@dataclass(frozen=True)
+class Case:
+    """One benchmark case: diagnose ``fitted``, predict ``unseen``.
+
+    ``continued``: ``unseen`` follows ``fitted`` in one record (the models run on, from
+    the fitted part's end state); otherwise it is another record, started from the
+    fitted h0 with the offset re-estimated on it.
+    """
+
+    name: str
+    fitted: Record
+    unseen: Record
+    continued: bool
+
+
+def forward_split(rec: Record, share: float = FIT_SHARE) -> Case:
+    """The case fitting the first ``share`` of ``rec`` and predicting the rest."""
+    k = round(share * len(rec))
+    if not 3 <= k <= len(rec) - 1:
+        raise ValueError(f"{rec.name}: {len(rec)} samples are too few to split at {share:g}")
+    pct = round(100 * share)
+    return Case(f"{rec.name}: first {pct} % → last {100 - pct} %", rec.part(0, k), rec.part(k), continued=True)
+
+
+def cases() -> tuple[list[Case], list[str]]:
+    """The cases of the measured records available, and a line for each record skipped."""
+    records: dict[str, Record] = {}
+    skipped = []
+    for name in datasets.names():
+        try:
+            records[name] = datasets.load(name)
+        except datasets.DataNotFoundError as exc:
+            skipped.append(str(exc))
+    found: list[Case] = []
+    fit_name, unseen_name = CROSS_RECORD
+    if fit_name in records and unseen_name in records:
+        found.append(Case(f"{fit_name} → {unseen_name}", records[fit_name], records[unseen_name], continued=False))
+    found.extend(forward_split(rec) for rec in records.values())
+    return found, skipped
+
+
+def _models(result: Diagnosis) -> tuple[tuple[Params, float], tuple[Params, float]]:
+    """(base params, h0) and (returned params, h0) of a diagnosis."""
+    base = result.params["base_only"]
+    return (
+        (Params.from_dict(base["base"]), float(base["h0_um"])),
+        (Params.from_dict(result.params["base"]), float(result.params["h0_um"])),
+    )
+
+
+def predictions(result: Diagnosis, case: Case) -> dict[str, Any]:
+    """The base and returned models' displacement [µm] on ``case.unseen`` (see the module
+    docs), and how far their simulation over the fitted samples is from the diagnosis's
+    own (``replay_um``: 0 up to rounding when the models are read back right)."""
+    (base_p, base_h0), (ret_p, ret_h0) = _models(result)
+    effects = result.effect_set
+    k = len(case.fitted)
+    u = np.concatenate([case.fitted.u, case.unseen.u]) if case.continued else case.unseen.u
+    dt = case.fitted.dt
+    x_base = simulate(base_p, u, dt, base_h0)[0]
+    x_ret = simulate_extended(ret_p, effects, u, dt, ret_h0)
+    replay = float("nan")
+    if case.continued:
+        replay = max(max_abs(x_base[:k] - result.x_base), max_abs(x_ret[:k] - result.x_extended))
+        x_base, x_ret = x_base[k:], x_ret[k:]
+    else:
+        fitted_base = simulate(base_p, case.fitted.u, dt, base_h0)[0]
+        fitted_ret = simulate_extended(ret_p, effects, case.fitted.u, dt, ret_h0)
+        replay = max(max_abs(fitted_base - result.x_base), max_abs(fitted_ret - result.x_extended))
+        x_base = x_base + float(np.mean(case.unseen.x - x_base))
+        x_ret = x_ret + float(np.mean(case.unseen.x - x_ret))
+    return {"x_base": x_base, "x_returned": x_ret, "replay_um": replay}
+
+
+def _errors(x: FloatArray, x_hat: FloatArray) -> dict[str, float]:
+    return {"rms_um": rms(x - x_hat), "max_um": max_abs(x - x_hat)}
+
+
+def _change(before: float, after: float) -> float:
+    """Relative change after/before − 1 (negative: the error fell)."""
+    return after / before - 1.0 if before > 0 else 0.0
+
+
+def run_case(case: Case, *, seed: int = 0, progress: bool = False, workers: int | None = None) -> dict[str, Any]:
+    """Diagnoses ``case.fitted`` and scores both models on ``case.unseen``; a JSON-able dict."""
+    if case.fitted.dt != case.unseen.dt:
+        raise ValueError(f"{case.name}: fitted and unseen records are sampled differently")
+    started = time.perf_counter()
+    result = diagnose(case.fitted.u, case.fitted.x, case.fitted.dt, seed=seed, progress=progress, workers=workers)
+    elapsed = time.perf_counter() - started
+    pred = predictions(result, case)
+    base = _errors(case.unseen.x, pred["x_base"])
+    returned = _errors(case.unseen.x, pred["x_returned"])
+    return {
+        "case": case.name,
+        "kind": "forward split" if case.continued else "cross-record",
+        "fitted_samples": len(case.fitted),
+        "unseen_samples": len(case.unseen),
+        "dt_s": case.fitted.dt,
+        "effects": list(result.effects),
+        "partial": (result.evidence.get("partial") or {}).get("effects", []),
+        "time_s": elapsed,
+        "in_record": {
+            "base": {"rms_um": result.rms_before, "max_um": result.max_before},
+            "returned": {"rms_um": result.rms_after, "max_um": result.max_after},
+            "rms_change": _change(result.rms_before, result.rms_after),
+        },
+        "unseen": {"base": base, "returned": returned, "rms_change": _change(base["rms_um"], returned["rms_um"])},
+        "replay_um": pred["replay_um"],
+        "offset_reestimated": not case.continued,
+        "params": result.params,
+    }
+
+
+def check_targets(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Whether each target holds over ``rows`` (:func:`run_case`'s), with the cases that break it."""
+    improving = [r for r in rows if r["in_record"]["rms_change"] <= -IN_RECORD_GAIN]
+    first = [r["case"] for r in improving if r["unseen"]["rms_change"] > -UNSEEN_GAIN]
+    second = [r["case"] for r in rows if r["unseen"]["rms_change"] > WORSE_TOLERANCE]
+    return {
+        "unseen_falls_where_fit_improves": {
+            "rule": f"in-record RMS −{IN_RECORD_GAIN:.0%} or more ⇒ unseen RMS −{UNSEEN_GAIN:.0%} or more",
+            "cases": len(improving),
+            "holds": not first,
+            "broken_by": first,
+        },
+        "never_worse_than_base": {
+            "rule": f"unseen RMS at most +{WORSE_TOLERANCE:.0%} over the base model's",
+            "cases": len(rows),
+            "holds": not second,
+            "broken_by": second,
+        },
+    }
+
+
+def _pct(change: float) -> str:
+    return f"{100.0 * change:+.1f} %"
+
+
+def print_case(row: dict[str, Any], out: TextIO) -> None:
+    """The table of one case."""
+    named = ", ".join(row["effects"]) if row["effects"] else "none (base model only)"
+    how = "offset re-estimated on it" if row["offset_reestimated"] else "state continued"
+    print(
+        f"\n{row['case']} ({row['kind']}: {row['fitted_samples']} samples fitted, "
+        f"{row['unseen_samples']} unseen, {how})",
+        file=out,
+    )
+    print(f"{'model':<10} {'in-record RMS':>13} {'max':>7} {'unseen RMS':>11} {'max':>7}  [µm]", file=out)
+    for key in ("base", "returned"):
+        fit, new = row["in_record"][key], row["unseen"][key]
+        print(
+            f"{key:<10} {fit['rms_um']:>13.4f} {fit['max_um']:>7.3f} {new['rms_um']:>11.4f} {new['max_um']:>7.3f}",
+            file=out,
+        )
+    partial = f" (partial, not named: {', '.join(row['partial'])})" if row["partial"] else ""
+    print(
+        f"change    {_pct(row['in_record']['rms_change']):>13} {'':>7} {_pct(row['unseen']['rms_change']):>11}",
+        file=out,
+    )
+    print(f"effects: {named}{partial}; diagnosis {row['time_s']:.1f} s", file=out)
+
+
+def print_targets(targets: dict[str, Any], out: TextIO) -> None:
+    """One line per target."""
+    print("\ntargets:", file=out)
+    for target in targets.values():
+        verdict = "holds" if target["holds"] else f"FAILS ({'; '.join(target['broken_by'])})"
+        print(f"  {target['rule']}: {verdict} over {target['cases']} case(s)", file=out)
+
+
+def run(
+    out_dir: str | Path | None = DEFAULT_OUT,
+    *,
+    case_list: Sequence[Case] | None = None,
+    seed: int = 0,
+    progress: bool = False,
+    workers: int | None = None,
+    out: TextIO | None = None,
+) -> dict[str, Any]:
+    """Runs every case (default :func:`cases`), prints the tables and the targets (to
+    ``out``, default stdout), and writes ``out_dir/results.json`` (unless ``out_dir`` is
+    None); returns its content."""
+    out = sys.stdout if out is None else out
+    skipped: list[str] = []
+    if case_list is None:
+        case_list, skipped = cases()
+    for line in skipped:
+        print(f"skipped: {line}", file=out)
+    rows = []
+    for case in case_list:
+        rows.append(run_case(case, seed=seed, progress=progress, workers=workers))
+        print_case(rows[-1], out)
+    targets = check_targets(rows)
+    if rows:
+        print_targets(targets, out)
+    else:
+        print("no measured record available: nothing measured", file=out)
+    doc = {"cases": rows, "targets": targets, "skipped": skipped, "seed": seed}
+    if out_dir is not None:
+        folder = Path(out_dir)
+        folder.mkdir(parents=True, exist_ok=True)
+        with open(folder / "results.json", "w", encoding="utf-8") as fh:
+            json.dump(jsonable(doc), fh, indent=2, allow_nan=False)
+        print(f"wrote {folder / 'results.json'}", file=out)
+    return doc
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m boucwen.experiments.measured",
+        description="Base model vs the model boucwen.diagnose returns, on unseen measured data.",
+    )
+    ap.add_argument("--out", default=DEFAULT_OUT, metavar="DIR", help=f"output directory (default {DEFAULT_OUT})")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the base fits' starts (default 0)")
+    ap.add_argument("--progress", action="store_true", help="the diagnoses' progress on stderr")
+    args = ap.parse_args(argv)
+    run(args.out, seed=args.seed, progress=args.progress)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
