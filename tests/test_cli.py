@@ -142,6 +142,19 @@ def test_diagnose_prints_the_report_without_output_files(tmp_path, capsys, drift
     assert "wrote" not in out and sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]
 
 
+def test_diagnose_judges_on_a_validation_record_and_prints_unseen_errors(tmp_path, capsys, drift_samples):
+    # The second half of the record as a second record of the same device.
+    t, u, x = drift_samples
+    half = t.size // 2
+    a = _csv(tmp_path / "a.csv", "t_s,u_V,x_um", (t[:half], u[:half], x[:half]))
+    b = _csv(tmp_path / "b.csv", "t_s,u_V,x_um", (t[half:] - t[half], u[half:], x[half:]))
+    assert main(["diagnose", str(a), "--validate", str(b)]) == 0
+    out = capsys.readouterr().out
+    assert "unseen data (4-fold blocked cross-validation)" in out
+    assert f"validation record {b} ({t.size - half} samples, offset and initial state re-estimated)" in out
+    assert "drift: confident" in out or "drift: tentative" in out
+
+
 def test_diagnose_resamples_non_uniform_time_when_asked(tmp_path, capsys, drift_samples):
     t, u, x = drift_samples
     jittered = t + np.random.default_rng(0).uniform(-0.2e-3, 0.2e-3, t.size) * (np.arange(t.size) % 3 == 1)

@@ -91,21 +91,23 @@ def _add_record_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _read_record(args: argparse.Namespace) -> Record:
-    """The record of ``args.data``: a file of :mod:`boucwen.datasets` by its name, else a CSV file."""
+def _read_record(args: argparse.Namespace, path: str | None = None) -> Record:
+    """The record of ``path`` (default ``args.data``): a file of :mod:`boucwen.datasets`
+    by its name, else a CSV file read with the record options of ``args``."""
     from . import datasets
     from .io import read_csv
 
-    name = datasets.name_of_file(args.data)
+    path = args.data if path is None else path
+    name = datasets.name_of_file(path)
     if name is not None and args.columns is None and args.dt is None and args.resample is None:
-        rec = datasets.load(name, args.data)
-        print(f"{args.data}: the measured record {name!r} of boucwen.datasets (u = column 1 [V], x = column 5 [um])")
+        rec = datasets.load(name, path)
+        print(f"{path}: the measured record {name!r} of boucwen.datasets (u = column 1 [V], x = column 5 [um])")
         return rec
-    rec = read_csv(args.data, columns=args.columns, dt=args.dt, resample=args.resample)
+    rec = read_csv(path, columns=args.columns, dt=args.dt, resample=args.resample)
     read = rec.meta["read"]
     if read != {"t": "t", "u": "u", "x": "x"}:
         t_col = f"t = {read['t']!r} [s]" if read["t"] is not None else f"no time column, dt = {rec.dt:.6g} s"
-        print(f"{args.data}: {t_col}, u = {read['u']!r} [V], x = {read['x']!r} [um]")
+        print(f"{path}: {t_col}, u = {read['u']!r} [V], x = {read['x']!r} [um]")
     info = rec.meta.get("resampled")
     if info is not None:
         print(
@@ -240,18 +242,41 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         source = _source(args, rec)
     if "citation" in rec.meta:
         source.update(citation=rec.meta["citation"], licence=rec.meta["licence"])
-    result = diagnose(rec.u, rec.x, rec.dt, progress=args.progress, seed=args.seed)
+    val = None if args.validate is None else _read_record(args, args.validate)
+    result = diagnose(
+        rec.u,
+        rec.x,
+        rec.dt,
+        progress=args.progress,
+        seed=args.seed,
+        validate=None if val is None else (val.u, val.x, val.dt),
+    )
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
     print(f"effects: {', '.join(result.effects) if result.effects else 'none (base model only)'}")
+    for name, c in result.confidence.items():
+        rival = f"; competing: {c['competing']}" if c["competing"] else ""
+        print(f"  {name}: {c['level']} ({c['why']}{rival})")
     print(f"error before (base model): rms {result.rms_before:.4g} um, max {result.max_before:.4g} um")
     after = f"with {', '.join(result.effects)}" if result.effects else "base model only, nothing added"
     print(f"error after ({after}): rms {result.rms_after:.4g} um, max {result.max_after:.4g} um")
-    partial = result.evidence.get("partial")
-    if isinstance(partial, dict):
+    unseen = result.unseen
+    if unseen:
         print(
-            f"partial, not named: {', '.join(partial['effects'])} would leave rms {partial['rms_um']:.4g} um, "
-            f"{partial['explained_share']:.0%} of the error beyond the noise explained"
+            f"unseen data ({unseen['folds']}-fold blocked cross-validation): rms {unseen['cv_rms_before_um']:.4g} um "
+            f"(base model) -> {unseen['cv_rms_after_um']:.4g} um (returned model)"
         )
+        on_val = unseen.get("validation")
+        if on_val and on_val["before"] and on_val["after"]:
+            print(
+                f"validation record {args.validate} ({on_val['samples']} samples, "
+                "offset and initial state re-estimated): "
+                f"rms {on_val['before']['rms_um']:.4g} um (base model) -> {on_val['after']['rms_um']:.4g} um"
+            )
+    for b in result.at_bounds:
+        print(f"on a bound of the fit: {b['parameter']} = {b['value']:.4g} ({b['side']} bound {b['bound']:.4g})")
+    on_answer = [c for c in result.close_calls if c["kind"] == "answer"]
+    if on_answer:
+        print(f"close calls, decided by the margin rule: {', '.join(c['decision'] for c in on_answer)}")
     if result.unexplained is not None:
         print(result.unexplained.summary())
     if args.json:
@@ -288,6 +313,13 @@ def _add_diagnose(sub: _Subparsers) -> None:
     p.add_argument("--predictions", metavar="PRED.csv", default=None, help="also write t,x,x_base,x_extended here")
     p.add_argument(
         "--plot", metavar="FIG.png", default=None, help="also draw the residual before and after, and the loops"
+    )
+    p.add_argument(
+        "--validate",
+        metavar="B.csv",
+        default=None,
+        help="a second record of the same device (read like DATA): each effect must also predict it better, "
+        "and the report gives both models' errors on it",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the base fit's starts (default 0)")
     p.add_argument("--progress", action="store_true", help="print progress to stderr")
