@@ -42,22 +42,38 @@ def test_the_sampling_margin_of_an_rms_error():
 
 
 def test_on_a_second_record_an_effect_that_predicts_nothing_is_dropped_and_one_that_does_is_kept():
+    # The record holds an input lag; the model also holds an electrostriction too small
+    # to matter (a device effect: judged there, and dropped) and a drift (the record's
+    # own: not judged on another record).
     p = Params.paper_1hz()
     lag = EffectSet(input_lag={"fc_hz": 30.0})
     u = _voltage(6000, 2)
     x = simulate_extended(p, lag, u, DT) + np.random.default_rng(3).normal(0, 0.002, u.size)
     validation = validate_record(u, x, DT)
-    both = EffectSet(input_lag={"fc_hz": 30.0}, drift={"rate_um_per_s": 1e-9})
-
-    def refit(effects):
-        return _fit(effects)
-
+    model = EffectSet(
+        input_lag={"fc_hz": 30.0}, electrostriction={"epsilon_per_um": 1e-12}, drift={"rate_um_per_s": 0.1}
+    )
+    names = ["input_lag", "electrostriction", "drift"]
     said = []
-    fit, left, evidence = judged_on(validation, _fit(both), ["input_lag", "drift"], refit, said.append)
-    assert left == ["input_lag"]
-    assert list(fit.effects.names) == ["input_lag"]
-    assert evidence["input_lag"]["kept"] and not evidence["drift"]["kept"]
+    fit, left, evidence = judged_on(validation, _fit(model), names, _fit, said.append)
+    assert left == ["input_lag", "drift"]
+    assert sorted(fit.effects.names) == ["drift", "input_lag"]
+    assert evidence["input_lag"]["kept"] and not evidence["electrostriction"]["kept"] and "drift" not in evidence
     assert evidence["input_lag"]["without_rms_um"] > 10 * evidence["input_lag"]["with_rms_um"]
+
+
+def test_a_model_carried_to_another_record_leaves_the_records_own_effects_behind():
+    # A drift and a pickup belong to the record: carried to another record the model
+    # predicts it from its device part, the other record's offset and trend re-estimated.
+    p = Params.paper_1hz()
+    u = _voltage(5000, 7)
+    t = np.arange(u.size) * DT
+    x = simulate_extended(p, EffectSet(), u, DT) + 0.3 - 0.2 * t
+    pickup = {"line_hz": 50.0, "sin_um": [0.1, 0.0], "cos_um": [0.0, 0.0]}
+    model = EffectSet(drift={"rate_um_per_s": 5.0}, pickup=pickup)
+    err = prediction_error(_fit(model), validate_record(u, x, DT))
+    assert err is not None and err.rms_um < 1e-6
+    assert math.isclose(err.offset_um, 0.3, abs_tol=1e-6) and math.isclose(err.trend_um_per_s, -0.2, abs_tol=1e-5)
 
 
 def test_a_diagnosis_reports_its_errors_on_unseen_data_and_on_a_validation_record():

@@ -6,15 +6,19 @@ Two kinds of unseen data judge the returned model:
   (:mod:`~boucwen.diagnosis.validation`: each block predicted by the model refitted
   without it), for every record;
 * a **second record of the same device** (``validate``), where the user has one: the
-  model fitted on the first record simulated from the second record's voltage alone,
-  with its offset and its initial hysteresis state h0 re-estimated (a different day, a
-  different mounting: the offset of a piezo stage is not kept between records, and the
-  state it starts in depends on what the voltage did before the record began, which
-  neither record holds).
+  model fitted on the first record carried to the second. What is carried is the
+  *device*: the hysteresis and every effect of the actuator, its amplifier and its
+  mechanics. What belongs to the *record* is re-estimated on the second one, for every
+  model alike: the offset (a different mounting, a different zero), a linear trend
+  (thermal and sensor drift depend on the day, not on the device), the initial
+  hysteresis state h0 (it depends on what the voltage did before the record began,
+  which neither record holds); the record's own effects, :data:`RECORD_EFFECTS`
+  (a drift, a mains pickup whose phase is the record's), are left out.
 
-On the second record each effect must earn its place: one whose removal (the others
-refitted without it on the first record) predicts the second record as well, within
-the sampling error of an RMS error over its samples, is dropped (:func:`judged_on`).
+On the second record each effect of the device must earn its place: one whose removal
+(the others refitted without it on the first record) predicts the second record as
+well, within the sampling error of an RMS error over its samples, is dropped
+(:func:`judged_on`); the record's own effects are judged on the record itself.
 """
 
 from __future__ import annotations
@@ -34,50 +38,81 @@ from ..effects.base import without
 from ..metrics import max_abs, rms
 from ..record import Record
 
-__all__ = ["ValidationError", "judged_on", "prediction_error", "sampling_margin"]
+__all__ = ["RECORD_EFFECTS", "ValidationError", "carried", "judged_on", "prediction_error", "sampling_margin"]
+
+#: Effects of the record rather than of the device: not carried to another record.
+RECORD_EFFECTS = ("drift", "pickup")
 
 
 @dataclass(frozen=True)
 class ValidationError:
-    """Errors [µm] of a model on a record it was not fitted on, with the offset
-    ``offset_um`` and initial hysteresis state ``h0_um`` [µm] re-estimated."""
+    """Errors [µm] of a model carried to a record it was not fitted on (:func:`carried`),
+    with what was re-estimated there: the offset ``offset_um`` [µm], the trend
+    ``trend_um_per_s`` [µm/s] and the initial hysteresis state ``h0_um`` [µm]."""
 
     rms_um: float
     max_um: float
     offset_um: float
+    trend_um_per_s: float
     h0_um: float
 
     def to_dict(self) -> dict[str, float]:
-        return {"rms_um": self.rms_um, "max_um": self.max_um, "offset_um": self.offset_um, "h0_um": self.h0_um}
+        return {
+            "rms_um": self.rms_um,
+            "max_um": self.max_um,
+            "offset_um": self.offset_um,
+            "trend_um_per_s": self.trend_um_per_s,
+            "h0_um": self.h0_um,
+        }
 
 
-def prediction_error(fit: ExtendedFit, record: Record) -> ValidationError | None:
-    """The error of ``fit`` simulated over ``record``'s voltage, with the offset (the
-    mean of the error) and the initial state h0 (bounded scalar search over ± the
-    record's displacement span, kept only where it beats h0 = 0) that fit it best;
-    None when it cannot be simulated."""
+def device_part(effects: EffectSet) -> EffectSet:
+    """``effects`` less the record's own (:data:`RECORD_EFFECTS`)."""
+    for name in RECORD_EFFECTS:
+        if name in effects.names:
+            effects = without(effects, name)
+    return effects
 
-    def error(h0: float) -> tuple[FloatArray, float] | None:
-        xs = simulate_chain(fit.params, fit.effects, record.u, record.dt, h0)
+
+def carried(fit: ExtendedFit, record: Record) -> tuple[FloatArray, ValidationError] | None:
+    """The displacement [µm] ``fit`` predicts over ``record`` when carried there (its
+    device part, with the offset, the trend and h0 of ``record`` re-estimated by least
+    squares: h0 by a bounded scalar search over ± the record's displacement span, kept
+    only where it beats h0 = 0), and its error; None when it cannot be simulated."""
+    effects = device_part(fit.effects)
+    basis = np.column_stack([np.ones(len(record)), record.t - record.t[0]])
+
+    def fitted(h0: float) -> tuple[FloatArray, FloatArray] | None:
+        xs = simulate_chain(fit.params, effects, record.u, record.dt, h0)
         if xs is None:
             return None
-        offset = float(np.mean(record.x - xs))
-        return record.x - xs - offset, offset
+        coef = np.linalg.lstsq(basis, record.x - xs, rcond=None)[0]
+        return xs + basis @ coef, coef
 
     def cost(h0: float) -> float:
-        out = error(h0)
-        return math.inf if out is None else rms(out[0])
+        out = fitted(h0)
+        return math.inf if out is None else rms(record.x - out[0])
 
-    at_zero = error(0.0)
+    at_zero = fitted(0.0)
     if at_zero is None:
         return None
     span = max(float(np.ptp(record.x)), 1e-9)
     found = minimize_scalar(cost, bounds=(-span, span), method="bounded", options={"xatol": 1e-6 * span})
-    h0, (err, offset) = 0.0, at_zero
-    best = error(float(found.x)) if found.fun < rms(at_zero[0]) else None
+    h0, (x_hat, coef) = 0.0, at_zero
+    best = fitted(float(found.x)) if found.fun < cost(0.0) else None
     if best is not None:
-        h0, (err, offset) = float(found.x), best
-    return ValidationError(rms_um=rms(err), max_um=max_abs(err), offset_um=offset, h0_um=h0)
+        h0, (x_hat, coef) = float(found.x), best
+    err = record.x - x_hat
+    return x_hat, ValidationError(
+        rms_um=rms(err), max_um=max_abs(err), offset_um=float(coef[0]), trend_um_per_s=float(coef[1]), h0_um=h0
+    )
+
+
+def prediction_error(fit: ExtendedFit, record: Record) -> ValidationError | None:
+    """The error of ``fit`` carried to ``record`` (:func:`carried`); None when it cannot
+    be simulated."""
+    out = carried(fit, record)
+    return None if out is None else out[1]
 
 
 def sampling_margin(samples: int) -> float:
@@ -98,12 +133,13 @@ def judged_on(
     the others only (``refit``: the model refitted on the identification record with
     the effects given) against ``current``; an effect whose removal does not raise the
     validation error by more than :func:`sampling_margin` is dropped (the simpler model
-    predicts the unseen record as well). Returns the model, the effects left and the
-    evidence (per effect: the validation RMS errors with and without it)."""
+    predicts the unseen record as well). The record's own effects
+    (:data:`RECORD_EFFECTS`) are not judged there. Returns the model, the effects left
+    and the evidence (per effect: the validation RMS errors with and without it)."""
     margin = sampling_margin(len(validation))
     evidence: dict[str, Any] = {"margin": margin}
     for name in list(added):
-        if name == "resonance" and "resonance2" in current.effects.names:
+        if name in RECORD_EFFECTS or (name == "resonance" and "resonance2" in current.effects.names):
             continue
         with_it = prediction_error(current, validation)
         rest = refit(without(current.effects, name))
