@@ -50,6 +50,7 @@ __all__ = [
     "COLUMN_NAMES",
     "REQUIRED_COLUMNS",
     "Record",
+    "jsonable",
     "read_csv",
     "resample_samples",
     "sampling_interval",
@@ -438,3 +439,22 @@ def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
     with open(path, "w", encoding="utf-8", newline="") as fh:
         fh.write(",".join(names) + "\n")
         np.savetxt(fh, table, fmt="%.9g", delimiter=",")
+
+
+def jsonable(obj: Any) -> Any:
+    """Replaces numpy scalars and non-finite floats (→ None), and objects with a
+    ``to_dict`` method by its result, so that json.dumps works."""
+    if hasattr(obj, "to_dict") and callable(obj.to_dict):
+        return jsonable(obj.to_dict())
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj

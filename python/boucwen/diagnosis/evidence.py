@@ -12,16 +12,9 @@ from ..checks import FloatArray, as_float_vector
 from ..effects import ExtendedFit, best_delay
 from ..metrics import rms, spectrum
 from ..record import Record, validate_record
+from .unexplained import noise_level
 
 __all__ = ["delay_evidence", "residual_evidence", "residual_evidence_record"]
-
-
-def _noise_sigma(r: FloatArray) -> float:
-    """Robust white-noise level [µm] from first differences (MAD)."""
-    d = np.diff(r)
-    if d.size == 0:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
 
 
 def _holds(u: FloatArray, dt: float, min_s: float = 0.05) -> list[tuple[int, int]]:
@@ -99,7 +92,8 @@ def residual_evidence_record(record: Record, x_model: FloatArray) -> dict[str, A
     r = x - xm
     n = r.size
     t = np.arange(n) * dt
-    ev: dict[str, Any] = {"rms_um": rms(r), "noise_um": _noise_sigma(r)}
+    # The record's noise as the decisions take it (one estimate, reported and used).
+    ev: dict[str, Any] = {"rms_um": rms(r), "noise_um": noise_level(x).sigma_um}
 
     holds = _holds(u, dt)
     changes, steps = [], []

@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import json
-import math
 import os
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet
 from ..checks import FloatArray
-from ..io import write_csv
+from ..io import jsonable, write_csv
 from .unexplained import Unexplained
 
 __all__ = ["Diagnosis", "jsonable", "write_predictions", "write_report"]
@@ -121,25 +119,6 @@ class Diagnosis:
 
     def __repr__(self) -> str:
         return f"Diagnosis({self.summary()})"
-
-
-def jsonable(obj: Any) -> Any:
-    """Replaces numpy scalars and non-finite floats (→ None), and objects with a
-    ``to_dict`` method by its result, so that json.dumps works."""
-    if hasattr(obj, "to_dict") and callable(obj.to_dict):
-        return jsonable(obj.to_dict())
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 def write_report(result: Diagnosis, path: str | os.PathLike[str], data: dict[str, Any] | None = None) -> None:

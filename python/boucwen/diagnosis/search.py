@@ -35,6 +35,7 @@ from ..effects import (
 )
 from ..effects.base import params_of, set_of, with_effect, without
 from ..fit import FitResult, fit_record
+from ..io import jsonable
 from ..lsq import jacobian_threads, thread_map
 from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
@@ -43,7 +44,7 @@ from .confidence import confidence
 from .evidence import delay_evidence, residual_evidence_record
 from .lookalike import GROUPS, lookalike_tests, named, phase_shape, what_it_follows
 from .margins import CLOSE_GAIN, CLOSE_REL, PATH, CloseCalls, Compare, at_least, at_most, decide, first_of_best
-from .report import Diagnosis, jsonable
+from .report import Diagnosis
 from .unexplained import Unexplained, noise_level, unexplained
 from .unseen import judged_on, prediction_error
 from .validation import FOLDS, CrossValidation, blocked_cv

@@ -75,6 +75,7 @@ from .. import evaluation, plant
 from .._core import Identifier, Params, simulate
 from ..config import PaperConfig
 from ..fit import fit
+from ..io import jsonable
 
 __all__ = [
     "BOUNDS_OFF",
@@ -493,17 +494,6 @@ def format_table(results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _json_safe(obj: Any) -> Any:
-    """Non-finite floats become null."""
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
 def quick_options() -> dict[str, Any]:
     """Keyword arguments of :func:`run` for the shortened version (``--quick``, the test):
     3 repeats (101 401 samples), 10⁵ random samples, noise 0 and 5 nm, N = 50 and 5000,
@@ -541,7 +531,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(format_table(results))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(_json_safe(results), fh, indent=2, allow_nan=False)
+            json.dump(jsonable(results), fh, indent=2, allow_nan=False)
     return 0
 
 

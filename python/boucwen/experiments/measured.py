@@ -51,9 +51,9 @@ from .. import datasets
 from .._core import EffectSet, Params, simulate, simulate_extended
 from ..checks import FloatArray
 from ..diagnosis import Diagnosis, diagnose
-from ..diagnosis.report import jsonable
 from ..diagnosis.unseen import carried
 from ..effects import ExtendedFit
+from ..io import jsonable
 from ..metrics import max_abs, rms
 from ..record import Record
 

@@ -48,6 +48,7 @@ import numpy as np
 from .. import evaluation, plant
 from .._core import Identifier, Params
 from ..fit import fit
+from ..io import jsonable
 
 __all__ = [
     "METHODS",
@@ -260,16 +261,6 @@ def summarise(plants: Sequence[dict[str, Any]], methods: Sequence[str]) -> dict[
     return out
 
 
-def _json_safe(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
 def run(
     count: int = 20,
     seed: int = 1,
@@ -346,7 +337,7 @@ def run(
         "summary": summarise(plants, methods),
         "wall_s": time.perf_counter() - started,
     }
-    results = _json_safe(results)
+    results = jsonable(results)
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)

@@ -66,6 +66,7 @@ from .. import evaluation, plant
 from .._core import EffectSet, Identifier, Params, simulate, simulate_extended
 from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
+from ..io import jsonable
 
 if TYPE_CHECKING:
     from .._core import _IdentifierMethod
@@ -258,17 +259,6 @@ def adaptation_times(
 
 
 # --------------------------------------------------------------------------- run
-
-
-def _json_safe(obj: Any) -> Any:
-    """Non-finite floats (a parameter set that could not be simulated) become null."""
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    return obj
 
 
 def _params_dict(p: Params) -> dict[str, float]:
@@ -598,7 +588,7 @@ def run(
         "best_fixed_per_frequency": best_fixed,
     }
 
-    results = _json_safe(results)
+    results = jsonable(results)
     with open(out / "results.json", "w", encoding="utf-8") as fh:
         json.dump(results, fh, indent=2, allow_nan=False)
     arrays: dict[str, Any] = {

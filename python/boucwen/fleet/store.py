@@ -33,7 +33,7 @@ from typing import Any, Callable
 
 import pandas as pd
 
-from ..diagnosis.report import jsonable as _jsonable
+from ..io import jsonable as _jsonable
 from .source import RecordRef
 from .tasks import ROW_COLUMNS, TaskOptions
 

@@ -45,8 +45,8 @@ from typing import Any
 import numpy as np
 
 from .. import Params, diagnose, fit
-from ..diagnosis.report import jsonable as _jsonable
 from ..io import Record
+from ..io import jsonable as _jsonable
 from .source import RecordRef, load_record
 
 __all__ = [
