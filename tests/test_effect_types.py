@@ -83,12 +83,11 @@ class _Stop(Exception):
 
 @pytest.mark.parametrize("kv", [0.19, -0.19])
 def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
-    # The creep gains share the sign of kv: bounded at 0 for the optimiser, but not for
-    # the difference steps.
+    # The creep gains share the sign of kv: bounded at 0 for the optimiser.
     seen = {}
 
     def solve(self, z0, lower, upper, *, x_scale, tol, max_nfev):
-        seen.update(z0=z0, lower=lower, upper=upper, x_scale=x_scale, step_upper=self.upper)
+        seen.update(z0=z0, lower=lower, upper=upper, x_scale=x_scale)
         raise _Stop
 
     monkeypatch.setattr(boucwen.lsq.OutputErrorProblem, "solve", solve)
@@ -99,7 +98,6 @@ def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
     sign_lo, sign_hi = ([0.0, 0.0], [INF, INF]) if kv > 0 else ([-INF, -INF], [0.0, 0.0])
     assert seen["lower"].tolist() == [*LOWER[:8], *sign_lo, *LOWER[10:]]
     assert seen["upper"].tolist() == [*UPPER[:8], *sign_hi, *UPPER[10:]]
-    assert seen["step_upper"].tolist() == UPPER
     gain_scales = gains if kv > 0 else [0.0015222222222222221] * 2
     assert seen["x_scale"].tolist() == [*TYPICAL, *gain_scales, *TYPICAL_EFFECTS]
 

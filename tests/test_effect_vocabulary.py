@@ -99,7 +99,7 @@ START = P.replace(kv=0.18)
 def _fit(truth, start, u=None, params=START):
     u = _u() if u is None else u
     x = _noisy(simulate_extended(P, EffectSet(**truth), u, DT))
-    r = fit_extended(u, x, DT, params, EffectSet(**start), 0.0, max_nfev=60, workers=2)
+    r = fit_extended(u, x, DT, params, EffectSet(**start), 0.0, max_nfev=60)
     return r, r.effects.to_dict()
 
 

@@ -20,7 +20,8 @@ part is one new section (and one line in ``__all__``):
 - online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
   ``_RpemStatus``, ``_HorizonStatus`` (type-only names, absent at run time), ``Identifier``
 - effects: ``_CreepParams`` … ``_EffectParams`` (type-only: the dicts ``EffectSet``
-  takes and gives), ``EffectSet``, ``simulate_extended``
+  takes and gives), ``EffectSet``, ``simulate_extended``,
+  ``simulate_extended_with_jacobian``
 - channels: ``Bank``
 - compensation: ``_Clip``, ``_InverseStatus``, ``_CompensatorStatus``,
   ``_CompensatorGains`` (type-only), ``Inverse``, ``invert``, ``Compensator``
@@ -50,6 +51,7 @@ __all__ = [
     "paper_input",
     "simulate",
     "simulate_extended",
+    "simulate_extended_with_jacobian",
 ]
 
 # ---------------------------------------------------------------- module constants
@@ -534,6 +536,17 @@ def simulate_extended(
     """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen with gain_drift
     and electrostriction, + creep) → resonance → resonance2 → + drift → delay → + pickup
     → saturation. GIL released."""
+
+def simulate_extended_with_jacobian(
+    params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`simulate_extended` with the Jacobian, in one pass; returns ``(x, jac)``: x
+    [µm] as :func:`simulate_extended` gives it and ``jac[k, j]`` = ∂x[k]/∂θ_j, one column
+    per unknown: kv, x0, A, β, γ, n, δ, h0, then for each effect present in signal-chain
+    order the creep gains, the input lag's ln fc, the gain_drift rate, the
+    electrostriction ε, the resonance's ln fn and ln ζ, the second resonance's ln fn and
+    ln ζ, the drift rate, the pickup's sine then cosine amplitudes, the saturation's min
+    and max (the creep time constants and the delay are fixed). GIL released."""
 
 # ---------------------------------------------------------------- compensation
 

@@ -28,9 +28,9 @@ How it works:
   simulation each on a decimated copy of the record; the best ``n_starts`` (plus
   ``init`` if given) are refined by ``scipy.optimize.least_squares`` (trust-region
   reflective, bounds keep n in ``N_BOUNDS``) on the decimated record, and the best
-  of those is refined on the full record. Residual, Jacobian (forward differences in
-  threads) and optimiser are those of :mod:`boucwen.lsq`, shared with
-  :func:`boucwen.effects.fit_extended`.
+  of those is refined on the full record. Residual, Jacobian (exact, from the Rust
+  core in one pass with the simulation) and optimiser are those of :mod:`boucwen.lsq`,
+  shared with :func:`boucwen.effects.fit_extended`.
 * **x0 and h0.** They trade off: a different h0 shifts h until the hysteresis
   forgets it (about half a cycle), which x0 partly absorbs. h0 is fitted from that
   initial transient; a weak pull of weight ``H0_RIDGE`` towards 0 keeps it defined
@@ -42,16 +42,15 @@ from __future__ import annotations
 
 import math
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from ._core import Params, simulate
+from ._core import Params, simulate, simulate_extended_with_jacobian
 from .checks import FloatArray, check_finite, check_int
-from .lsq import OutputErrorProblem, Ridge, finite_or_none, jacobian_threads
+from .lsq import OutputErrorProblem, Ridge, finite_or_none, with_jacobian_or_none, worker_threads
 from .metrics import max_abs, rms
 from .progress import Progress, reporter
 from .record import Record, validate_record
@@ -83,7 +82,7 @@ class FitResult:
         max_um: maximum absolute output error [µm].
         success: the local optimiser reported convergence and the error is finite.
         message: the optimiser's message, with the stage it comes from.
-        nfev: number of record simulations, all stages and Jacobian columns included.
+        nfev: number of record simulations, all stages and Jacobian passes included.
         x_fit: the simulated displacement [µm] of the fitted model, same length as x.
         elapsed_s: wall time of the fit [s].
     """
@@ -143,22 +142,34 @@ class _Hysteresis:
             th[5] = self.fixed_h0
         return th
 
+    def _params(self, th: FloatArray) -> Params:
+        """The model with (A, β, γ, n, δ) of ``th`` and kv = x0 = 0, whose output is h."""
+        return Params(0.0, 0.0, th[0], th[1], th[2], th[3], th[4])
+
     def __call__(self, z: FloatArray) -> FloatArray | None:
         """h [µm] simulated for the unknowns z, or None if they cannot be simulated."""
         th = self.theta(z)
-        return finite_or_none(
-            lambda: simulate(Params(0.0, 0.0, th[0], th[1], th[2], th[3], th[4]), self.u, self.dt, float(th[5]))[0]
-        )
+        return finite_or_none(lambda: simulate(self._params(th), self.u, self.dt, float(th[5]))[0])
+
+    def with_jacobian(self, z: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """(h [µm], ∂h/∂z) for the unknowns z, from one pass, or None if they cannot be
+        simulated."""
+        th = self.theta(z)
+        params, h0 = self._params(th), float(th[5])
+        out = with_jacobian_or_none(lambda: simulate_extended_with_jacobian(params, None, self.u, self.dt, h0))
+        if out is None:
+            return None
+        h, jac = out
+        # Columns kv, x0, A, β, γ, n, δ, h0 of the core; z = θ / scale.
+        return h, jac[:, 2 : 2 + self.nvar] * self.scale[: self.nvar]
 
 
-def _problem(
-    record: Record, scale: FloatArray, fixed_h0: float | None, pool: ThreadPoolExecutor | None
-) -> tuple[OutputErrorProblem, _Hysteresis]:
+def _problem(record: Record, scale: FloatArray, fixed_h0: float | None) -> tuple[OutputErrorProblem, _Hysteresis]:
     """The variable-projection problem on one (possibly decimated) record."""
     hysteresis = _Hysteresis(record.u, record.dt, scale, fixed_h0)
     ridge = Ridge(index=5, weight=H0_RIDGE, scale=float(scale[5])) if fixed_h0 is None else None
     basis = np.column_stack([record.u, np.ones_like(record.u)])
-    problem = OutputErrorProblem(hysteresis, record.x, basis=basis, ridge=ridge, pool=pool)
+    problem = OutputErrorProblem(hysteresis, hysteresis.with_jacobian, record.x, basis=basis, ridge=ridge)
     return problem, hysteresis
 
 
@@ -265,7 +276,8 @@ def fit(
         decimate: keep every ``decimate``-th sample for the global stage; ``None``
             chooses it so that the coarse record has about 3000 samples and u moves
             less than 3 % of its span between them; 1 disables decimation.
-        workers: threads for the Jacobian columns (default: the number of CPUs).
+        workers: threads scoring the global stage's candidates (default: the number
+            of CPUs).
         progress: ``True`` to print progress lines to stderr, or a callable taking a str.
 
     Returns:
@@ -323,10 +335,10 @@ def fit_record(
     u, x, dt = record.u, record.x, record.dt
     scale = _scales(u, x, dt)
     q = decimate if decimate is not None else _decimation(u)
-    with jacobian_threads(workers) as pool:
-        full, hysteresis = _problem(record, scale, h0, pool)
+    with worker_threads(workers) as pool:
+        full, hysteresis = _problem(record, scale, h0)
         coarse_record = record if q == 1 else record.decimated(q)
-        coarse = full if q == 1 else _problem(coarse_record, scale, h0, pool)[0]
+        coarse = full if q == 1 else _problem(coarse_record, scale, h0)[0]
         coarse_u_size = len(coarse_record)
         nvar = hysteresis.nvar
 

@@ -16,6 +16,7 @@ use alloc::vec::Vec;
 
 use super::{first_order_coefficient, first_order_step, Effect};
 use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
 
 /// Largest number of creep elements.
 pub const MAX_ELEMENTS: usize = 16;
@@ -95,18 +96,40 @@ impl Creep {
         self.gain_um_per_v.iter().sum()
     }
 
-    pub(crate) fn decays(&self, dt: f64) -> Vec<f64> {
-        self.tau_s.iter().map(|&tau| first_order_coefficient(tau, dt)).collect()
+    /// The elements for sub-intervals of `dt` \[s\], each gain g_i made an `S` by
+    /// `gain(i, g_i)` (seeded as an unknown of a fit, or kept a number).
+    pub(crate) fn stage<S: Scalar>(&self, dt: f64, gain: impl Fn(usize, f64) -> S) -> CreepStage<S> {
+        CreepStage {
+            tau_s: self.tau_s.clone(),
+            gains: self.gain_um_per_v.iter().enumerate().map(|(i, &g)| gain(i, g)).collect(),
+            decays: self.tau_s.iter().map(|&tau| first_order_coefficient(tau, dt)).collect(),
+        }
+    }
+}
+
+/// The creep elements of one run: fixed time constants and their decays over a
+/// sub-interval, gains in the number type of the run.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct CreepStage<S = f64> {
+    tau_s: Vec<f64>,
+    gains: Vec<S>,
+    decays: Vec<f64>,
+}
+
+impl<S: Scalar> CreepStage<S> {
+    /// Each element in equilibrium with the voltage `ua` \[V\]: c_i = g_i·u_a.
+    pub(crate) fn rest(&self, ua: S) -> Vec<S> {
+        self.gains.iter().map(|&g| g * ua).collect()
     }
 
     /// Advances every element over one interval in which u_a moves linearly from
     /// `ua0` to `ua1` \[V\] and returns c \[µm\].
     #[inline]
-    pub(crate) fn advance(&self, states: &mut [f64], decays: &[f64], ua0: f64, ua1: f64, dt: f64) -> f64 {
-        let mut total = 0.0;
-        for (((c, &tau), &g), &decay) in states.iter_mut().zip(&self.tau_s).zip(&self.gain_um_per_v).zip(decays) {
+    pub(crate) fn advance(&self, states: &mut [S], ua0: S, ua1: S, dt: f64) -> S {
+        let mut total = S::cst(0.0);
+        for (((c, &tau), &g), &decay) in states.iter_mut().zip(&self.tau_s).zip(&self.gains).zip(&self.decays) {
             *c = first_order_step(*c, g * ua0, g * ua1, tau, decay, dt);
-            total += *c;
+            total = total + *c;
         }
         total
     }
@@ -121,12 +144,12 @@ mod tests {
         let mut creep = Creep::log_spaced(0.01, 10.0, 4).unwrap();
         creep.gain_um_per_v = vec![0.01; 4];
         let dt = 1e-3;
-        let decays = creep.decays(dt);
+        let stage = creep.stage(dt, |_, g| g);
         let mut states = vec![0.0; 4];
-        let mut c = creep.advance(&mut states, &decays, 0.0, 1.0, dt);
+        let mut c = stage.advance(&mut states, 0.0, 1.0, dt);
         let mut at = Vec::new();
         for k in 2..=100_000 {
-            c = creep.advance(&mut states, &decays, 1.0, 1.0, dt);
+            c = stage.advance(&mut states, 1.0, 1.0, dt);
             if [10, 100, 1000, 10_000].contains(&k) {
                 at.push(c);
             }

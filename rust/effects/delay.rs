@@ -9,6 +9,7 @@ use alloc::vec::Vec;
 
 use super::Effect;
 use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
 
 /// Largest delay accepted \[samples\].
 pub const MAX_DELAY_SAMPLES: usize = 1_000_000;
@@ -38,19 +39,19 @@ impl Effect for Delay {
 /// A ring of the last d+1 values: `push(v)` returns the value d samples ago
 /// (the first value pushed while fewer than d+1 have arrived).
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct DelayLine {
-    ring: Vec<f64>,
+pub(crate) struct DelayLine<S = f64> {
+    ring: Vec<S>,
     next: usize,
     filled: bool,
 }
 
-impl DelayLine {
+impl<S: Scalar> DelayLine<S> {
     pub(crate) fn new(samples: usize) -> Self {
-        DelayLine { ring: vec![0.0; samples + 1], next: 0, filled: false }
+        DelayLine { ring: vec![S::cst(0.0); samples + 1], next: 0, filled: false }
     }
 
     #[inline]
-    pub(crate) fn push(&mut self, value: f64) -> f64 {
+    pub(crate) fn push(&mut self, value: S) -> S {
         if !self.filled {
             self.ring.iter_mut().for_each(|v| *v = value);
             self.filled = true;

@@ -9,6 +9,7 @@
 
 use super::Effect;
 use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
 
 /// A linear trend in time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,8 +37,14 @@ impl Drift {
     /// The trend \[µm\] at time `t_s` \[s\] after the first sample.
     #[inline]
     pub fn at(&self, t_s: f64) -> f64 {
-        self.rate_um_per_s * t_s
+        trend(self.rate_um_per_s, t_s)
     }
+}
+
+/// The trend \[µm\] of rate `rate` \[µm/s\] at time `t_s` \[s\], in any number type.
+#[inline]
+pub(crate) fn trend<S: Scalar>(rate: S, t_s: f64) -> S {
+    rate * t_s
 }
 
 #[cfg(test)]

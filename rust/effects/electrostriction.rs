@@ -13,6 +13,7 @@
 
 use super::Effect;
 use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
 
 /// A quadratic stroke map s ↦ s + ε·s².
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,7 +41,7 @@ impl Electrostriction {
     /// s + ε·s² \[µm\] for the Bouc–Wen displacement `s` \[µm\].
     #[inline]
     pub fn apply(&self, s: f64) -> f64 {
-        s + self.epsilon_per_um * s * s
+        bend(self.epsilon_per_um, s)
     }
 
     /// The s \[µm\] with s + ε·s² = `q` on the branch where the map rises (1 + 2ε·s ≥ 0);
@@ -60,6 +61,12 @@ pub(crate) fn quadratic_root(a: f64, b: f64, c: f64) -> f64 {
         return -b / (2.0 * a);
     }
     -2.0 * c / (b + crate::math::sqrt(disc))
+}
+
+/// s + ε·s² \[µm\] with ε = `epsilon` \[1/µm\], in any number type.
+#[inline]
+pub(crate) fn bend<S: Scalar>(epsilon: S, s: S) -> S {
+    s + epsilon * s * s
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@
 
 use super::Effect;
 use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
 
 /// A linear change of kv in time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,8 +42,14 @@ impl GainDrift {
     /// kv(t)/kv = 1 + r·t \[-\] at time `t_s` \[s\] after the first sample.
     #[inline]
     pub fn factor(&self, t_s: f64) -> f64 {
-        1.0 + self.rate_per_s * t_s
+        gain_factor(self.rate_per_s, t_s)
     }
+}
+
+/// 1 + r·t \[-\] for the rate r = `rate` \[1/s\] at time `t_s` \[s\], in any number type.
+#[inline]
+pub(crate) fn gain_factor<S: Scalar>(rate: S, t_s: f64) -> S {
+    S::cst(1.0) + rate * t_s
 }
 
 #[cfg(test)]

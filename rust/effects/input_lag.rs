@@ -9,6 +9,7 @@
 
 use super::{first_order_coefficient, first_order_step, Effect};
 use crate::error::{Error, Result};
+use crate::model::scalar::{Dual, Scalar};
 
 /// First-order low-pass between the command and the stack.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,20 +45,33 @@ impl InputLag {
     }
 }
 
-/// The discretised filter: `decay = exp(−dt/τ)`.
+/// The discretised filter: `decay = exp(−dt/τ)`, in the number type of the run
+/// (`f64`, or duals carrying ∂/∂ln fc: [`LagStage::seeded`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct LagStage {
-    tau: f64,
-    decay: f64,
+pub(crate) struct LagStage<S = f64> {
+    tau: S,
+    decay: S,
+}
+
+impl<S: Scalar> LagStage<S> {
+    /// u_a after one interval in which u moves linearly from `u0` to `u1`.
+    #[inline]
+    pub(crate) fn advance(&self, ua: S, u0: S, u1: S, dt: f64) -> S {
+        first_order_step(ua, u0, u1, self.tau, self.decay, dt)
+    }
+}
+
+impl<const M: usize> LagStage<Dual<M>> {
+    /// The stage of `lag` for interval `dt` \[s\] with τ and the decay carrying their
+    /// derivatives over ln fc at derivative slot `slot` (∂τ/∂ln fc = −τ, so
+    /// ∂decay/∂ln fc = −decay·dt/τ).
+    pub(crate) fn seeded(lag: &InputLag, dt: f64, slot: usize) -> Self {
+        let LagStage { tau, decay } = lag.stage(dt);
+        LagStage { tau: Dual::slope(tau, slot, -tau), decay: Dual::slope(decay, slot, -decay * dt / tau) }
+    }
 }
 
 impl LagStage {
-    /// u_a after one interval in which u moves linearly from `u0` to `u1`.
-    #[inline]
-    pub(crate) fn advance(&self, ua: f64, u0: f64, u1: f64, dt: f64) -> f64 {
-        first_order_step(ua, u0, u1, self.tau, self.decay, dt)
-    }
-
     /// exp(−dt/τ): how a derivative of u_a carried into an interval leaves it.
     #[inline]
     pub(crate) fn decay(&self) -> f64 {

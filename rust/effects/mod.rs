@@ -28,12 +28,14 @@
 //! first sample: u_a = u\[0\], c_i = g_i·u\[0\], z = y\[0\], ż = 0, no trend, the
 //! delay line full of the first value.
 
+pub(crate) mod chain;
 pub mod creep;
 pub mod delay;
 pub mod drift;
 pub mod electrostriction;
 pub mod gain_drift;
 pub mod input_lag;
+pub mod jacobian;
 pub mod pickup;
 pub mod resonance;
 pub mod resonance2;
@@ -41,8 +43,6 @@ pub mod saturation;
 
 use alloc::vec;
 use alloc::vec::Vec;
-
-use nalgebra::Vector2;
 
 pub use creep::Creep;
 pub use delay::Delay;
@@ -56,13 +56,12 @@ pub use resonance2::Resonance2;
 pub use saturation::Saturation;
 
 use crate::error::{finite_sample, positive_dt, Error, Result};
-use crate::model::integrator::{abs_pow, advance_h_carried};
-use crate::model::output;
+use core::ops::Mul;
+
+use crate::model::scalar::Scalar;
 use crate::params::Params;
 
-use delay::DelayLine;
-use input_lag::LagStage;
-use resonance::ResonanceStage;
+use chain::{stack_output_of, Chain, Slots};
 
 /// Sub-intervals per sample interval when a resonance is present.
 pub const RESONANCE_SUBSTEPS: u32 = 4;
@@ -82,10 +81,19 @@ pub(crate) fn first_order_coefficient(tau: f64, dt: f64) -> f64 {
 }
 
 /// Exact step of τ·ẏ = v − y over `dt` while v moves linearly from `v0` to `v1`
-/// (`decay` = exp(−dt/τ)).
+/// (`decay` = exp(−dt/τ)); τ and the decay are numbers (`C` = `f64`) or carry
+/// derivatives of their own (`C` = `S`).
 #[inline]
-pub(crate) fn first_order_step(y: f64, v0: f64, v1: f64, tau: f64, decay: f64, dt: f64) -> f64 {
-    let ramp = tau * (v1 - v0) / dt;
+pub(crate) fn first_order_step<S: Scalar + Mul<C, Output = S>, C: Copy>(
+    y: S,
+    v0: S,
+    v1: S,
+    tau: C,
+    decay: C,
+    dt: f64,
+) -> S {
+    // (v1 − v0)·τ is τ·(v1 − v0) to the bit: a product of two numbers commutes.
+    let ramp = (v1 - v0) * tau / dt;
     v1 - ramp + (y - v0 + ramp) * decay
 }
 
@@ -167,12 +175,9 @@ impl EffectSet {
 /// electrostriction is present.
 #[inline]
 pub(crate) fn stack_output(params: &Params, effects: &EffectSet, ua: f64, h: f64, t: f64) -> f64 {
-    if effects.gain_drift.is_none() && effects.electrostriction.is_none() {
-        return output(params, ua, h);
-    }
-    let kv = effects.gain_drift.map_or(params.kv, |g| params.kv * g.factor(t));
-    let s = kv * ua + h;
-    params.x0 + effects.electrostriction.map_or(s, |e| e.apply(s))
+    let gain_drift = effects.gain_drift.map(|g| g.rate_per_s);
+    let epsilon = effects.electrostriction.map(|e| e.epsilon_per_um);
+    stack_output_of(params.kv, params.x0, gain_drift, epsilon, ua, h, t)
 }
 
 /// The effect's name if it is present.
@@ -190,26 +195,7 @@ fn validate_if<E: Effect>(effect: &Option<E>) -> Result<()> {
 pub struct ExtendedModel {
     params: Params,
     effects: EffectSet,
-    dt: f64,
-    h0: f64,
-    substeps: u32,
-    lag: Option<LagStage>,
-    creep_decays: Vec<f64>,
-    resonance: Option<ResonanceStage>,
-    resonance2: Option<ResonanceStage>,
-    delay: DelayLine,
-    // state
-    started: bool,
-    samples: u64,
-    u_prev: f64,
-    ua_prev: f64,
-    h: f64,
-    /// |h|^n for the current h (carried, as by the [`crate::Model`]).
-    hn: f64,
-    creep_states: Vec<f64>,
-    y_prev: f64,
-    z: Vector2<f64>,
-    z2: Vector2<f64>,
+    chain: Chain<f64>,
 }
 
 impl ExtendedModel {
@@ -220,113 +206,15 @@ impl ExtendedModel {
         effects.validate()?;
         positive_dt(dt)?;
         finite_sample("h0", h0)?;
-        let resonant = effects.resonance.is_some() || effects.resonance2.is_some();
-        let substeps = if resonant { RESONANCE_SUBSTEPS } else { 1 };
-        let dt_sub = dt / substeps as f64;
-        let resonance = match &effects.resonance {
-            Some(r) => {
-                r.stage(dt)?; // fn below the Nyquist frequency of the samples
-                Some(r.stage(dt_sub)?)
-            }
-            None => None,
-        };
-        let resonance2 = match &effects.resonance2 {
-            Some(r) => {
-                r.stage(dt)?;
-                Some(r.stage(dt_sub)?)
-            }
-            None => None,
-        };
-        if let Some(p) = &effects.pickup {
-            p.check_sampling(dt)?;
-        }
-        let creep_decays = effects.creep.as_ref().map(|c| c.decays(dt_sub)).unwrap_or_default();
-        Ok(ExtendedModel {
-            substeps,
-            lag: effects.input_lag.map(|l| l.stage(dt_sub)),
-            creep_states: vec![0.0; creep_decays.len()],
-            creep_decays,
-            resonance,
-            resonance2,
-            delay: DelayLine::new(effects.delay.map_or(0, |d| d.samples)),
-            params,
-            effects,
-            dt,
-            h0,
-            started: false,
-            samples: 0,
-            u_prev: 0.0,
-            ua_prev: 0.0,
-            h: h0,
-            hn: abs_pow(h0, params.n),
-            y_prev: 0.0,
-            z: Vector2::zeros(),
-            z2: Vector2::zeros(),
-        })
+        let chain = Chain::new(params, &effects, dt, h0, &Slots::default())?;
+        Ok(ExtendedModel { params, effects, chain })
     }
 
     /// Takes the commanded voltage `u` \[V\] of the next sample; returns the sensor's
     /// displacement x \[µm\]. A non-finite `u` is rejected and the state kept.
     pub fn step(&mut self, u: f64) -> Result<f64> {
         finite_sample("u", u)?;
-        let t = self.samples as f64 * self.dt;
-        let y = if !self.started {
-            self.started = true;
-            if let Some(c) = &self.effects.creep {
-                for (s, g) in self.creep_states.iter_mut().zip(&c.gain_um_per_v) {
-                    *s = g * u;
-                }
-            }
-            self.ua_prev = u;
-            let y = stack_output(&self.params, &self.effects, u, self.h, t) + self.creep_states.iter().sum::<f64>();
-            self.z = Vector2::new(y, 0.0);
-            self.z2 = self.z;
-            y
-        } else {
-            let m = self.substeps;
-            let dt_sub = self.dt / m as f64;
-            let mut y = self.y_prev;
-            let t_prev = t - self.dt;
-            for j in 1..=m {
-                let u0 = self.u_prev + (u - self.u_prev) * ((j - 1) as f64 / m as f64);
-                let u1 = if j == m { u } else { self.u_prev + (u - self.u_prev) * (j as f64 / m as f64) };
-                let ua = match &self.lag {
-                    Some(lag) => lag.advance(self.ua_prev, u0, u1, dt_sub),
-                    None => u1,
-                };
-                (self.h, self.hn) = advance_h_carried(&self.params, self.h, self.hn, self.ua_prev, ua, dt_sub);
-                let c = match &self.effects.creep {
-                    Some(creep) => creep.advance(&mut self.creep_states, &self.creep_decays, self.ua_prev, ua, dt_sub),
-                    None => 0.0,
-                };
-                let t_j = if j == m { t } else { t_prev + self.dt * (j as f64 / m as f64) };
-                let y_next = stack_output(&self.params, &self.effects, ua, self.h, t_j) + c;
-                let z_prev = self.z[0];
-                self.z = match &self.resonance {
-                    Some(r) => r.advance(self.z, y, y_next),
-                    None => Vector2::new(y_next, 0.0),
-                };
-                if let Some(r) = &self.resonance2 {
-                    self.z2 = r.advance(self.z2, z_prev, self.z[0]);
-                }
-                self.ua_prev = ua;
-                y = y_next;
-            }
-            y
-        };
-        self.u_prev = u;
-        self.y_prev = y;
-        self.samples += 1;
-        let trend = self.effects.drift.map_or(0.0, |d| d.at(t));
-        let z = if self.resonance2.is_some() { self.z2[0] } else { self.z[0] };
-        let mut x = self.delay.push(z + trend);
-        if let Some(p) = &self.effects.pickup {
-            x += p.at(t);
-        }
-        if let Some(s) = &self.effects.saturation {
-            x = s.apply(x);
-        }
-        Ok(x)
+        Ok(self.chain.step(u))
     }
 
     /// Base parameters.
@@ -341,17 +229,12 @@ impl ExtendedModel {
 
     /// Current hysteresis state h \[µm\].
     pub fn h(&self) -> f64 {
-        self.h
+        self.chain.h()
     }
 
     /// Forgets the past (h = h0, no previous sample, t = 0).
     pub fn reset(&mut self) {
-        self.started = false;
-        self.samples = 0;
-        self.h = self.h0;
-        self.hn = abs_pow(self.h0, self.params.n);
-        self.creep_states.iter_mut().for_each(|c| *c = 0.0);
-        self.delay.reset();
+        self.chain.reset();
     }
 }
 

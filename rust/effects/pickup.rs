@@ -16,6 +16,7 @@ use alloc::vec::Vec;
 
 use super::Effect;
 use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
 
 /// Largest number of harmonics K.
 pub const MAX_HARMONICS: usize = 8;
@@ -85,14 +86,20 @@ impl Pickup {
 
     /// The pickup \[µm\] at time `t_s` \[s\] after the first sample.
     pub fn at(&self, t_s: f64) -> f64 {
-        let mut total = 0.0;
-        for (k, (&a, &b)) in self.sin_um.iter().zip(&self.cos_um).enumerate() {
-            let cycles = (k + 1) as f64 * self.line_hz * t_s;
-            let angle = 2.0 * core::f64::consts::PI * (cycles - crate::math::floor(cycles));
-            total += a * crate::math::sin(angle) + b * crate::math::cos(angle);
-        }
-        total
+        line_pickup(self.line_hz, &self.sin_um, &self.cos_um, t_s)
     }
+}
+
+/// The pickup \[µm\] of the line at `line_hz` \[Hz\] with harmonic amplitudes `sin_um`
+/// and `cos_um` \[µm\] at time `t_s` \[s\], in any number type.
+pub(crate) fn line_pickup<S: Scalar>(line_hz: f64, sin_um: &[S], cos_um: &[S], t_s: f64) -> S {
+    let mut total = S::cst(0.0);
+    for (k, (&a, &b)) in sin_um.iter().zip(cos_um).enumerate() {
+        let cycles = (k + 1) as f64 * line_hz * t_s;
+        let angle = 2.0 * core::f64::consts::PI * (cycles - crate::math::floor(cycles));
+        total = total + (a * crate::math::sin(angle) + b * crate::math::cos(angle));
+    }
+    total
 }
 
 #[cfg(test)]

@@ -12,10 +12,11 @@
 //! computed once per sampling interval, so it is stable for every fn and ζ > 0.
 //! fn must stay below the Nyquist frequency 1/(2·dt) (checked where dt is known).
 
-use nalgebra::{Matrix2, Matrix4, Vector2};
+use nalgebra::{Const, DimMin, Matrix4, SMatrix, SVector};
 
 use super::Effect;
 use crate::error::{Error, Result};
+use crate::model::scalar::{Dual, Scalar};
 
 /// A second-order low-pass of unit static gain.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,7 +38,7 @@ impl Effect for Resonance {
 /// The parameter names of a mode, for the errors: (fn, ζ).
 pub(crate) type ModeNames = (&'static str, &'static str);
 
-const NAMES: ModeNames = ("resonance.fn_hz", "resonance.zeta");
+pub(crate) const NAMES: ModeNames = ("resonance.fn_hz", "resonance.zeta");
 
 /// Checks a mode's natural frequency `fn_hz` \[Hz\] and damping ratio `zeta` \[-\].
 pub(crate) fn validate_mode(fn_hz: f64, zeta: f64, names: ModeNames) -> Result<()> {
@@ -58,13 +59,6 @@ pub(crate) fn validate_mode(fn_hz: f64, zeta: f64, names: ModeNames) -> Result<(
     Ok(())
 }
 
-impl Resonance {
-    /// The exact one-interval map for sampling interval `dt` \[s\].
-    pub(crate) fn stage(&self, dt: f64) -> Result<ResonanceStage> {
-        mode_stage(self.fn_hz, self.zeta, dt, NAMES)
-    }
-}
-
 /// The exact one-interval map of a mode for sampling interval `dt` \[s\].
 pub(crate) fn mode_stage(fn_hz: f64, zeta: f64, dt: f64, names: ModeNames) -> Result<ResonanceStage> {
     validate_mode(fn_hz, zeta, names)?;
@@ -76,11 +70,53 @@ pub(crate) fn mode_stage(fn_hz: f64, zeta: f64, dt: f64, names: ModeNames) -> Re
         });
     }
     let e = matrix_exp(augmented(fn_hz, zeta, dt));
+    Ok(ResonanceStage::from_exp(&e, |_, v| v))
+}
+
+/// [`mode_stage`] with every coefficient carrying its derivatives over ln fn and ln ζ
+/// at derivative slots `slots` (the mode's unknowns in a fit).
+///
+/// The derivatives are those of the matrix exponential itself, by Van Loan's block
+/// form: exp([[m, ∂m], [0, m]]) holds ∂e^m in its upper-right block.
+pub(crate) fn mode_stage_seeded<const M: usize>(
+    fn_hz: f64,
+    zeta: f64,
+    dt: f64,
+    names: ModeNames,
+    slots: (usize, usize),
+) -> Result<ResonanceStage<Dual<M>>> {
+    let plain = mode_stage(fn_hz, zeta, dt, names)?;
+    let m = augmented(fn_hz, zeta, dt);
+    let w = 2.0 * core::f64::consts::PI * fn_hz;
+    // ∂m/∂ln fn (= ∂m/∂ln ω) and ∂m/∂ln ζ: only the row of z̈ depends on them.
+    let mut by_fn = Matrix4::zeros();
+    by_fn[(1, 0)] = -2.0 * w * w * dt;
+    by_fn[(1, 1)] = -2.0 * zeta * w * dt;
+    by_fn[(1, 2)] = 2.0 * w * w * dt;
+    let mut by_zeta = Matrix4::zeros();
+    by_zeta[(1, 1)] = -2.0 * zeta * w * dt;
+    let (d_fn, d_zeta) = (exp_derivative(&m, &by_fn), exp_derivative(&m, &by_zeta));
+    let seeded = ResonanceStage::from_exp(&d_fn, |(i, j), slope_fn| {
+        let mut du = SVector::<f64, M>::zeros();
+        du[slots.0] = slope_fn;
+        du[slots.1] = d_zeta[(i, j)];
+        Dual::new(0.0, du)
+    });
     Ok(ResonanceStage {
-        phi: e.fixed_view::<2, 2>(0, 0).into_owned(),
-        from_y: Vector2::new(e[(0, 2)], e[(1, 2)]),
-        from_dy: Vector2::new(e[(0, 3)], e[(1, 3)]),
+        phi: [0, 1].map(|i| [0, 1].map(|j| seeded.phi[i][j].with_re(plain.phi[i][j]))),
+        from_y: [0, 1].map(|i| seeded.from_y[i].with_re(plain.from_y[i])),
+        from_dy: [0, 1].map(|i| seeded.from_dy[i].with_re(plain.from_dy[i])),
     })
+}
+
+/// ∂e^m in the direction `dm` (Van Loan: the upper-right block of the exponential of
+/// the block matrix [[m, dm], [0, m]]).
+fn exp_derivative(m: &Matrix4<f64>, dm: &Matrix4<f64>) -> Matrix4<f64> {
+    let mut block = SMatrix::<f64, 8, 8>::zeros();
+    block.fixed_view_mut::<4, 4>(0, 0).copy_from(m);
+    block.fixed_view_mut::<4, 4>(4, 4).copy_from(m);
+    block.fixed_view_mut::<4, 4>(0, 4).copy_from(dm);
+    matrix_exp(block).fixed_view::<4, 4>(0, 4).into_owned()
 }
 
 /// The augmented system's matrix times `dt`: d/dt \[z, ż, y, Δy\] with ẏ = Δy/dt over
@@ -100,7 +136,10 @@ fn augmented(fn_hz: f64, zeta: f64, dt: f64) -> Matrix4<f64> {
 /// e^m: nalgebra's `exp` with `std`; without it (nalgebra's `exp` needs `std`),
 /// [`taylor_exp`].
 #[inline]
-fn matrix_exp(m: Matrix4<f64>) -> Matrix4<f64> {
+fn matrix_exp<const D: usize>(m: SMatrix<f64, D, D>) -> SMatrix<f64, D, D>
+where
+    Const<D>: DimMin<Const<D>, Output = Const<D>>,
+{
     #[cfg(feature = "std")]
     {
         m.exp()
@@ -116,10 +155,10 @@ fn matrix_exp(m: Matrix4<f64>) -> Matrix4<f64> {
 /// squarings. Used without `std`; agrees with nalgebra's Padé form to about 1e-12 of the
 /// largest entry (test below).
 #[cfg_attr(feature = "std", allow(dead_code))]
-fn taylor_exp(m: Matrix4<f64>) -> Matrix4<f64> {
+fn taylor_exp<const D: usize>(m: SMatrix<f64, D, D>) -> SMatrix<f64, D, D> {
     let mut norm = 0.0f64;
-    for j in 0..4 {
-        norm = norm.max((0..4).map(|i| m[(i, j)].abs()).sum::<f64>());
+    for j in 0..D {
+        norm = norm.max((0..D).map(|i| m[(i, j)].abs()).sum::<f64>());
     }
     let mut scaled = m;
     let mut squarings = 0u32;
@@ -128,8 +167,8 @@ fn taylor_exp(m: Matrix4<f64>) -> Matrix4<f64> {
         norm *= 0.5;
         squarings += 1;
     }
-    let mut term = Matrix4::identity();
-    let mut sum = Matrix4::identity();
+    let mut term = SMatrix::<f64, D, D>::identity();
+    let mut sum = SMatrix::<f64, D, D>::identity();
     for k in 1..=18 {
         term = term * scaled / k as f64;
         sum += term;
@@ -140,18 +179,31 @@ fn taylor_exp(m: Matrix4<f64>) -> Matrix4<f64> {
     sum
 }
 
-/// `s[k+1] = Φ·s[k] + g_y·y[k] + g_Δ·(y[k+1] − y[k])`, s = [z, ż].
+/// `s[k+1] = Φ·s[k] + g_y·y[k] + g_Δ·(y[k+1] − y[k])`, s = [z, ż], in the number type
+/// of the run (`f64`, or duals carrying ∂/∂ln fn and ∂/∂ln ζ: [`mode_stage_seeded`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct ResonanceStage {
-    phi: Matrix2<f64>,
-    from_y: Vector2<f64>,
-    from_dy: Vector2<f64>,
+pub(crate) struct ResonanceStage<S = f64> {
+    phi: [[S; 2]; 2],
+    from_y: [S; 2],
+    from_dy: [S; 2],
 }
 
-impl ResonanceStage {
+impl<S: Scalar> ResonanceStage<S> {
+    /// The coefficients from the entries of e^m (or of its derivative), each made an
+    /// `S` by `entry((row, column), value)`.
+    fn from_exp(e: &Matrix4<f64>, entry: impl Fn((usize, usize), f64) -> S) -> Self {
+        let at = |i: usize, j: usize| entry((i, j), e[(i, j)]);
+        ResonanceStage {
+            phi: [[at(0, 0), at(0, 1)], [at(1, 0), at(1, 1)]],
+            from_y: [at(0, 2), at(1, 2)],
+            from_dy: [at(0, 3), at(1, 3)],
+        }
+    }
+
     #[inline]
-    pub(crate) fn advance(&self, s: Vector2<f64>, y0: f64, y1: f64) -> Vector2<f64> {
-        self.phi * s + self.from_y * y0 + self.from_dy * (y1 - y0)
+    pub(crate) fn advance(&self, s: [S; 2], y0: S, y1: S) -> [S; 2] {
+        let dy = y1 - y0;
+        [0, 1].map(|i| (self.phi[i][0] * s[0] + self.phi[i][1] * s[1]) + self.from_y[i] * y0 + self.from_dy[i] * dy)
     }
 }
 
@@ -198,21 +250,21 @@ mod tests {
     fn matches_a_fine_rk4_solution_on_a_ramp() {
         let r = Resonance { fn_hz: 300.0, zeta: 0.05 };
         let dt = 1e-3;
-        let stage = r.stage(dt).unwrap();
-        let got = stage.advance(Vector2::new(0.2, -50.0), 0.0, 1.0);
+        let stage = mode_stage(r.fn_hz, r.zeta, dt, NAMES).unwrap();
+        let got = stage.advance([0.2, -50.0], 0.0, 1.0);
         let want = fine_rk4(&r, 0.0, 1.0, dt, [0.2, -50.0]);
         assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-6, "{got:?} {want:?}");
     }
 
     #[test]
     fn settles_at_the_input_and_rejects_bad_values() {
-        let stage = Resonance { fn_hz: 400.0, zeta: 0.01 }.stage(1e-3).unwrap();
-        let mut s = Vector2::new(0.0, 0.0);
+        let stage = mode_stage(400.0, 0.01, 1e-3, NAMES).unwrap();
+        let mut s = [0.0, 0.0];
         for _ in 0..200_000 {
             s = stage.advance(s, 1.0, 1.0);
         }
         assert!((s[0] - 1.0).abs() < 1e-9);
-        assert!(Resonance { fn_hz: 500.0, zeta: 0.1 }.stage(1e-3).is_err());
+        assert!(mode_stage(500.0, 0.1, 1e-3, NAMES).is_err());
         assert!(Resonance { fn_hz: 50.0, zeta: 0.0 }.validate().is_err());
     }
 }

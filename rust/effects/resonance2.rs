@@ -12,11 +12,11 @@
 //! the chain's sub-steps ([`super::RESONANCE_SUBSTEPS`] per sample), which z is to
 //! within the sub-step's curvature.
 
-use super::resonance::{mode_stage, validate_mode, ModeNames, ResonanceStage};
+use super::resonance::{validate_mode, ModeNames};
 use super::Effect;
 use crate::error::Result;
 
-const NAMES: ModeNames = ("resonance2.fn_hz", "resonance2.zeta");
+pub(crate) const NAMES: ModeNames = ("resonance2.fn_hz", "resonance2.zeta");
 
 /// A second second-order low-pass of unit static gain.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,16 +35,10 @@ impl Effect for Resonance2 {
     }
 }
 
-impl Resonance2 {
-    /// The exact one-interval map for sampling interval `dt` \[s\].
-    pub(crate) fn stage(&self, dt: f64) -> Result<ResonanceStage> {
-        mode_stage(self.fn_hz, self.zeta, dt, NAMES)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::effects::resonance::mode_stage;
 
     #[test]
     fn names_its_own_parameters() {
@@ -52,6 +46,6 @@ mod tests {
         assert!(err.to_string().contains("resonance2.fn_hz"));
         let err = Resonance2 { fn_hz: 100.0, zeta: 0.0 }.validate().unwrap_err();
         assert!(err.to_string().contains("resonance2.zeta"));
-        assert!(Resonance2 { fn_hz: 600.0, zeta: 0.1 }.stage(1e-3).is_err());
+        assert!(mode_stage(600.0, 0.1, 1e-3, NAMES).is_err());
     }
 }

@@ -12,6 +12,7 @@
 
 use super::Effect;
 use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
 
 /// A clip of the reading to \[x_min, x_max\].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,7 +49,20 @@ impl Saturation {
     /// The reading \[µm\] of a sensor that sees `x` \[µm\].
     #[inline]
     pub fn apply(&self, x: f64) -> f64 {
-        x.clamp(self.min_um, self.max_um)
+        clip(x, self.min_um, self.max_um)
+    }
+}
+
+/// `x` held within [`min`, `max`] \[µm\] (`min` < `max`), in any number type: where it
+/// is clipped, the reading is the bound, with the bound's derivatives.
+#[inline]
+pub(crate) fn clip<S: Scalar>(x: S, min: S, max: S) -> S {
+    if x.re() < min.re() {
+        min
+    } else if x.re() > max.re() {
+        max
+    } else {
+        x
     }
 }
 

@@ -97,6 +97,15 @@ impl<const M: usize> Dual<M> {
         Dual { re: v, du }
     }
 
+    /// The value `v` with ∂/∂θ_`slot` = `slope` and the other derivatives 0 (a quantity
+    /// that depends on one independent variable, seeded by the chain rule).
+    #[inline(always)]
+    pub fn slope(v: f64, slot: usize, slope: f64) -> Self {
+        let mut du = SVector::zeros();
+        du[slot] = slope;
+        Dual { re: v, du }
+    }
+
     /// A value with the given derivatives.
     #[inline(always)]
     pub fn new(re: f64, du: SVector<f64, M>) -> Self {

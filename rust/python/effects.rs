@@ -1,12 +1,13 @@
-//! `boucwen.EffectSet` and `boucwen.simulate_extended`: conversions only.
+//! `boucwen.EffectSet`, `boucwen.simulate_extended` and its Jacobian: conversions only.
 
-use numpy::PyArray1;
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use super::params::PyParams;
 use super::{samples, value_error};
+use crate::effects::jacobian::Jacobian;
 use crate::effects::{
     Creep, Delay, Drift, EffectSet, Electrostriction, GainDrift, InputLag, Pickup, Resonance, Resonance2, Saturation,
 };
@@ -311,9 +312,54 @@ pub fn simulate_extended<'py>(
     dt: f64,
     h0: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let u = samples(u, "u")?;
-    let p = params.inner;
-    let e = effects.map(|e| e.inner.clone()).unwrap_or_default();
+    let (p, e, u) = chain_inputs(params, effects, u)?;
     let x = py.detach(move || crate::effects::simulate_extended(&p, &e, &u, dt, h0)).map_err(value_error)?;
     Ok(PyArray1::from_vec(py, x))
+}
+
+/// :func:`simulate_extended` with the Jacobian of x with respect to the unknowns of a
+/// fit, in one pass (forward-mode automatic differentiation through the same
+/// integrator).
+///
+/// Returns ``(x, jac)``: x \[µm\] as :func:`simulate_extended` gives it (the same
+/// numbers) and ``jac[k, j]`` = ∂x\[k\]/∂θ_j, one column per unknown θ_j: kv, x0, A, β,
+/// γ, n, δ, h0, then for each effect present in signal-chain order the creep gains, the
+/// input lag's ln fc, the gain_drift rate, the electrostriction ε, the resonance's
+/// ln fn and ln ζ, the second resonance's ln fn and ln ζ, the drift rate, the pickup's
+/// sine then cosine amplitudes, the saturation's min and max (the creep time constants
+/// and the delay are fixed). ``h0`` \[µm\] is not optional: it is an unknown too. The
+/// GIL is released while it runs.
+#[pyfunction]
+pub fn simulate_extended_with_jacobian<'py>(
+    py: Python<'py>,
+    params: &PyParams,
+    effects: Option<&PyEffectSet>,
+    u: &Bound<'py, PyAny>,
+    dt: f64,
+    h0: f64,
+) -> PyResult<OutputAndJacobian<'py>> {
+    let (p, e, u) = chain_inputs(params, effects, u)?;
+    let jac = py
+        .detach(move || crate::effects::jacobian::simulate_extended_with_jacobian(&p, &e, &u, dt, h0))
+        .map_err(value_error)?;
+    arrays(py, jac)
+}
+
+/// The parameters, the effects (none for `None`) and a copy of the voltage samples.
+fn chain_inputs(
+    params: &PyParams,
+    effects: Option<&PyEffectSet>,
+    u: &Bound<'_, PyAny>,
+) -> PyResult<(crate::Params, EffectSet, Vec<f64>)> {
+    Ok((params.inner, effects.map(|e| e.inner.clone()).unwrap_or_default(), samples(u, "u")?))
+}
+
+/// x \[µm\] and its Jacobian, one row per sample, as NumPy arrays.
+type OutputAndJacobian<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// The arrays of a [`Jacobian`].
+fn arrays(py: Python<'_>, jac: Jacobian) -> PyResult<OutputAndJacobian<'_>> {
+    let rows = jac.x.len();
+    let values = PyArray1::from_vec(py, jac.values).reshape([rows, jac.columns])?;
+    Ok((PyArray1::from_vec(py, jac.x), values))
 }

@@ -70,6 +70,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::simulate, m)?)?;
     m.add_class::<effects::PyEffectSet>()?;
     m.add_function(wrap_pyfunction!(effects::simulate_extended, m)?)?;
+    m.add_function(wrap_pyfunction!(effects::simulate_extended_with_jacobian, m)?)?;
     m.add_function(wrap_pyfunction!(model::paper_input, m)?)?;
     m.add_class::<compensate::PyInverse>()?;
     m.add_function(wrap_pyfunction!(compensate::invert, m)?)?;

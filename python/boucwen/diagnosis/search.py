@@ -36,7 +36,7 @@ from ..effects import (
 from ..effects.base import params_of, set_of, with_effect, without
 from ..fit import FitResult, fit_record
 from ..io import jsonable
-from ..lsq import jacobian_threads, thread_map
+from ..lsq import thread_map, worker_threads
 from ..metrics import max_abs, rms
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
@@ -146,7 +146,7 @@ def _solved_at(record: Record, fr: ExtendedFit, workers: int | None, jacobian: A
     xs = simulate_chain(fr.params, fr.effects, record.u, record.dt, fr.h0)
     if xs is None:  # pragma: no cover - a fitted model can be simulated
         raise ValueError("the fitted model cannot be simulated")
-    jac = jacobian_extended(record, fr, workers=workers) if jacobian is None else jacobian
+    jac = jacobian_extended(record, fr) if jacobian is None else jacobian
     return Solved(fit=fr, x=xs, jacobian=jac)
 
 
@@ -266,7 +266,7 @@ def _trial_fit(
             p0, h0, start = lag
     first = _first_stage(trial_nfev)
     try:
-        solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL, workers=workers)
+        solved = solve_extended_record(record, p0, start, h0, max_nfev=first, tol=TRIAL_TOL)
         fr = solved.fit
         null_rms = null().rms_um
 
@@ -288,7 +288,6 @@ def _trial_fit(
                 fr.h0,
                 max_nfev=PAIR_EFFORT * trial_nfev if pair else trial_nfev,
                 tol=TRIAL_TOL,
-                workers=workers,
             )
             went = solved.fit
             falling = fr.rms_um > 0 and at_most(
@@ -298,7 +297,7 @@ def _trial_fit(
                 # Still falling fast when its effort ran out: a trial judged there would
                 # be credited with where it happened to stop, not with what it explains.
                 solved = solve_extended_record(
-                    record, went.params, went.effects, went.h0, max_nfev=trial_nfev, tol=TRIAL_TOL, workers=workers
+                    record, went.params, went.effects, went.h0, max_nfev=trial_nfev, tol=TRIAL_TOL
                 )
     except ValueError as exc:
         return str(exc)
@@ -355,9 +354,7 @@ def _refits_beside_null(
 
     def refit(variant: Callable[[Record], Record] | None) -> ExtendedFit:
         made = _decimated(variant(record) if variant is not None else record, q)
-        return fit_extended_record(
-            made, current.params, current.effects, current.h0, max_nfev=nfev, tol=TRIAL_TOL, workers=workers
-        )
+        return fit_extended_record(made, current.params, current.effects, current.h0, max_nfev=nfev, tol=TRIAL_TOL)
 
     refits = thread_map(refit, [None, *variants], workers)
     best = 1 + first_of_best(
@@ -634,9 +631,7 @@ def score_round(
     noise_um = noise_level(record.x).sigma_um
 
     def null_trial() -> _Scored:
-        null = solve_extended_record(
-            record, current.params, current.effects, current.h0, max_nfev=null_nfev, workers=workers
-        )
+        null = solve_extended_record(record, current.params, current.effects, current.h0, max_nfev=null_nfev)
         scored = _scored(record, null, folds)
         gain = 1.0 - scored.cv.rms_um / cur_cv.rms_um if cur_cv.rms_um > 0 else 0.0
         tell(f"  0 null     : CV RMS {scored.cv.rms_um:.4g} µm (current {cur_cv.rms_um:.4g} µm, gain {gain:+.1%})")
@@ -668,7 +663,7 @@ def score_round(
         if starts is not None and name in starts:
             s = starts[name]
             fr: Solved | str = solve_extended_record(
-                record, s.params, s.effects, s.h0, max_nfev=null_nfev, tol=TRIAL_TOL, workers=workers
+                record, s.params, s.effects, s.h0, max_nfev=null_nfev, tol=TRIAL_TOL
             )
         else:
             fr = _trial_fit(
@@ -696,7 +691,7 @@ def score_round(
 
     todo = names if names is not None else candidates(current.effects.names)
     null_run: Future[_Scored]
-    with jacobian_threads(workers) as pool:
+    with worker_threads(workers) as pool:
         if pool is None:
             null_run = Future()
             null_run.set_result(null_trial())
@@ -832,9 +827,7 @@ def _pair_round(
         a, b = pair
         both = set_of({**params_of(current.effects), a: trials[a]["fitted"], b: trials[b]["fitted"]})
         try:
-            solved = solve_extended_record(
-                record, current.params, both, current.h0, max_nfev=effort, tol=TRIAL_TOL, workers=workers
-            )
+            solved = solve_extended_record(record, current.params, both, current.h0, max_nfev=effort, tol=TRIAL_TOL)
         except ValueError:
             return None
         return _scored(record, solved, folds), time.perf_counter() - t0
@@ -940,9 +933,7 @@ def _rebased(record: Record, kept: ExtendedFit, *, seed: int, workers: int | Non
     try:
         plain = validate_record(u, record.x - (with_effects - without), dt)
         base = fit_record(plain, seed=seed, workers=workers, decimate=q if q > 1 else None)
-        return fit_extended_record(
-            record, base.params, kept.effects, base.h0, workers=workers, max_nfev=REBASE_NFEV, tol=TRIAL_TOL
-        )
+        return fit_extended_record(record, base.params, kept.effects, base.h0, max_nfev=REBASE_NFEV, tol=TRIAL_TOL)
     except ValueError:
         return None
 
@@ -997,7 +988,7 @@ def _backward_step(
     effort = _null_effort()
 
     def refit(effects: EffectSet) -> _Scored:
-        solved = solve_extended_record(on, current.params, effects, current.h0, max_nfev=effort, workers=workers)
+        solved = solve_extended_record(on, current.params, effects, current.h0, max_nfev=effort)
         return _scored(on, solved, folds)
 
     full = null if null is not None and simulable else refit(current.effects)
@@ -1400,15 +1391,13 @@ def diagnose_record(
 
         def refit(effects: EffectSet) -> ExtendedFit:
             return fit_extended_record(
-                record, current.params, effects, current.h0, workers=workers, max_nfev=_null_effort(), tol=TRIAL_TOL
+                record, current.params, effects, current.h0, max_nfev=_null_effort(), tol=TRIAL_TOL
             )
 
         current, added, evidence["validation"] = judged_on(validate, current, added, refit, say)
     if added:
         say("refitting on the whole record")
-        ext = fit_extended_record(
-            record, current.params, current.effects, current.h0, workers=workers, max_nfev=FINAL_NFEV
-        )
+        ext = fit_extended_record(record, current.params, current.effects, current.h0, max_nfev=FINAL_NFEV)
         x_ext = ext.simulate(u, dt)
         params = ext.to_dict()
         effect_set = ext.effects

@@ -7,8 +7,8 @@ record — a step and its hold, a burst, the start or the end — is scored wher
 
 The refit without a block is the Gauss–Newton step from the model fitted on the whole
 record, taken on the other blocks only: with r = x − x̂ the residual and J = ∂x̂/∂z the
-Jacobian of the simulated output in the model's unknowns z (forward differences, one
-simulation per unknown), the held-out residual of block k is
+Jacobian of the simulated output in the model's unknowns z (exact, from the Rust
+core's pass with the simulation), the held-out residual of block k is
 
     r_k − J_k·Δ_k,     Δ_k = argmin_Δ ‖r_{−k} − J_{−k}·Δ‖² + λ‖Δ‖²
 

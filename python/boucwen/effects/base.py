@@ -6,11 +6,10 @@ the extended fit needs to know about it:
 
 * :meth:`Effect.unknowns`, :meth:`Effect.pack`, :meth:`Effect.unpack`: which of its
   parameters are fitted, in which coordinates (the others stay fixed);
-* :meth:`Effect.bounds`: the bounds of those unknowns, which the difference steps of
-  the Jacobian also respect; :meth:`Effect.sign_bounds`: further bounds that only the
-  optimiser sees;
-* :meth:`Effect.typical`: the typical size of each unknown (the floor of its difference
-  step and its scale);
+* :meth:`Effect.bounds`: the bounds of those unknowns (where the model can be
+  simulated); :meth:`Effect.sign_bounds`: further bounds the optimiser adds;
+* :meth:`Effect.typical`: the typical size of each unknown (the floor of its scale in
+  the optimiser);
 * :meth:`Effect.starts`: the starting values tried when the effect is added to a fit.
 
 The simulation itself is the Rust core's (:func:`boucwen.simulate_extended`), which
@@ -132,7 +131,7 @@ class Effect(ABC):
         return self
 
     def bounds(self, context: Context) -> tuple[tuple[float, float], ...]:
-        """(lower, upper) of each unknown, for the optimiser and the difference steps."""
+        """(lower, upper) of each unknown, for the optimiser."""
         return tuple(UNBOUNDED for _ in self.unknowns())
 
     def sign_bounds(self, static_gain: float) -> tuple[tuple[float, float], ...]:

@@ -12,8 +12,10 @@ declares (:meth:`~boucwen.effects.Effect.unknowns`: the creep gains, ln fc, ln f
 ln ζ, the drift rate; the creep time constants and the delay are held fixed), with
 their bounds, typical sizes and sign constraints.
 
-Residual, Jacobian (forward differences in threads) and optimiser are those of
-:mod:`boucwen.lsq`, shared with :func:`boucwen.fit`.
+Residual, Jacobian (exact, from the Rust core in one pass with the simulation:
+:func:`boucwen._core.simulate_extended_with_jacobian`, whose columns are these unknowns
+in this order) and optimiser are those of :mod:`boucwen.lsq`, shared with
+:func:`boucwen.fit`.
 """
 
 from __future__ import annotations
@@ -25,10 +27,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._core import EffectSet, Params, simulate_extended
+from .._core import EffectSet, Params, simulate_extended, simulate_extended_with_jacobian
 from ..checks import FloatArray
 from ..fit import N_BOUNDS
-from ..lsq import OutputErrorProblem, jacobian_threads
+from ..lsq import OutputErrorProblem, with_jacobian_or_none
 from ..metrics import max_abs, rms
 from ..record import Record, validate_record
 from .base import Context, Effect, Start, simulate_chain, with_effect
@@ -113,15 +115,17 @@ class Layout:
             return None
         return simulate_chain(p, e, u, dt, h0)
 
-    def constant_columns(self) -> dict[int, float]:
-        """``{index of x0: 1.0}``: x0 is an offset of x̂ (∂x̂/∂x0 = 1 at every sample)
-        through every effect but a saturation (the resonances have unit static gain and
-        start at rest, the delay line starts full of the first value); ``{}`` with a
-        saturation."""
-        return {} if "saturation" in self.names else {_BASE.index("x0"): 1.0}
+    def simulate_with_jacobian(self, v: FloatArray, u: FloatArray, dt: float) -> tuple[FloatArray, FloatArray] | None:
+        """:meth:`simulate` with ∂x/∂v (one row per sample, one column per unknown), from
+        one pass; None when ``v`` is invalid or cannot be simulated."""
+        try:
+            p, e, h0 = self.unpack(v)
+        except (ValueError, OverflowError):
+            return None
+        return with_jacobian_or_none(lambda: simulate_extended_with_jacobian(p, e, u, dt, h0))
 
     def bounds(self) -> tuple[FloatArray, FloatArray]:
-        """Lower and upper bounds of the unknowns (the difference steps respect them)."""
+        """Lower and upper bounds of the unknowns."""
         base = [(-np.inf, np.inf)] * len(_BASE)
         base[5] = N_BOUNDS
         return _columns(base, [b for e in self.effects for b in e.bounds(self.context)])
@@ -205,9 +209,12 @@ class _Chain:
     def __call__(self, v: FloatArray) -> FloatArray | None:
         return self.layout.simulate(v, self.u, self.dt)
 
+    def with_jacobian(self, v: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        return self.layout.simulate_with_jacobian(v, self.u, self.dt)
+
 
 def _typical(layout: Layout, v0: FloatArray, u: FloatArray, x: FloatArray) -> FloatArray:
-    """Typical size of each unknown (sets the difference steps and the scaling)."""
+    """Typical size of each unknown (the optimiser's scaling)."""
     span_u = max(float(np.ptp(u)), 1e-12)
     span_x = max(float(np.ptp(x)), 1e-12)
     return np.maximum(np.abs(v0), layout.typical(span_u, span_x))
@@ -223,7 +230,6 @@ def fit_extended(
     *,
     max_nfev: int = 40,
     tol: float = 1e-8,
-    workers: int | None = None,
 ) -> ExtendedFit:
     """Fits the base parameters, h0 and the effects' parameters by output error.
 
@@ -234,7 +240,6 @@ def fit_extended(
             present, the creep time constants and the delay (see the module docs).
         max_nfev: iteration limit of ``least_squares``.
         tol: ``xtol``/``ftol``/``gtol`` of ``least_squares``.
-        workers: threads for the Jacobian columns (default: the number of CPUs).
 
     Returns:
         An :class:`ExtendedFit` (errors over the given record).
@@ -243,7 +248,7 @@ def fit_extended(
         ValueError: invalid data or a starting point that cannot be simulated.
     """
     record = validate_record(u, x, dt)
-    return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, workers=workers)
+    return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol)
 
 
 @dataclass(frozen=True, eq=False)
@@ -254,7 +259,7 @@ class Solved:
         fit: the :class:`ExtendedFit`.
         x: its simulated displacement over the fitted record [µm].
         jacobian: ∂x̂/∂z there (one row per sample, one column per unknown of the fit's
-            :class:`Layout`, forward differences as :func:`jacobian_extended`).
+            :class:`Layout`, as :func:`jacobian_extended`).
     """
 
     fit: ExtendedFit
@@ -270,10 +275,9 @@ def fit_extended_record(
     *,
     max_nfev: int = 40,
     tol: float = 1e-8,
-    workers: int | None = None,
 ) -> ExtendedFit:
     """:func:`fit_extended` on a checked :class:`~boucwen.record.Record`."""
-    return solve_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, workers=workers).fit
+    return solve_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol).fit
 
 
 def solve_extended_record(
@@ -284,7 +288,6 @@ def solve_extended_record(
     *,
     max_nfev: int = 40,
     tol: float = 1e-8,
-    workers: int | None = None,
 ) -> Solved:
     """:func:`fit_extended_record` with the fit's simulated displacement and the
     optimiser's Jacobian at the solution (``least_squares`` computes one at every point
@@ -292,24 +295,19 @@ def solve_extended_record(
     u, x, dt = record.u, record.x, record.dt
     layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
     v0 = layout.pack(params, effects, h0)
-    # The Jacobian steps backwards only at the layout's own bounds (fc, fn below
-    # Nyquist); the sign bounds (creep gains share the sign of the static gain) need no
-    # such care, since any sign can be simulated.
-    lo, step_upper = layout.bounds()
+    lo, hi = layout.bounds()
     sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))
-    lo, hi = np.maximum(lo, sign_lo), np.minimum(step_upper, sign_hi)
+    lo, hi = np.maximum(lo, sign_lo), np.minimum(hi, sign_hi)
     margin = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
     v0 = np.clip(v0, lo + margin, hi - margin)
     typ = _typical(layout, v0, u, x)
-    with jacobian_threads(workers) as pool:
-        prob = OutputErrorProblem(
-            _Chain(layout, u, dt), x, typical=typ, upper=step_upper, pool=pool, constant=layout.constant_columns()
-        )
-        if prob.simulate(v0) is None:
-            raise ValueError("the starting point of fit_extended cannot be simulated")
-        res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev)
-        p, e, h = layout.unpack(res.x)
-        xs = simulate_chain(p, e, u, dt, h)
+    chain = _Chain(layout, u, dt)
+    prob = OutputErrorProblem(chain, chain.with_jacobian, x)
+    if prob.simulate(v0) is None:
+        raise ValueError("the starting point of fit_extended cannot be simulated")
+    res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev)
+    p, e, h = layout.unpack(res.x)
+    xs = simulate_chain(p, e, u, dt, h)
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point
         raise ValueError("the fitted parameters cannot be simulated")
     err = x - xs
@@ -325,23 +323,14 @@ def solve_extended_record(
     return Solved(fit=fit, x=xs, jacobian=np.asarray(res.jac, dtype=np.float64))
 
 
-def jacobian_extended(record: Record, fitted: ExtendedFit, *, workers: int | None = None) -> FloatArray:
+def jacobian_extended(record: Record, fitted: ExtendedFit) -> FloatArray:
     """∂x̂/∂z of the extended model ``fitted`` over ``record`` (one row per sample, one
-    column per unknown of its :class:`Layout`), by the fit's forward differences."""
-    u, x, dt = record.u, record.x, record.dt
+    column per unknown of its :class:`Layout`; zeros if it cannot be simulated)."""
+    u, dt = record.u, record.dt
     layout = Layout.of(fitted.effects, dt, dt * max(u.size - 1, 1))
     z = layout.pack(fitted.params, fitted.effects, fitted.h0)
-    _, upper = layout.bounds()
-    with jacobian_threads(workers) as pool:
-        prob = OutputErrorProblem(
-            _Chain(layout, u, dt),
-            x,
-            typical=_typical(layout, z, u, x),
-            upper=upper,
-            pool=pool,
-            constant=layout.constant_columns(),
-        )
-        return prob.jacobian(z)
+    out = layout.simulate_with_jacobian(z, u, dt)
+    return out[1] if out is not None else np.zeros((u.size, z.size))
 
 
 def candidate_starts(

@@ -18,8 +18,8 @@ class Saturation(Effect):
         x = min(max(x, x_min), x_max)
 
     The ends of the sensor's (or its A/D's) range. The output is piecewise linear in
-    x_min and x_max, which the fit's forward differences handle (a sample inside the
-    range does not depend on them). The inverse does not undo it: it aims at the
+    x_min and x_max (a sample inside the range does not depend on them; a clipped one
+    has the bound's derivatives). The inverse does not undo it: it aims at the
     stack's displacement. A fit starts from the record's extremes.
 
     Attributes:
