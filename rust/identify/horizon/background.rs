@@ -480,6 +480,7 @@ impl OnlineIdentifier for BackgroundHorizon {
     fn push(&mut self, u: f64, x: f64) -> Result<f64> {
         finite_sample("u", u)?;
         finite_sample("x", x)?;
+        self.status.updated = false;
         self.adopt();
         // Predict with the current estimates, as `HorizonIdentifier::push` does.
         let lag = self.ln_fc.map(|_| &self.lag);

@@ -21,7 +21,8 @@ pub struct HorizonConfig {
     /// (∞: no such limit); at least 1.
     pub recent_factor: f64,
     /// Most samples the window holds (the buffer is allocated once, at construction,
-    /// 80 bytes a sample). Default 40 000 (two periods of 1 Hz at 20 kHz).
+    /// 120 bytes a sample, and 24 more for the background mode's sample ring). Default
+    /// 40 000 (two periods of 1 Hz at 20 kHz).
     pub max_window: usize,
     /// Samples of the window's simulation run per push: a pass over a window of W
     /// samples ends after about W / (this − 1) pushes. Default 16: about 15 updates

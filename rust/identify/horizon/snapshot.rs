@@ -25,6 +25,7 @@ impl Snapshot for HorizonIdentifier {
             ua,
             u_prev,
             buffer,
+            travels,
             next,
             start,
             mid,
@@ -72,8 +73,9 @@ impl Snapshot for HorizonIdentifier {
         w.u64(*mid);
         let first = next.saturating_sub(buffer.len() as u64);
         for k in first..*next {
-            let Entry { u, x, travel, h, dh, ua, dua } = &buffer[(k % buffer.len() as u64) as usize];
-            w.f64s(&[*u, *x, *travel, *h, *ua, *dua]);
+            let slot = (k % buffer.len() as u64) as usize;
+            let Entry { u, x, h, dh, ua, dua } = &buffer[slot];
+            w.f64s(&[*u, *x, travels[slot], *h, *ua, *dua]);
             w.f64s(dh);
         }
         let Pass {
@@ -206,7 +208,8 @@ impl Snapshot for HorizonIdentifier {
             let [u, x, travel, h, ua, dua] = r.f64s::<6>()?;
             let dh = r.f64s::<ND>()?;
             let slot = (k % cap) as usize;
-            id.buffer[slot] = Entry { u, x, travel, h, dh, ua, dua };
+            id.buffer[slot] = Entry { u, x, h, dh, ua, dua };
+            id.travels[slot] = travel;
         }
         let at = r.offset();
         let p_start = r.u64()?;
