@@ -5,7 +5,9 @@
 
 Data as in ``cargo bench --bench latency``: the paper's input at 10 kHz, repeated,
 measured through the paper's 1 Hz model with 1–5 nm of noise. Prints ns per call of
-``Identifier.push`` (rpem, the default method) and ``Model.step`` in a Python loop,
+``Identifier.push`` (rpem; the recommended identifier in its three refine modes:
+sync, cooperative with ``refine`` not called in the loop, background with its
+worker) and ``Model.step`` in a Python loop,
 ns per sample of ``Identifier.push_many``, and ns per frame of ``Bank.push_many`` at
 C = 256; the best of five repeats each. As the Rust bench, it pins itself to the
 last core and asks for SCHED_FIFO (Linux, where permitted), so that both run under
@@ -57,6 +59,18 @@ def real_time() -> str:
         return f"pinned to core {core}, normal scheduling (SCHED_FIFO not permitted)"
 
 
+def beside(make: Callable[[], Identifier]) -> Identifier:
+    """Builds with this thread on the first core, so that the worker thread it starts
+    runs beside the loop's core, not on it; then pins back to the last core."""
+    if not hasattr(os, "sched_setaffinity") or (os.cpu_count() or 1) < 2:
+        return make()
+    os.sched_setaffinity(0, {0})
+    try:
+        return make()
+    finally:
+        os.sched_setaffinity(0, {(os.cpu_count() or 1) - 1})
+
+
 def main() -> None:
     print(real_time())
     p = Params.paper_1hz()
@@ -66,6 +80,8 @@ def main() -> None:
     makers: dict[str, Callable[[], Identifier]] = {
         "rpem": lambda: Identifier.rpem(DT, p),
         "default (horizon, input lag)": lambda: Identifier(DT, p),
+        "default, refine=cooperative": lambda: Identifier(DT, p, refine="cooperative"),
+        "default, refine=background": lambda: beside(lambda: Identifier(DT, p, refine="background")),
     }
 
     def push_loop(make: Callable[[], Identifier]) -> None:
@@ -91,7 +107,10 @@ def main() -> None:
     print(f"{'per sample [ns]':<30}{'push (Python loop)':>20}{'push_many':>12}{'loop / many':>13}")
     for name, t_push, t_many in rows:
         print(f"{name:<30}{t_push:>20.0f}{t_many:>12.0f}{t_push / t_many:>13.2f}")
-    print("targets: rpem push from Python <= 300 ns; push_many within 1.3x the Rust push (cargo bench --bench latency)")
+    print(
+        "targets: rpem push and the recommended identifier's push (cooperative, background) from Python <= 300 ns; "
+        "push_many within 1.3x the Rust push (cargo bench --bench latency)"
+    )
     print(f"Model.step from a Python loop: {t_step:.0f} ns per call")
     print(f"Bank.push_many, C = {channels} rpem: {t_bank:.0f} ns per frame ({t_bank / channels:.0f} per channel)")
 

@@ -28,17 +28,26 @@
 //!
 //! Rows: `Model::step`; `Inverse::step` (the voltage for the model's own noise-free
 //! displacement, beside `Model::step`: the ratio of their p50 is printed); `horizon` push without the input lag (`HorizonIdentifier::new`)
-//! and with it (`HorizonIdentifier::recommended`, the default online method); `rpem`
+//! and with it (`HorizonIdentifier::recommended`, the default online method), the
+//! latter in its three refine modes: sync (the pass in push), cooperative (push
+//! timed, `refine(16)` called untimed after it) and background (the worker on
+//! another core than the loop); `rpem`
 //! push; the paper's method at N = 100 … 100 000; `simulate` throughput; and a hand-written floor: one RK4
 //! step with one `powf` per sample (stage powers from its first-order expansion) and
 //! a 7-parameter RLS update on fixed arrays, the least work any identifier of this
 //! model can do per sample, timed the same way in the same run.
+//!
+//! After the table: the cost of the cooperative `refine` per window interval (the
+//! Levenberg–Marquardt steps included) and the highest sample rate at which one core
+//! runs both the loop's push and the window pass at the cadence of sync mode
+//! (`samples_per_push` intervals per sample, as fresh estimates as sync).
 
 use std::hint::black_box;
 use std::time::Instant;
 
 use boucwen::identify::{
-    HorizonConfig, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier,
+    BackgroundHorizon, HorizonConfig, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RefineMode,
+    RpemConfig, RpemIdentifier,
 };
 use boucwen::model::paper_input;
 use boucwen::{simulate_into, Bank, Inverse, Model, ModelBank, Params, VoltageLimits};
@@ -112,6 +121,36 @@ impl Timer {
         self.sorted_ns(self.ticks_each(n, f))
     }
 
+    /// As [`Timer::replayed`], with `between(object, k)` run untimed after each call.
+    fn replayed_between<T>(
+        &self,
+        n: usize,
+        make: impl Fn() -> T,
+        mut call: impl FnMut(&mut T, usize),
+        mut between: impl FnMut(&mut T, usize),
+    ) -> (Vec<f64>, Vec<f64>) {
+        let mut runs: Vec<Vec<u64>> = Vec::with_capacity(REPLAYS);
+        for _ in 0..REPLAYS {
+            let mut object = make();
+            let mut t = Vec::with_capacity(n);
+            for k in 0..n {
+                let a = ticks();
+                call(&mut object, k);
+                let b = ticks();
+                t.push((b - a).saturating_sub(self.overhead));
+                between(&mut object, k);
+            }
+            runs.push(t);
+        }
+        let mut least = runs[0].clone();
+        for run in &runs[1..] {
+            for (m, &t) in least.iter_mut().zip(run) {
+                *m = (*m).min(t);
+            }
+        }
+        (self.sorted_ns(runs.swap_remove(0)), self.sorted_ns(least))
+    }
+
     /// The same n calls on [`REPLAYS`] fresh objects from `make` (the calls are
     /// deterministic, so every replay does the same work at call k): the sorted ns of
     /// the first replay, as a loop meets them, and the sorted per-call minimum over
@@ -164,6 +203,31 @@ fn pin_to_one_core() -> String {
 #[cfg(not(target_os = "linux"))]
 fn pin_to_one_core() -> String {
     "not pinned".into()
+}
+
+/// Runs `make` with this thread's affinity set to the first core, so that a thread it
+/// starts (the background worker) runs beside the loop's core, not on it; then pins
+/// the thread back to the last core.
+#[cfg(target_os = "linux")]
+fn on_first_core<T>(make: impl FnOnce() -> T) -> T {
+    // SAFETY: plain libc calls on zeroed structs of this process.
+    unsafe {
+        let cores = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
+        let size = std::mem::size_of::<libc::cpu_set_t>();
+        let mut first: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(0, &mut first);
+        let mut last: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cores - 1, &mut last);
+        libc::sched_setaffinity(0, size, &first);
+        let out = make();
+        libc::sched_setaffinity(0, size, &last);
+        out
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn on_first_core<T>(make: impl FnOnce() -> T) -> T {
+    make()
 }
 
 // -- data ----------------------------------------------------------------------------
@@ -383,7 +447,33 @@ fn main() {
     row("`horizon` push, no lag".into(), times, "p99.9 ≤ 2000");
     let times =
         pushes(&timer, &u, &x, || HorizonIdentifier::recommended(DT, p, 0.0, HorizonConfig::default()).expect("valid"));
-    row("`horizon` push, `recommended` (default method)".into(), times, "p99.9 ≤ 2000");
+    row("`horizon` push, `recommended` (default method), sync".into(), times, "p99.9 ≤ 2000");
+    let cooperative = || {
+        HorizonIdentifier::recommended(DT, p, 0.0, HorizonConfig::default())
+            .expect("valid")
+            .with_mode(RefineMode::Cooperative)
+    };
+    let spp = HorizonConfig::default().samples_per_push;
+    let times = timer.replayed_between(
+        len,
+        cooperative,
+        |id, k| {
+            black_box(id.push(black_box(u[k]), black_box(x[k])).expect("finite"));
+        },
+        |id, _| {
+            black_box(id.refine(spp));
+        },
+    );
+    let push_p50 = quantile(&times.0, 0.5);
+    row(
+        format!("`horizon` push, `recommended`, cooperative (`refine({spp})` untimed between)"),
+        times,
+        "p50 ≤ 150, p99.9 ≤ 500",
+    );
+    let times = pushes(&timer, &u, &x, || {
+        on_first_core(|| BackgroundHorizon::recommended(DT, p, 0.0, HorizonConfig::default()).expect("valid"))
+    });
+    row("`horizon` push, `recommended`, background (worker on core 0)".into(), times, "p50 ≤ 150, p99.9 ≤ 500");
     let times = pushes(&timer, &u, &x, || RpemIdentifier::new(DT, p, 0.0, RpemConfig::default()).expect("valid"));
     row("`rpem` push".into(), times, "p50 ≤ 200, p99.9 ≤ 1000");
     for window in [100usize, 1_000, 10_000, 100_000] {
@@ -394,6 +484,7 @@ fn main() {
     }
     print_rows(&rows, floor_p50);
     println!("\n`Inverse::step` / `Model::step` at p50: {:.2} (target ≤ 2)", inverse_p50 / step_p50);
+    refine_cost(&timer, &u, &x, push_p50);
 
     let mut out = vec![0.0; len];
     let best = (0..5)
@@ -410,6 +501,44 @@ fn main() {
     );
 
     bank_scaling(&timer, &u, &x, quick);
+}
+
+/// The cooperative `refine` per window interval: the record pushed with `refine(B)`
+/// after every push, each refine call timed (B = 16 and 256; the best of the replays),
+/// and the sample rate one core sustains at sync's cadence.
+fn refine_cost(timer: &Timer, u: &[f64], x: &[f64], push_p50: f64) {
+    let p = Params::paper_1hz();
+    let spp = HorizonConfig::default().samples_per_push;
+    println!("\ncooperative `refine` (recommended identifier), cost per window interval:");
+    let mut per_interval = f64::INFINITY;
+    for budget in [spp, 256] {
+        let mut best = f64::INFINITY;
+        let mut updates = 0;
+        for _ in 0..REPLAYS {
+            let mut id = HorizonIdentifier::recommended(DT, p, 0.0, HorizonConfig::default())
+                .expect("valid")
+                .with_mode(RefineMode::Cooperative);
+            let (mut ticks_sum, mut intervals) = (0u64, 0usize);
+            for k in 0..u.len() {
+                id.push(u[k], x[k]).expect("finite");
+                let a = ticks();
+                let ran = black_box(id.refine(budget));
+                let b = ticks();
+                ticks_sum += (b - a).saturating_sub(timer.overhead);
+                intervals += ran;
+            }
+            best = best.min(ticks_sum as f64 * timer.ns_per_tick / intervals.max(1) as f64);
+            updates = id.status().updates;
+        }
+        per_interval = per_interval.min(best);
+        println!("  refine({budget}) after each push: {best:.1} ns per interval ({updates} updates over the record)");
+    }
+    let per_sample = push_p50 + spp as f64 * per_interval;
+    println!(
+        "  one core, push (p50 {push_p50:.0} ns) + {spp} intervals per sample (sync's cadence): {per_sample:.0} ns per \
+         sample, window pass up to date up to {:.0} kHz",
+        1e6 / per_sample
+    );
 }
 
 /// ns per frame of the bank, C = 1 … 1024: rpem push (identifier per channel) and the

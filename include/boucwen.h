@@ -32,6 +32,15 @@ typedef enum {
   BW_PANIC = 8,
 } BwStatus;
 
+// Where a horizon identifier's window pass runs (see `RefineMode` in the Rust docs).
+typedef enum {
+  // In every push (the default; the predictions of earlier releases bit for bit).
+  BW_REFINE_SYNC = 0,
+  // In `bw_horizon_refine`, called when the loop has time; push only predicts and
+  // stores. Deterministic for a given schedule of calls.
+  BW_REFINE_COOPERATIVE = 1,
+} BwRefineMode;
+
 // Opaque bank of channels (identifier, model and inverse each).
 typedef struct BwBank BwBank;
 
@@ -163,6 +172,10 @@ typedef struct {
   double damping;
   bool step_limited;
   bool projected;
+  // Samples pushed after the last one the estimates in use were fitted on.
+  uint64_t behind_samples;
+  // The same in seconds \[s\].
+  double behind_s;
 } BwHorizonStatus;
 
 // What the last step of an inverse did: `clip` 0 = within the limits, 1 = on the
@@ -330,6 +343,18 @@ BwStatus bw_horizon_push_many(BwHorizon *id,
                               const double *x,
                               size_t len,
                               double *out);
+
+// Switches where the window pass runs (at any sample; see `HorizonIdentifier::set_mode`
+// in the Rust docs). A new identifier runs it in every push (`BW_REFINE_SYNC`).
+BwStatus bw_horizon_set_refine(BwHorizon *id, BwRefineMode mode);
+
+// Cooperative mode: runs the window pass at most `max_intervals` integration
+// intervals on the samples pushed so far and writes the number run into `*ran` (0:
+// nothing to do until more samples come; also in sync mode). An update is adopted
+// here; the next `bw_horizon_push` predicts with it. Call it from the idle loop or a
+// lower-priority task, never concurrently with a push on the same handle. No
+// allocation.
+BwStatus bw_horizon_refine(BwHorizon *id, size_t max_intervals, size_t *ran);
 
 // The current estimates.
 BwStatus bw_horizon_params(const BwHorizon *id, BwParams *out);

@@ -180,6 +180,7 @@ class Model:
 # ---------------------------------------------------------------- online identification
 
 _IdentifierMethod = Literal["horizon", "rpem", "paper"]
+_RefineMode = Literal["sync", "cooperative", "background"]
 """The online methods: ``Identifier.horizon`` (the default), ``Identifier.rpem`` and ``Identifier.paper``."""
 
 _SubFitOutcome = Literal["ran", "reduced", "held"]
@@ -232,7 +233,9 @@ class _HorizonStatus(TypedDict):
     samples: int
     """Samples pushed since construction or reset."""
     updated: bool
-    """The estimates were updated in this push (the push after a pass over the window caught up)."""
+    """The estimates were updated in this push (sync: the push after a pass over the window
+    caught up; cooperative: in the ``refine`` calls since the push; background: adopted
+    in this push)."""
     updates: int
     """Updates since construction or reset."""
     window_samples: int
@@ -247,6 +250,11 @@ class _HorizonStatus(TypedDict):
     """The trust region scaled the last update down."""
     projected: bool
     """The projection moved n, β or γ in the last update."""
+    behind_samples: int
+    """How far the estimates in use lag the newest sample: samples pushed after the last
+    one the pass of the last update ran over [samples]."""
+    behind_s: float
+    """The same in seconds [s]."""
 
 def _config_defaults(method: _IdentifierMethod) -> dict[str, Any]:
     """Default options of a method's config (``boucwen.config`` takes them from here)."""
@@ -288,6 +296,13 @@ class Identifier:
 
     ``dt`` sampling interval [s]; ``init`` starting parameters (e.g. an offline fit,
     used as given); ``h0`` initial h [µm].
+
+    ``refine`` (horizon only) says where the window pass runs: ``"sync"`` (the
+    default: a share of it in every push; deterministic, the predictions of earlier
+    releases bit for bit), ``"cooperative"`` (``push`` only predicts and stores; the
+    pass runs in :meth:`refine`, called when the loop has time; deterministic for a
+    given schedule of calls) or ``"background"`` (a worker thread owned by the
+    identifier runs it and ``push`` never waits on it; not deterministic).
     """
 
     def __new__(
@@ -298,6 +313,7 @@ class Identifier:
         *,
         config: HorizonConfig | None = None,
         effects: EffectSet | None = None,
+        refine: _RefineMode = "sync",
     ) -> Identifier: ...
     @staticmethod
     def horizon(
@@ -307,6 +323,7 @@ class Identifier:
         *,
         config: HorizonConfig | None = None,
         effects: EffectSet | None = None,
+        refine: _RefineMode = "sync",
     ) -> Identifier:
         """The moving-horizon output-error method ("horizon")."""
     @staticmethod
@@ -339,6 +356,14 @@ class Identifier:
         identifier does not change; ``ValueError`` on a non-finite ``u``."""
     def push(self, u: float, x: float) -> float:
         """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""
+    def refine(self, max_intervals: int) -> int:
+        """Cooperative mode: runs the window pass at most ``max_intervals`` integration
+        intervals on the samples pushed so far (GIL released); an update is adopted
+        here and the next push predicts with it. Returns the intervals run (0: nothing
+        to do until more samples come, and always in the other modes and methods)."""
+    @property
+    def refine_mode(self) -> _RefineMode | None:
+        """Where the horizon method's window pass runs; None for the other methods."""
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
         """``push`` over arrays with the GIL released; predictions [µm] identical to a
         loop of ``push``. A non-finite value anywhere raises ``ValueError`` before any

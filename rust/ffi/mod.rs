@@ -39,7 +39,7 @@ use crate::error::Error;
 use crate::format::Snapshot;
 use crate::identify::{
     AnyIdentifier, Decomposition, HorizonConfig, HorizonIdentifier, HorizonStatus, OnlineIdentifier, PaperConfig,
-    PaperIdentifier, PaperStatus, RpemConfig, RpemIdentifier, RpemStatus, SubFit,
+    PaperIdentifier, PaperStatus, RefineMode, RpemConfig, RpemIdentifier, RpemStatus, SubFit,
 };
 use crate::model::Model;
 use crate::params::Params;
@@ -364,6 +364,10 @@ pub struct BwHorizonStatus {
     pub damping: f64,
     pub step_limited: bool,
     pub projected: bool,
+    /// Samples pushed after the last one the estimates in use were fitted on.
+    pub behind_samples: u64,
+    /// The same in seconds \[s\].
+    pub behind_s: f64,
 }
 
 impl From<HorizonStatus> for BwHorizonStatus {
@@ -378,8 +382,22 @@ impl From<HorizonStatus> for BwHorizonStatus {
             damping: s.damping,
             step_limited: s.step_limited,
             projected: s.projected,
+            behind_samples: s.behind_samples,
+            behind_s: s.behind_s,
         }
     }
+}
+
+/// Where a horizon identifier's window pass runs (see `RefineMode` in the Rust docs).
+#[allow(non_camel_case_types)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BwRefineMode {
+    /// In every push (the default; the predictions of earlier releases bit for bit).
+    BW_REFINE_SYNC = 0,
+    /// In `bw_horizon_refine`, called when the loop has time; push only predicts and
+    /// stores. Deterministic for a given schedule of calls.
+    BW_REFINE_COOPERATIVE = 1,
 }
 
 /// What the last step of an inverse did: `clip` 0 = within the limits, 1 = on the
@@ -925,6 +943,37 @@ pub unsafe extern "C" fn bw_horizon_push_many(
     out: *mut f64,
 ) -> BwStatus {
     guard(|| Ok(get_mut(id)?.0.push_many(slice(u, len)?, slice(x, len)?, slice_mut(out, len)?)?))
+}
+
+/// Switches where the window pass runs (at any sample; see `HorizonIdentifier::set_mode`
+/// in the Rust docs). A new identifier runs it in every push (`BW_REFINE_SYNC`).
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_set_refine(id: *mut BwHorizon, mode: BwRefineMode) -> BwStatus {
+    guard(|| {
+        let mode = match mode {
+            BwRefineMode::BW_REFINE_SYNC => RefineMode::Sync,
+            BwRefineMode::BW_REFINE_COOPERATIVE => RefineMode::Cooperative,
+        };
+        get_mut(id)?.0.set_mode(mode);
+        Ok(())
+    })
+}
+
+/// Cooperative mode: runs the window pass at most `max_intervals` integration
+/// intervals on the samples pushed so far and writes the number run into `*ran` (0:
+/// nothing to do until more samples come; also in sync mode). An update is adopted
+/// here; the next `bw_horizon_push` predicts with it. Call it from the idle loop or a
+/// lower-priority task, never concurrently with a push on the same handle. No
+/// allocation.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_refine(id: *mut BwHorizon, max_intervals: usize, ran: *mut usize) -> BwStatus {
+    guard(|| {
+        let id = get_mut(id)?;
+        if ran.is_null() {
+            return Err(BwStatus::BW_NULL_POINTER);
+        }
+        put(ran, id.0.refine(max_intervals))
+    })
 }
 
 /// The current estimates.

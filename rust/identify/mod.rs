@@ -34,7 +34,9 @@ use crate::error::{finite_sample, Error, Result};
 use crate::format::{corrupt, Snapshot, KIND_HORIZON, KIND_PAPER, KIND_RPEM};
 use crate::params::Params;
 
-pub use horizon::{HorizonConfig, HorizonIdentifier, HorizonStatus};
+#[cfg(feature = "std")]
+pub use horizon::BackgroundHorizon;
+pub use horizon::{HorizonConfig, HorizonIdentifier, HorizonStatus, RefineMode};
 pub use paper::{Decomposition, PaperConfig, PaperIdentifier, PaperStatus, SubFit};
 pub use rpem::{RpemConfig, RpemIdentifier, RpemStatus};
 

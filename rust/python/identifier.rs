@@ -3,7 +3,7 @@
 use numpy::PyArray1;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyType};
+use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 
 use super::config::{horizon_config, horizon_slots, paper_config, paper_slots, rpem_config, rpem_slots, slots_dict};
 use super::effects::PyEffectSet;
@@ -11,8 +11,8 @@ use super::params::PyParams;
 use super::{samples, value_error};
 use crate::effects::EffectSet;
 use crate::identify::{
-    AnyIdentifier, AnyStatus, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig,
-    RpemIdentifier,
+    AnyIdentifier, AnyStatus, BackgroundHorizon, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier,
+    RefineMode, RpemConfig, RpemIdentifier,
 };
 
 /// Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
@@ -45,10 +45,99 @@ use crate::identify::{
 ///
 /// `dt` sampling interval \[s\]; `init` starting parameters (e.g. an offline fit, used
 /// as given); `h0` initial h \[µm\].
+///
+/// `refine` (horizon only) says where the window pass runs: "sync" (the default: a
+/// share of it in every push, deterministic, the predictions of earlier releases bit
+/// for bit), "cooperative" (`push` only predicts and stores; the pass runs in
+/// `ident.refine(max_intervals)`, called when the loop has time; deterministic for a
+/// given schedule of calls) or "background" (a worker thread owned by the identifier
+/// runs it; `push` never waits on it; not deterministic).
 #[pyclass(name = "Identifier", module = "boucwen")]
-#[derive(Clone)]
 pub struct PyIdentifier {
-    inner: AnyIdentifier,
+    inner: Inner,
+}
+
+/// An online identifier, or the horizon method with its pass on a worker thread (held
+/// inline as `AnyIdentifier` holds its methods: no indirection in `push`).
+#[allow(clippy::large_enum_variant)]
+enum Inner {
+    Any(AnyIdentifier),
+    Background(BackgroundHorizon),
+}
+
+/// What `__reduce__` returns: the restoring class method and its arguments (the
+/// snapshot, and "background" for an identifier whose worker is to restart).
+type Reduced<'py> = (Bound<'py, PyAny>, Bound<'py, PyTuple>);
+
+/// Runs `$body` with `$id` bound to the identifier, whichever it is.
+macro_rules! with_id {
+    ($inner:expr, $id:ident => $body:expr) => {
+        match $inner {
+            Inner::Any($id) => $body,
+            Inner::Background($id) => $body,
+        }
+    };
+}
+
+impl Inner {
+    fn status(&self) -> AnyStatus {
+        match self {
+            Inner::Any(id) => id.status(),
+            Inner::Background(id) => AnyStatus::Horizon(id.status()),
+        }
+    }
+    fn method(&self) -> &'static str {
+        match self {
+            Inner::Any(id) => id.method(),
+            Inner::Background(_) => "horizon",
+        }
+    }
+    fn refine_mode(&self) -> Option<&'static str> {
+        match self {
+            Inner::Any(AnyIdentifier::Horizon(id)) => Some(id.mode().name()),
+            Inner::Any(_) => None,
+            Inner::Background(_) => Some("background"),
+        }
+    }
+    fn to_snapshot(&self) -> Vec<u8> {
+        match self {
+            Inner::Any(id) => id.to_snapshot(),
+            Inner::Background(id) => id.to_bytes(),
+        }
+    }
+    fn try_clone(&self) -> PyResult<Self> {
+        match self {
+            Inner::Any(id) => Ok(Inner::Any(id.clone())),
+            Inner::Background(id) => {
+                Ok(Inner::Background(BackgroundHorizon::spawn(id.cooperative()).map_err(value_error)?))
+            }
+        }
+    }
+}
+
+/// Where the horizon method's window pass runs, from its Python name.
+enum Refine {
+    Mode(RefineMode),
+    Background,
+}
+
+fn refine_arg(refine: &str) -> PyResult<Refine> {
+    match refine {
+        "sync" => Ok(Refine::Mode(RefineMode::Sync)),
+        "cooperative" => Ok(Refine::Mode(RefineMode::Cooperative)),
+        "background" => Ok(Refine::Background),
+        other => Err(PyValueError::new_err(format!(
+            "invalid refine = {other:?}: expected \"sync\", \"cooperative\" or \"background\""
+        ))),
+    }
+}
+
+/// The horizon identifier `id` with its pass run as `refine` says.
+fn horizon_inner(id: HorizonIdentifier, refine: &str) -> PyResult<Inner> {
+    Ok(match refine_arg(refine)? {
+        Refine::Mode(mode) => Inner::Any(AnyIdentifier::Horizon(id.with_mode(mode))),
+        Refine::Background => Inner::Background(BackgroundHorizon::spawn(id).map_err(value_error)?),
+    })
 }
 
 /// An integer argument; a too-large int is a ValueError (not OverflowError), a non-int a TypeError.
@@ -89,7 +178,7 @@ impl PyIdentifier {
         let effects = effects.map(|e| e.inner.clone()).unwrap_or_default();
         let cfg = rpem_config(config, RpemConfig::for_effects(&effects))?;
         let id = RpemIdentifier::with_effects(dt, init.inner, &effects, h0, cfg).map_err(value_error)?;
-        Ok(PyIdentifier { inner: AnyIdentifier::Rpem(id) })
+        Ok(PyIdentifier { inner: Inner::Any(AnyIdentifier::Rpem(id)) })
     }
 
     /// The horizon method with `effects`, or the recommended model (input lag from
@@ -100,29 +189,32 @@ impl PyIdentifier {
         h0: f64,
         config: Option<&Bound<'_, PyAny>>,
         effects: Option<EffectSet>,
+        refine: &str,
     ) -> PyResult<Self> {
         check_config_class(config, "HorizonConfig")?;
+        refine_arg(refine)?;
         let cfg = horizon_config(config)?;
         let id = match effects {
             Some(e) => HorizonIdentifier::with_effects(dt, init.inner, &e, h0, cfg),
             None => HorizonIdentifier::recommended(dt, init.inner, h0, cfg),
         };
-        Ok(PyIdentifier { inner: AnyIdentifier::Horizon(id.map_err(value_error)?) })
+        Ok(PyIdentifier { inner: horizon_inner(id.map_err(value_error)?, refine)? })
     }
 }
 
 #[pymethods]
 impl PyIdentifier {
     #[new]
-    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None, effects = None))]
+    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None, effects = None, refine = "sync"))]
     fn new(
         dt: f64,
         init: &PyParams,
         h0: f64,
         config: Option<&Bound<'_, PyAny>>,
         effects: Option<PyRef<'_, PyEffectSet>>,
+        refine: &str,
     ) -> PyResult<Self> {
-        Self::build_horizon(dt, init, h0, config, effects.map(|e| e.inner.clone()))
+        Self::build_horizon(dt, init, h0, config, effects.map(|e| e.inner.clone()), refine)
     }
 
     /// The output-error method ("rpem"); see the class docs.
@@ -140,15 +232,16 @@ impl PyIdentifier {
 
     /// The moving-horizon output-error method ("horizon"); see the class docs.
     #[staticmethod]
-    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None, effects = None))]
+    #[pyo3(signature = (dt, init, h0 = 0.0, *, config = None, effects = None, refine = "sync"))]
     fn horizon(
         dt: f64,
         init: &PyParams,
         h0: f64,
         config: Option<&Bound<'_, PyAny>>,
         effects: Option<PyRef<'_, PyEffectSet>>,
+        refine: &str,
     ) -> PyResult<Self> {
-        Self::build_horizon(dt, init, h0, config, Some(effects.map(|e| e.inner.clone()).unwrap_or_default()))
+        Self::build_horizon(dt, init, h0, config, Some(effects.map(|e| e.inner.clone()).unwrap_or_default()), refine)
     }
 
     /// The paper's method over a window of `window` samples; see the class docs.
@@ -172,12 +265,36 @@ impl PyIdentifier {
         }
         let cfg = paper_config(config, window as usize)?;
         let id = PaperIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
-        Ok(PyIdentifier { inner: AnyIdentifier::Paper(id) })
+        Ok(PyIdentifier { inner: Inner::Any(AnyIdentifier::Paper(id)) })
     }
 
     /// Takes one sample (u \[V\], x \[µm\]); returns the predicted x \[µm\] (see the class docs).
     fn push(&mut self, u: f64, x: f64) -> PyResult<f64> {
-        self.inner.push(u, x).map_err(value_error)
+        with_id!(&mut self.inner, id => id.push(u, x)).map_err(value_error)
+    }
+
+    /// Cooperative mode: runs the window pass at most `max_intervals` integration
+    /// intervals on the samples pushed so far, with the GIL released; an update is
+    /// adopted here, so the next push predicts with it. Returns the intervals run (0:
+    /// nothing to do until more samples come). In the other modes and methods the
+    /// pass runs elsewhere (in push, or on the worker) and this returns 0.
+    fn refine(&mut self, py: Python<'_>, max_intervals: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let n = count_arg(max_intervals, "max_intervals")?;
+        if n < 0 {
+            return Err(PyValueError::new_err(format!("invalid max_intervals = {n}: must be >= 0")));
+        }
+        let n = usize::try_from(n).unwrap_or(usize::MAX);
+        match &mut self.inner {
+            Inner::Any(AnyIdentifier::Horizon(id)) => Ok(py.detach(move || id.refine(n))),
+            _ => Ok(0),
+        }
+    }
+
+    /// Where the horizon method's window pass runs: "sync", "cooperative" or
+    /// "background"; None for the other methods.
+    #[getter]
+    fn refine_mode(&self) -> Option<&'static str> {
+        self.inner.refine_mode()
     }
 
     /// `push` over arrays, with the GIL released; returns the predictions \[µm\],
@@ -195,7 +312,7 @@ impl PyIdentifier {
         let out = py
             .detach(move || {
                 let mut out = vec![0.0; u.len()];
-                inner.push_many(&u, &x, &mut out).map(|_| out)
+                with_id!(inner, id => id.push_many(&u, &x, &mut out)).map(|_| out)
             })
             .map_err(value_error)?;
         Ok(PyArray1::from_vec(py, out))
@@ -204,13 +321,13 @@ impl PyIdentifier {
     /// The current parameter estimates.
     #[getter]
     fn params(&self) -> PyParams {
-        PyParams { inner: self.inner.params() }
+        PyParams { inner: with_id!(&self.inner, id => id.params()) }
     }
 
     /// The model's hysteresis state h \[µm\] after the last sample.
     #[getter]
     fn h(&self) -> f64 {
-        self.inner.h()
+        with_id!(&self.inner, id => id.h())
     }
 
     /// The effects identified along with the parameters, with their current
@@ -220,9 +337,10 @@ impl PyIdentifier {
     #[getter]
     fn effects(&self) -> Option<PyEffectSet> {
         match &self.inner {
-            AnyIdentifier::Rpem(id) => Some(PyEffectSet { inner: id.effects() }),
-            AnyIdentifier::Horizon(id) => Some(PyEffectSet { inner: id.effects() }),
-            AnyIdentifier::Paper(_) => None,
+            Inner::Any(AnyIdentifier::Rpem(id)) => Some(PyEffectSet { inner: id.effects() }),
+            Inner::Any(AnyIdentifier::Horizon(id)) => Some(PyEffectSet { inner: id.effects() }),
+            Inner::Background(id) => Some(PyEffectSet { inner: id.effects() }),
+            Inner::Any(AnyIdentifier::Paper(_)) => None,
         }
     }
 
@@ -233,7 +351,7 @@ impl PyIdentifier {
     fn forecast<'py>(&self, py: Python<'py>, u: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = samples(u, "u")?;
         let mut out = vec![0.0; u.len()];
-        self.inner.forecast_into(&u, &mut out).map_err(value_error)?;
+        with_id!(&self.inner, id => id.forecast_into(&u, &mut out)).map_err(value_error)?;
         Ok(PyArray1::from_vec(py, out))
     }
 
@@ -249,9 +367,10 @@ impl PyIdentifier {
     #[getter]
     fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         match &self.inner {
-            AnyIdentifier::Rpem(id) => slots_dict(py, rpem_slots(&mut id.config().clone())),
-            AnyIdentifier::Paper(id) => slots_dict(py, paper_slots(&mut id.config().clone())),
-            AnyIdentifier::Horizon(id) => slots_dict(py, horizon_slots(&mut id.config().clone())),
+            Inner::Any(AnyIdentifier::Rpem(id)) => slots_dict(py, rpem_slots(&mut id.config().clone())),
+            Inner::Any(AnyIdentifier::Paper(id)) => slots_dict(py, paper_slots(&mut id.config().clone())),
+            Inner::Any(AnyIdentifier::Horizon(id)) => slots_dict(py, horizon_slots(&mut id.config().clone())),
+            Inner::Background(id) => slots_dict(py, horizon_slots(&mut id.config().clone())),
         }
     }
 
@@ -259,8 +378,8 @@ impl PyIdentifier {
     #[getter]
     fn window(&self) -> Option<usize> {
         match &self.inner {
-            AnyIdentifier::Paper(id) => Some(id.config().window_len),
-            AnyIdentifier::Rpem(_) | AnyIdentifier::Horizon(_) => None,
+            Inner::Any(AnyIdentifier::Paper(id)) => Some(id.config().window_len),
+            _ => None,
         }
     }
 
@@ -304,6 +423,8 @@ impl PyIdentifier {
                 d.set_item("damping", s.damping)?;
                 d.set_item("step_limited", s.step_limited)?;
                 d.set_item("projected", s.projected)?;
+                d.set_item("behind_samples", s.behind_samples)?;
+                d.set_item("behind_s", s.behind_s)?;
             }
         }
         Ok(d)
@@ -311,29 +432,46 @@ impl PyIdentifier {
 
     /// Back to the state right after construction.
     fn reset(&mut self) {
-        self.inner.reset()
+        with_id!(&mut self.inner, id => id.reset())
     }
 
     /// Pickle support: the identifier is saved as its byte snapshot (every value it
-    /// carries between samples), so an unpickled copy continues bit for bit.
-    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
-        let bytes = slf.borrow().inner.to_snapshot();
+    /// carries between samples), so an unpickled copy continues bit for bit (sync and
+    /// cooperative; a background one is saved as a cooperative one with the samples
+    /// its worker had not read yet, and restored with a new worker).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let me = slf.borrow();
+        let bytes = PyBytes::new(slf.py(), &me.inner.to_snapshot());
         let restore = slf.get_type().getattr("_from_snapshot")?;
-        Ok((restore, (PyBytes::new(slf.py(), &bytes),)))
+        let args = if matches!(me.inner, Inner::Background(_)) {
+            PyTuple::new(slf.py(), [bytes.into_any(), "background".into_pyobject(slf.py())?.into_any()])?
+        } else {
+            PyTuple::new(slf.py(), [bytes])?
+        };
+        Ok((restore, args))
     }
 
-    /// Rebuilds an identifier from the bytes written by `__reduce__` (ValueError if corrupt).
+    /// Rebuilds an identifier from the bytes written by `__reduce__` (ValueError if
+    /// corrupt); `refine="background"` restarts a horizon identifier's worker.
     #[classmethod]
-    fn _from_snapshot(_cls: &Bound<'_, PyType>, data: &[u8]) -> PyResult<Self> {
-        AnyIdentifier::from_snapshot(data).map(|inner| PyIdentifier { inner }).map_err(value_error)
+    #[pyo3(signature = (data, refine = None))]
+    fn _from_snapshot(_cls: &Bound<'_, PyType>, data: &[u8], refine: Option<&str>) -> PyResult<Self> {
+        let any = AnyIdentifier::from_snapshot(data).map_err(value_error)?;
+        let inner = match (any, refine) {
+            (AnyIdentifier::Horizon(id), Some("background")) => {
+                Inner::Background(BackgroundHorizon::spawn(id).map_err(value_error)?)
+            }
+            (any, _) => Inner::Any(any),
+        };
+        Ok(PyIdentifier { inner })
     }
 
-    fn __copy__(&self) -> Self {
-        self.clone()
+    fn __copy__(&self) -> PyResult<Self> {
+        Ok(PyIdentifier { inner: self.inner.try_clone()? })
     }
 
-    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
-        self.clone()
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
+        self.__copy__()
     }
 
     fn __repr__(&self) -> String {

@@ -437,3 +437,249 @@ fn inverse_and_compensator_steps_do_not_allocate() {
     assert!(clipped > 0, "the 90 V limit never bound");
     assert_eq!(count, 0, "the compensation steps allocated {count} times over {} samples", x.len());
 }
+
+// -- the recommended identifier's two paths: push and the window pass -----------------
+//
+// Sync reproduces the predictions of the code before the split bit for bit (digests of
+// a stored run); cooperative is reproducible for a given schedule of `refine` calls,
+// its snapshots (pending samples and a pending update included) continue bit for bit,
+// and push alone is the model alone (no refine: the starting model's predictions, the
+// window kept by the usual rule); background: push does not allocate, a starved worker
+// changes nothing in what push does, and once it runs the estimates improve without a
+// tear.
+
+use std::time::Duration;
+
+use boucwen::identify::{BackgroundHorizon, HorizonStatus, RefineMode};
+
+/// Starting values off the truth, so that the estimates move.
+fn start() -> Params {
+    Params { kv: 0.15, beta: 0.03, ..Params::paper_1hz() }
+}
+
+/// The recommended identifier from [`start`] in cooperative mode.
+fn cooperative(cfg: HorizonConfig) -> HorizonIdentifier {
+    HorizonIdentifier::recommended(DT, start(), 0.0, cfg).expect("valid").with_mode(RefineMode::Cooperative)
+}
+
+fn fnv(d: u64, v: f64) -> u64 {
+    (d ^ v.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
+}
+
+/// The sync digests of the code before the split: every prediction and the final
+/// estimates, for (max_window, with the input lag).
+const SYNC_DIGESTS: [(usize, bool, u64, u64); 4] = [
+    (40_000, false, 0x72c8_fd40_8e74_934a, 179),
+    (40_000, true, 0x3dd6_5b08_8745_f984, 179),
+    (4_000, false, 0xa4c1_bda1_a60d_3d3d, 156),
+    (4_000, true, 0x4851_11d9_701b_3984, 156),
+];
+
+#[test]
+fn sync_is_the_default_and_reproduces_the_stored_run() {
+    let (u, x) = record();
+    for (max_window, lag, digest, updates) in SYNC_DIGESTS {
+        let cfg = HorizonConfig { max_window, ..HorizonConfig::default() };
+        let mut id = if lag {
+            HorizonIdentifier::recommended(DT, start(), 0.0, cfg)
+        } else {
+            HorizonIdentifier::new(DT, start(), 0.0, cfg)
+        }
+        .expect("valid");
+        assert_eq!(id.mode(), RefineMode::Sync);
+        let mut d: u64 = 0xcbf2_9ce4_8422_2325;
+        for (&a, &b) in u.iter().zip(&x) {
+            d = fnv(d, id.push(a, b).expect("finite"));
+            // refine does nothing in sync mode.
+            assert_eq!(id.refine(1000), 0);
+        }
+        for v in id.params().to_array() {
+            d = fnv(d, v);
+        }
+        assert_eq!((d, id.status().updates), (digest, updates), "max_window {max_window}, lag {lag}");
+    }
+}
+
+/// Pushes `u`, `x` from `from` on with a refine schedule: `budget(k)` intervals after
+/// the push of sample k. Returns the predictions.
+fn run(id: &mut HorizonIdentifier, u: &[f64], x: &[f64], budget: impl Fn(usize) -> usize) -> Vec<f64> {
+    let mut out = Vec::with_capacity(u.len());
+    for (k, (&a, &b)) in u.iter().zip(x).enumerate() {
+        out.push(id.push(a, b).expect("finite"));
+        id.refine(budget(k));
+    }
+    out
+}
+
+/// A schedule with slack and with starvation: 48 intervals after most pushes, none
+/// for stretches, a large budget now and then.
+fn schedule(k: usize) -> usize {
+    match k % 5000 {
+        0 => 100_000,
+        1000..=2999 => 0,
+        _ => 48,
+    }
+}
+
+fn mean_abs_error(pred: &[f64], x: &[f64]) -> f64 {
+    pred.iter().zip(x).map(|(p, m)| (p - m).abs()).sum::<f64>() / pred.len() as f64
+}
+
+#[test]
+fn cooperative_is_reproducible_and_identifies() {
+    let (u, x) = record();
+    let make = || cooperative(HorizonConfig::default());
+    let (mut a, mut b) = (make(), make());
+    let pa = run(&mut a, &u, &x, schedule);
+    let pb = run(&mut b, &u, &x, schedule);
+    assert!(pa.iter().zip(&pb).all(|(p, q)| p.to_bits() == q.to_bits()), "same schedule, different bits");
+    assert!(a == b);
+    assert!(a.status().updates > 20, "{:?}", a.status());
+    // As good as sync where refine keeps up (within a factor 1.5 of its error).
+    let mut sync = HorizonIdentifier::recommended(DT, start(), 0.0, HorizonConfig::default()).expect("valid");
+    let ps = run(&mut sync, &u, &x, |_| 0);
+    let mut kept = make();
+    let pk = run(&mut kept, &u, &x, |_| 64);
+    let tail = u.len() / 2;
+    let (es, ek) = (mean_abs_error(&ps[tail..], &x[tail..]), mean_abs_error(&pk[tail..], &x[tail..]));
+    assert!(ek < 1.5 * es, "cooperative {ek} µm vs sync {es} µm");
+}
+
+#[test]
+fn cooperative_push_alone_is_the_model_alone() {
+    // No refine at all: every prediction is that of the starting model (a forecast
+    // from a fresh identifier), the window moves by the usual rule as in sync mode,
+    // the status says how far behind the estimates are, and push allocates nothing.
+    let (u, x) = record();
+    let cfg = HorizonConfig { max_window: 4000, ..HorizonConfig::default() };
+    let mut coop = cooperative(cfg);
+    let mut sync = HorizonIdentifier::recommended(DT, start(), 0.0, cfg).expect("valid");
+    let mut model = vec![0.0; u.len()];
+    coop.forecast_into(&u, &mut model).expect("finite");
+    let (count, ()) = allocations_during(|| {
+        for k in 0..u.len() {
+            let p = coop.push(u[k], x[k]).expect("finite");
+            sync.push(u[k], x[k]).expect("finite");
+            assert_eq!(p.to_bits(), model[k].to_bits(), "sample {k}");
+            let (c, s) = (coop.status(), sync.status());
+            assert_eq!((c.window_samples, c.window_travel_v), (s.window_samples, s.window_travel_v), "sample {k}");
+            assert_eq!(c.behind_samples, k as u64 + 1);
+        }
+    });
+    assert_eq!(count, 0, "push allocated {count} times");
+    assert_eq!(coop.params(), start());
+    assert!((coop.status().behind_s - u.len() as f64 * DT).abs() < 1e-9);
+    // Refine after the starvation: the estimates improve over the window kept, adopted
+    // at the newest sample, and the next push predicts what a forecast said.
+    let (count, ran) = allocations_during(|| coop.refine(usize::MAX));
+    assert_eq!(count, 0, "refine allocated {count} times");
+    assert!(ran > 0);
+    let s: HorizonStatus = coop.status();
+    assert!(s.updated && s.updates >= 1, "{s:?}");
+    assert!(s.behind_samples < 4000, "{s:?}");
+    assert_ne!(coop.params(), start());
+    assert_eq!(coop.refine(usize::MAX), 0, "nothing left to do without new samples");
+    let (u2, x2) = (&u[..2000], &x[..2000]);
+    let mut ahead = vec![0.0; 1];
+    coop.forecast_into(&u2[..1], &mut ahead).expect("finite");
+    assert_eq!(coop.push(u2[0], x2[0]).expect("finite").to_bits(), ahead[0].to_bits());
+}
+
+#[test]
+fn cooperative_snapshot_continues_bit_for_bit() {
+    // Snapshots at many points of a schedule (pending samples, a pass in progress and
+    // an update waiting to be adopted among them) continue like the original.
+    let (u, x) = record();
+    let cfg = HorizonConfig { max_window: 6000, ..HorizonConfig::default() };
+    let mut id = cooperative(cfg);
+    let budget = |k: usize| if k % 7 == 0 { 150 } else { 3 };
+    for k in 0..u.len() {
+        id.push(u[k], x[k]).expect("finite");
+        id.refine(budget(k));
+        if k % 4111 == 4110 && k + 3000 < u.len() {
+            let mut restored = HorizonIdentifier::from_bytes(&id.to_bytes()).expect("valid");
+            assert!(restored == id, "sample {k}: restored state differs");
+            let mut copy = id.clone();
+            for j in k + 1..k + 3000 {
+                let (a, b) = (copy.push(u[j], x[j]).expect("finite"), restored.push(u[j], x[j]).expect("finite"));
+                assert_eq!(a.to_bits(), b.to_bits(), "snapshot at {k}, sample {j}");
+                assert_eq!(copy.refine(budget(j)), restored.refine(budget(j)));
+            }
+            assert!(copy == restored);
+        }
+    }
+    assert!(id.status().updates > 5);
+    // The mode is part of the snapshot; a truncated one is refused.
+    let bytes = id.to_bytes();
+    assert_eq!(HorizonIdentifier::from_bytes(&bytes).expect("valid").mode(), RefineMode::Cooperative);
+    assert!(HorizonIdentifier::from_bytes(&bytes[..bytes.len() - 1]).is_err());
+}
+
+#[test]
+fn switching_modes_keeps_the_state() {
+    let (u, x) = record();
+    let mut id = HorizonIdentifier::recommended(DT, start(), 0.0, HorizonConfig::default()).expect("valid");
+    let half = u.len() / 2;
+    run(&mut id, &u[..half], &x[..half], |_| 0);
+    id.set_mode(RefineMode::Cooperative);
+    run(&mut id, &u[half..half + 8_000], &x[half..half + 8_000], |k| if k % 3 == 0 { 60 } else { 0 });
+    id.set_mode(RefineMode::Sync);
+    let tail = run(&mut id, &u[half + 8_000..], &x[half + 8_000..], |_| 0);
+    assert!(mean_abs_error(&tail, &x[half + 8_000..]) < 0.05, "{:?}", id.status());
+}
+
+#[test]
+fn background_push_is_unchanged_by_a_starved_worker_and_adopts_without_a_tear() {
+    let (u, x) = record();
+    let cfg = HorizonConfig::default();
+    let mut bg = BackgroundHorizon::recommended(DT, start(), 0.0, cfg).expect("valid");
+    bg.hold_worker(true);
+    let mut model = vec![0.0; u.len()];
+    bg.forecast_into(&u, &mut model).expect("finite");
+    // Starved: push is the starting model, bit for bit, allocates nothing, and says
+    // how far behind the estimates are.
+    let cut = 30_000;
+    let (count, ()) = allocations_during(|| {
+        for k in 0..cut {
+            let p = bg.push(u[k], x[k]).expect("finite");
+            assert_eq!(p.to_bits(), model[k].to_bits(), "sample {k}");
+        }
+        assert!(bg.push(f64::NAN, 0.0).is_err());
+    });
+    assert_eq!(count, 0, "push allocated {count} times");
+    assert_eq!(bg.status().behind_samples, cut as u64);
+    assert_eq!(bg.params(), start());
+    // The worker runs again: it reads the samples still in the ring (those of the
+    // window), refines, and its update is adopted at a push.
+    bg.hold_worker(false);
+    assert!(bg.wait_idle(Duration::from_secs(120)), "the worker did not catch up");
+    let mut adopted = 0;
+    let mut worst_after = 0.0_f64;
+    for k in cut..u.len() {
+        let p = bg.push(u[k], x[k]).expect("finite");
+        assert!(p.is_finite() && bg.h().is_finite());
+        if bg.status().updated {
+            adopted += 1;
+            worst_after = worst_after.max((p - x[k]).abs());
+        }
+        if k % 2000 == 0 {
+            // Let the worker keep up (a test machine may be busy).
+            bg.wait_idle(Duration::from_secs(30));
+        }
+    }
+    assert!(adopted > 0, "no update adopted: {:?}", bg.status());
+    // No tear: the prediction at an adoption is as close to the measurement as the
+    // model is (h and the parameters switched together).
+    assert!(worst_after < 1.0, "worst error at an adoption {worst_after} µm");
+    assert_ne!(bg.params(), start());
+    // A snapshot is that of a cooperative identifier and restores with a worker.
+    let coop = HorizonIdentifier::from_bytes(&bg.to_bytes()).expect("valid");
+    assert_eq!(coop.mode(), RefineMode::Cooperative);
+    assert_eq!(coop.params(), bg.params());
+    assert_eq!(coop.h().to_bits(), bg.h().to_bits());
+    let again = BackgroundHorizon::from_bytes(&bg.to_bytes()).expect("valid");
+    assert_eq!(again.params(), bg.params());
+    bg.reset();
+    assert_eq!(bg.params(), start());
+    assert_eq!(bg.push(u[0], x[0]).expect("finite").to_bits(), model[0].to_bits());
+}

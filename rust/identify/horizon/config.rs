@@ -21,7 +21,8 @@ pub struct HorizonConfig {
     /// (∞: no such limit); at least 1.
     pub recent_factor: f64,
     /// Most samples the window holds (the buffer is allocated once, at construction,
-    /// 80 bytes a sample). Default 40 000 (two periods of 1 Hz at 20 kHz).
+    /// 120 bytes a sample, and 24 more for the background mode's sample ring). Default
+    /// 40 000 (two periods of 1 Hz at 20 kHz).
     pub max_window: usize,
     /// Samples of the window's simulation run per push: a pass over a window of W
     /// samples ends after about W / (this − 1) pushes. Default 16: about 15 updates
@@ -122,13 +123,37 @@ impl HorizonConfig {
     }
 }
 
+/// Where the window pass of a [`super::HorizonIdentifier`] runs (see the module docs
+/// of [`super`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RefineMode {
+    /// In `push`, a share of the pass in every push: the predictions of every earlier
+    /// release, bit for bit. The default.
+    #[default]
+    Sync,
+    /// In [`super::HorizonIdentifier::refine`], called when the loop has time; `push`
+    /// only predicts and stores. No thread (`no_std`, the C ABI).
+    Cooperative,
+}
+
+impl RefineMode {
+    /// Short name: "sync" or "cooperative".
+    pub fn name(self) -> &'static str {
+        match self {
+            RefineMode::Sync => "sync",
+            RefineMode::Cooperative => "cooperative",
+        }
+    }
+}
+
 /// What the last push of a [`super::HorizonIdentifier`] did. `Copy`, no allocation.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct HorizonStatus {
     /// Samples pushed since construction or reset.
     pub samples: u64,
-    /// The estimates were updated in this push (the push after a pass over the window
-    /// caught up with the newest sample).
+    /// The estimates were updated in this push (sync mode: the push after a pass over
+    /// the window caught up with the newest sample) or, in cooperative mode, in the
+    /// `refine` calls since it (cleared by the next push).
     pub updated: bool,
     /// Updates since construction or reset.
     pub updates: u64,
@@ -144,4 +169,12 @@ pub struct HorizonStatus {
     pub step_limited: bool,
     /// The projection onto the well-posed region moved n, β or γ in the last update.
     pub projected: bool,
+    /// How far the estimates in use lag the newest sample \[samples\]: samples pushed
+    /// after the last one the pass of the last update ran over (all samples before the
+    /// first update). In sync mode at most about one pass (the window / 15); where the
+    /// pass cannot keep up (cooperative `refine` or the background worker starved) it
+    /// grows.
+    pub behind_samples: u64,
+    /// The same in seconds (`behind_samples` × dt) \[s\].
+    pub behind_s: f64,
 }

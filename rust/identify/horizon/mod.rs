@@ -48,16 +48,46 @@
 //! and either `samples_per_push` intervals on 7-derivative duals or one interval and
 //! the update (a 9 × 9 Cholesky solve and up to three re-solves for the active bounds),
 //! each interval bounded by the integrator's 32 sub-steps; the window's start moves by
-//! bisection over the stored travel (at most 24 probes at the largest `max_window`,
-//! however many samples leave at once). The window buffer is the one allocation (at
+//! a galloping search over the stored travel (1 or 2 probes when it moves by a sample,
+//! at most 48 at the largest `max_window`, however many samples leave at once). The
+//! window buffer is the one allocation (at
 //! construction, `max_window` samples).
 //! Starting values are used as given (n < 1 included; the sensitivities are
 //! regularised at h = 0, see [`crate::model::scalar::SLOPE_FLOOR_UM`]).
+//!
+//! # Two paths: `push` and the window pass
+//!
+//! Steps 1 and 2 are the loop's (the prediction, now); step 3 is the window pass (the
+//! estimates, soon). [`RefineMode`] says where the pass runs:
+//! - [`RefineMode::Sync`] (the default): in-line, a share of it in every push, as
+//!   described above. Deterministic; the predictions are those of every earlier
+//!   release, bit for bit.
+//! - [`RefineMode::Cooperative`]: `push` does steps 1 and 2 only (one integration
+//!   interval, the window's start moved by a galloping search: no O(window) work, no
+//!   allocation); the pass runs in [`HorizonIdentifier::refine`]`(max_intervals)`,
+//!   called when the loop has time (an idle loop, a lower-priority task). No thread:
+//!   the mode for `no_std` and the C ABI. A pass runs over the samples stored when it
+//!   started; its update is carried (one scalar interval per sample) from the pass's
+//!   last sample to the newest one with the new estimates, and only then adopted:
+//!   parameters, lag, h and u_a switch together, between two pushes. Where `refine`
+//!   gets less time than the samples need, passes still end and the estimates still
+//!   improve, over the window the usual rule keeps (older samples leave it as the
+//!   input travels, whether a pass has seen them or not). Deterministic for a given
+//!   sequence of pushes and `refine` calls (same calls, same budgets, same bits).
+//! - Background (`std`): [`BackgroundHorizon`], a worker thread owned by the identifier
+//!   runs the cooperative pass; see its docs. Not deterministic.
+//!
+//! [`HorizonStatus::behind_samples`] says how far the estimates in use lag the
+//! newest sample.
 
+#[cfg(feature = "std")]
+mod background;
 mod config;
 mod snapshot;
 
-pub use config::{HorizonConfig, HorizonStatus};
+#[cfg(feature = "std")]
+pub use background::BackgroundHorizon;
+pub use config::{HorizonConfig, HorizonStatus, RefineMode};
 
 use alloc::vec::Vec;
 
@@ -86,14 +116,14 @@ const LN_FC_SCALE: f64 = 0.5;
 type Normal = SMatrix<f64, NZ, NZ>;
 type Vector = SVector<f64, NZ>;
 
-/// One stored sample: u \[V\], x \[µm\], the input travel up to it \[V\], the h of the
-/// last pass there with its derivatives over (A, β, γ, n, δ, h_s, ln fc), and the
-/// voltage on the stack u_a \[V\] with its derivative over ln fc.
+/// One stored sample: u \[V\], x \[µm\], the h of the last pass there with its
+/// derivatives over (A, β, γ, n, δ, h_s, ln fc), and the voltage on the stack u_a \[V\]
+/// with its derivative over ln fc. (The input travel up to it is kept apart, in
+/// `HorizonIdentifier::travels`, so that the window's search reads 8 bytes a sample.)
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Entry {
     u: f64,
     x: f64,
-    travel: f64,
     h: f64,
     dh: [f64; ND],
     ua: f64,
@@ -112,6 +142,47 @@ fn lag_step_dual(lag: &LagStage, ua: Dual<ND>, u0: f64, u1: f64, dt: f64) -> Dua
     let mut du = ua.du * lag.decay();
     du[I_LN_FC - 2] += lag.ln_fc_slope(ua.re, u0, u1, dt);
     Dual::new(lag.advance(ua.re, u0, u1, dt), du)
+}
+
+/// One interval of the loop's model from the voltage `u_prev` \[V\] of the last sample
+/// to `u` \[V\]: u_a through the lag (`lag`, when one is identified), h by the model's
+/// integrator. Takes and returns (h \[µm\], u_a \[V\]); on the first sample (`u_prev`
+/// None) u_a is u and h stays.
+#[inline(always)]
+fn loop_interval(
+    p: &Params,
+    lag: Option<&LagStage>,
+    dt: f64,
+    (h, ua): (f64, f64),
+    u_prev: Option<f64>,
+    u: f64,
+) -> (f64, f64) {
+    let Some(u0) = u_prev else {
+        return (h, u);
+    };
+    let ua_next = match lag {
+        Some(lag) => lag.advance(ua, u0, u, dt),
+        None => u,
+    };
+    (advance_h(p, h, ua, ua_next, dt), ua_next)
+}
+
+/// The loop's model run open loop over the voltages `u` \[V\] from state (h, u_a) after
+/// a sample at voltage `u_prev`, the displacements \[µm\] into `out` (of `u`'s length).
+fn forecast_from(
+    p: &Params,
+    lag: Option<&LagStage>,
+    dt: f64,
+    mut state: (f64, f64),
+    mut u_prev: Option<f64>,
+    u: &[f64],
+    out: &mut [f64],
+) {
+    for (o, &v) in out.iter_mut().zip(u) {
+        state = loop_interval(p, lag, dt, state, u_prev, v);
+        u_prev = Some(v);
+        *o = output(p, state.1, state.0);
+    }
 }
 
 /// A simulation of the window in progress.
@@ -158,6 +229,24 @@ impl Pass {
             count: 0,
         }
     }
+}
+
+/// Cooperative mode: the estimates of a finished pass, carried with the model's own
+/// integrator from the pass's last sample towards the newest one before they are
+/// adopted (so that parameters, lag, h and u_a switch together).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pending {
+    /// Absolute index of the sample the carried state is at.
+    at: u64,
+    params: Params,
+    /// ln fc of the input lag (`None` without the lag).
+    ln_fc: Option<f64>,
+    /// h there \[µm\].
+    h: f64,
+    /// u_a there \[V\].
+    ua: f64,
+    /// Samples the update was fitted on (its pass ended at sample `fitted − 1`).
+    fitted: u64,
 }
 
 /// Scale of unknown `i` in the update.
@@ -259,6 +348,8 @@ pub struct HorizonIdentifier {
     u_prev: Option<f64>,
     /// Ring buffer of the newest samples, `max_window` slots.
     buffer: Vec<Entry>,
+    /// The input travel up to each sample of `buffer` \[V\], slot for slot.
+    travels: Vec<f64>,
     /// Absolute index of the next sample (= samples pushed).
     next: u64,
     /// Absolute index of the window's first sample.
@@ -274,6 +365,16 @@ pub struct HorizonIdentifier {
     last_mse: f64,
     damping: f64,
     status: HorizonStatus,
+    /// Where the window pass runs.
+    mode: RefineMode,
+    /// Cooperative mode: the pass ends at this absolute index (exclusive), the newest
+    /// sample when it started (or later, when it had to wait for enough travel).
+    pass_end: u64,
+    /// Cooperative mode: the update of a finished pass, not adopted yet.
+    pending: Option<Pending>,
+    /// Samples the estimates in use were fitted on: the pass of the last update ended
+    /// at sample `fitted − 1` (0 before the first update).
+    fitted: u64,
 }
 
 impl HorizonIdentifier {
@@ -322,6 +423,8 @@ impl HorizonIdentifier {
         let lag = lag_of(ln_fc.map_or(hi, math::exp), dt);
         let mut buffer = Vec::new();
         buffer.resize(config.max_window, Entry::default());
+        let mut travels = Vec::new();
+        travels.resize(config.max_window, 0.0);
         Ok(HorizonIdentifier {
             config,
             dt,
@@ -335,6 +438,7 @@ impl HorizonIdentifier {
             ua: 0.0,
             u_prev: None,
             buffer,
+            travels,
             next: 0,
             start: 0,
             mid: 0,
@@ -343,7 +447,40 @@ impl HorizonIdentifier {
             last_mse: f64::INFINITY,
             damping: config.damping,
             status: HorizonStatus { damping: config.damping, ..HorizonStatus::default() },
+            mode: RefineMode::Sync,
+            pass_end: 0,
+            pending: None,
+            fitted: 0,
         })
+    }
+
+    /// The same identifier with the window pass run as `mode` says (see the module
+    /// docs); [`RefineMode::Sync`] is the default.
+    pub fn with_mode(mut self, mode: RefineMode) -> Self {
+        self.set_mode(mode);
+        self
+    }
+
+    /// Switches where the window pass runs, at any sample: to cooperative, the pass in
+    /// progress ends at the newest sample; to sync, an update not adopted yet is
+    /// carried to the newest sample and adopted first.
+    pub fn set_mode(&mut self, mode: RefineMode) {
+        if mode == self.mode {
+            return;
+        }
+        match mode {
+            RefineMode::Cooperative => self.pass_end = self.next,
+            RefineMode::Sync => {
+                self.carry_pending(usize::MAX);
+                self.finish_due = false;
+            }
+        }
+        self.mode = mode;
+    }
+
+    /// Where the window pass runs.
+    pub fn mode(&self) -> RefineMode {
+        self.mode
     }
 
     /// The tuning in use.
@@ -369,6 +506,12 @@ impl HorizonIdentifier {
 
     fn entry(&self, k: u64) -> &Entry {
         &self.buffer[self.slot(k)]
+    }
+
+    /// The input travel up to sample `k` \[V\].
+    #[inline(always)]
+    fn travel(&self, k: u64) -> f64 {
+        self.travels[self.slot(k)]
     }
 
     /// The slot after `slot` in the ring buffer.
@@ -434,13 +577,19 @@ impl HorizonIdentifier {
 
     /// Runs the pass at most `samples` samples on, not beyond the newest.
     fn run_pass(&mut self, samples: usize) {
-        if self.pass.cursor >= self.next {
+        self.run_pass_to(self.next, samples);
+    }
+
+    /// Runs the pass at most `samples` samples on, not beyond absolute index `end`
+    /// (exclusive, at most the newest sample's index + 1).
+    fn run_pass_to(&mut self, end: u64, samples: usize) {
+        if self.pass.cursor >= end {
             return;
         }
         let mut slot = self.slot(self.pass.cursor);
         let mut before = if slot == 0 { self.buffer.len() - 1 } else { slot - 1 };
         for _ in 0..samples {
-            if self.pass.cursor >= self.next {
+            if self.pass.cursor >= end {
                 break;
             }
             self.pass_step(slot, before);
@@ -450,12 +599,29 @@ impl HorizonIdentifier {
     }
 
     /// The first index in `lo..hi` whose travel is above `limit` \[V\] (`hi` if none):
-    /// the travel grows with the index, so a bisection (at most 24 probes for the
-    /// largest buffer).
+    /// the travel grows with the index, so a galloping search from `lo` (probes at lo,
+    /// lo + 1, lo + 3, lo + 7, … until one is above, then a bisection between the last
+    /// two): 1 or 2 probes, near samples already in cache, when the window's start moves
+    /// by a sample or none, and at most 48 for the largest buffer when it jumps.
+    ///
+    /// Where `lo` lies before the oldest sample still stored (its slot holds a newer
+    /// sample), the plain bisection of earlier releases runs, probe for probe, so that
+    /// the predictions stay theirs bit for bit.
     fn first_travel_above(&self, mut lo: u64, mut hi: u64, limit: f64) -> u64 {
+        let gallop = lo >= self.next.saturating_sub(self.buffer.len() as u64);
+        let mut width = 1u64;
+        while gallop && lo < hi {
+            let probe = lo.saturating_add(width - 1).min(hi - 1);
+            if self.travel(probe) > limit {
+                hi = probe;
+                break;
+            }
+            lo = probe + 1;
+            width = width.saturating_mul(2);
+        }
         while lo < hi {
             let m = lo + (hi - lo) / 2;
-            if self.entry(m).travel > limit {
+            if self.travel(m) > limit {
                 hi = m;
             } else {
                 lo = m + 1;
@@ -468,8 +634,8 @@ impl HorizonIdentifier {
     /// input travel `travel` \[V\] was stored: the start is the latest index that keeps
     /// at least `memory_travel_v` of travel after the one following it, the window at
     /// most `recent_factor` × the newest half's samples and at most the buffer. Found by
-    /// bisection, so a push's cost does not grow with how far the start moves (a switch
-    /// to a faster input drops thousands of samples at once).
+    /// a galloping search, so a push's cost grows with the logarithm of how far the
+    /// start moves only (a switch to a faster input drops thousands of samples at once).
     fn move_window(&mut self, travel: f64) {
         let cfg = &self.config;
         let (next, cap) = (self.next, self.buffer.len() as u64);
@@ -493,10 +659,15 @@ impl HorizonIdentifier {
         self.mid = self.mid.max(self.start);
     }
 
-    /// Ends the pass: one Levenberg–Marquardt step, then a new pass from the window's start.
+    /// Ends the pass: one Levenberg–Marquardt step, then a new pass from the window's
+    /// start. The pass ends at its cursor: the newest sample in sync mode, where the
+    /// update is adopted at once; in cooperative mode an update of a pass that ended
+    /// before the newest sample is kept pending (see [`Pending`]).
     fn finish_pass(&mut self) {
         let cfg = self.config;
         let pass = self.pass;
+        let end = pass.cursor;
+        let before = (self.params, self.ln_fc, self.lag, self.h, self.ua);
         let mse = pass.sse / pass.count.max(1) as f64;
         self.damping =
             if mse > 1.1 * self.last_mse { (self.damping * 4.0).min(1e6) } else { (self.damping * 0.5).max(1e-9) };
@@ -567,7 +738,7 @@ impl HorizonIdentifier {
                 h
             }
         };
-        let last = *self.entry(self.next - 1);
+        let last = *self.entry(end - 1);
         self.h = moved(last.h, &last.dh);
         let first = *self.entry(self.start);
         let h_start = moved(first.h, &first.dh);
@@ -578,7 +749,133 @@ impl HorizonIdentifier {
             (first.u, 0.0)
         };
         self.pass = Pass::new(self.start, self.params, h_start, ua_start, dua_start, self.lag);
+        self.pass_end = self.next;
+        if end < self.next {
+            // Newer samples were pushed with the estimates from before: the update is
+            // carried to the newest sample first, then adopted (see `carry_pending`).
+            let ua = if self.ln_fc.is_some() { self.ua } else { last.u };
+            let (params, ln_fc, h) = (self.params, self.ln_fc, self.h);
+            self.pending = Some(Pending { at: end - 1, params, ln_fc, h, ua, fitted: end });
+            (self.params, self.ln_fc, self.lag, self.h, self.ua) = before;
+            status.updates = self.status.updates;
+            status.updated = false;
+        } else {
+            self.fitted = end;
+        }
         self.status = status;
+    }
+
+    /// Cooperative mode: carries the pending update at most `intervals` samples
+    /// towards the newest sample with the model's own integrator (as `push` predicts)
+    /// and adopts it there (parameters, lag, h and u_a together). Returns the
+    /// intervals run. When the samples it needs have left the buffer (no `refine`
+    /// for longer than `max_window` samples), the parameters are adopted with the
+    /// model's own h and u_a.
+    fn carry_pending(&mut self, intervals: usize) -> usize {
+        let Some(mut p) = self.pending else {
+            return 0;
+        };
+        let cap = self.buffer.len() as u64;
+        let newest = self.next - 1;
+        let mut ran = 0;
+        if p.at < self.next.saturating_sub(cap) {
+            p.h = self.h;
+            p.ua = self.ua;
+            p.at = newest;
+        }
+        let lag = lag_of(p.ln_fc.map_or(self.config.fc_bounds_hz.1, math::exp), self.dt);
+        while p.at < newest && ran < intervals {
+            let (u0, u1) = (self.entry(p.at).u, self.entry(p.at + 1).u);
+            let carried = p.ln_fc.map(|_| &lag);
+            (p.h, p.ua) = loop_interval(&p.params, carried, self.dt, (p.h, p.ua), Some(u0), u1);
+            p.at += 1;
+            ran += 1;
+        }
+        if p.at < newest {
+            self.pending = Some(p);
+            return ran;
+        }
+        self.params = p.params;
+        self.ln_fc = p.ln_fc;
+        self.lag = lag;
+        self.h = p.h;
+        self.ua = p.ua;
+        self.fitted = p.fitted;
+        self.pending = None;
+        self.status.updated = true;
+        self.status.updates += 1;
+        ran
+    }
+
+    /// Refreshes how far the estimates in use lag the newest sample.
+    #[inline]
+    fn update_lag_status(&mut self) {
+        let behind = self.next.saturating_sub(self.fitted);
+        self.status.behind_samples = behind;
+        self.status.behind_s = behind as f64 * self.dt;
+    }
+
+    /// Cooperative mode: runs the window pass, at most `max_intervals` integration
+    /// intervals (one sample of the pass on dual numbers, or one scalar interval of
+    /// carrying an update to the newest sample), on the samples pushed so far. An
+    /// update is adopted here, between two pushes: the next `push` predicts with it.
+    /// Returns the intervals run (fewer than `max_intervals` when the pass has caught
+    /// up: nothing left to do until more samples come). In sync mode the pass runs in
+    /// `push` and this does nothing (returns 0).
+    ///
+    /// Cost: about the `samples_per_push`-th part of a sync push per interval
+    /// (`cargo bench --bench latency` prints it), plus one Levenberg–Marquardt step
+    /// (a 9 × 9 solve) per pass. Never allocates, never panics.
+    pub fn refine(&mut self, max_intervals: usize) -> usize {
+        if self.mode == RefineMode::Sync || self.next == 0 {
+            return 0;
+        }
+        let mut left = max_intervals;
+        loop {
+            if self.pending.is_some() {
+                left -= self.carry_pending(left);
+                if self.pending.is_some() {
+                    break;
+                }
+            }
+            if left == 0 {
+                break;
+            }
+            if self.pass_end <= self.start {
+                // Every sample of the pass has left the window: start over on it.
+                let e = *self.entry(self.start);
+                self.pass = Pass::new(self.start, self.pass.params, e.h, e.ua, e.dua, self.pass.lag);
+                self.pass_end = self.next;
+            }
+            if self.pass.cursor < self.pass_end {
+                let from = self.pass.cursor;
+                self.run_pass_to(self.pass_end, left);
+                left -= (self.pass.cursor - from) as usize;
+                if self.pass.cursor < self.pass_end {
+                    break;
+                }
+            }
+            // The pass has reached its end: it ends with an update when it spans enough
+            // and holds a sample the last update did not see; else it waits for (and
+            // runs on over) the newer samples.
+            let end = self.pass_end;
+            let cap = self.buffer.len() as u64;
+            let spans = end > self.pass.start && {
+                let span_travel = self.travel(end - 1) - self.travel(self.pass.start);
+                span_travel >= self.config.min_pass_fraction * self.config.memory_travel_v
+                    || end - self.pass.start >= cap / 2
+            };
+            if spans && end > self.fitted {
+                self.finish_pass();
+                left = left.saturating_sub(1);
+            } else if end < self.next {
+                self.pass_end = self.next;
+            } else {
+                break;
+            }
+        }
+        self.update_lag_status();
+        max_intervals - left
     }
 }
 
@@ -589,36 +886,35 @@ impl OnlineIdentifier for HorizonIdentifier {
         finite_sample("u", u)?;
         finite_sample("x", x)?;
         // 1. Predict with the current estimates.
-        match self.u_prev {
-            Some(u0) => {
-                let ua = if self.ln_fc.is_some() { self.lag.advance(self.ua, u0, u, self.dt) } else { u };
-                self.h = advance_h(&self.params, self.h, self.ua, ua, self.dt);
-                self.ua = ua;
-            }
-            None => self.ua = u,
-        }
+        let lag = self.ln_fc.map(|_| &self.lag);
+        (self.h, self.ua) = loop_interval(&self.params, lag, self.dt, (self.h, self.ua), self.u_prev, u);
         let prediction = output(&self.params, self.ua, self.h);
         // 2. Store; move the window's start.
         let travel = match self.u_prev {
-            Some(u0) if self.next > 0 => self.entry(self.next - 1).travel + (u - u0).abs(),
+            Some(u0) if self.next > 0 => self.travel(self.next - 1) + (u - u0).abs(),
             _ => 0.0,
         };
         self.u_prev = Some(u);
         let k = self.next;
         let slot = self.slot(k);
-        self.buffer[slot] = Entry { u, x, travel, h: self.h, dh: [0.0; ND], ua: self.ua, dua: 0.0 };
+        self.buffer[slot] = Entry { u, x, h: self.h, dh: [0.0; ND], ua: self.ua, dua: 0.0 };
+        self.travels[slot] = travel;
         self.next += 1;
         self.move_window(travel);
         // 3. Run the pass on; end it on the push after it has caught up and spans enough.
         self.status.updated = false;
         let cap = self.buffer.len() as u64;
         if self.pass.start < self.next.saturating_sub(cap) {
-            // The pass's start has left the buffer (a long hold filled it): restart.
+            // The pass's start has left the buffer (a long hold filled it, or no
+            // `refine` ran): restart.
             let e = *self.entry(self.start);
-            self.pass = Pass::new(self.start, self.params, e.h, e.ua, e.dua, self.lag);
+            self.pass = Pass::new(self.start, self.pass.params, e.h, e.ua, e.dua, self.pass.lag);
             self.finish_due = false;
+            self.pass_end = self.next;
         }
-        if self.finish_due {
+        if self.mode != RefineMode::Sync {
+            // The pass runs in `refine`.
+        } else if self.finish_due {
             // The one sample stored since, then the update.
             self.run_pass(1);
             self.finish_due = false;
@@ -626,7 +922,7 @@ impl OnlineIdentifier for HorizonIdentifier {
         } else {
             self.run_pass(self.config.samples_per_push);
             if self.pass.cursor >= self.next {
-                let span_travel = travel - self.entry(self.pass.start).travel;
+                let span_travel = travel - self.travel(self.pass.start);
                 let span = self.next - self.pass.start;
                 self.finish_due =
                     span_travel >= self.config.min_pass_fraction * self.config.memory_travel_v || span >= cap / 2;
@@ -634,7 +930,8 @@ impl OnlineIdentifier for HorizonIdentifier {
         }
         self.status.samples = self.next;
         self.status.window_samples = self.next - self.start;
-        self.status.window_travel_v = travel - self.entry(self.start).travel;
+        self.status.window_travel_v = travel - self.travel(self.start);
+        self.update_lag_status();
         Ok(prediction)
     }
 
@@ -644,19 +941,8 @@ impl OnlineIdentifier for HorizonIdentifier {
 
     fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()> {
         super::check_forecast(u, out)?;
-        let (mut h, mut ua, mut u_prev) = (self.h, self.ua, self.u_prev);
-        for (o, &v) in out.iter_mut().zip(u) {
-            let ua_next = match u_prev {
-                Some(u0) if self.ln_fc.is_some() => self.lag.advance(ua, u0, v, self.dt),
-                _ => v,
-            };
-            if u_prev.is_some() {
-                h = advance_h(&self.params, h, ua, ua_next, self.dt);
-            }
-            ua = ua_next;
-            u_prev = Some(v);
-            *o = output(&self.params, ua, h);
-        }
+        let lag = self.ln_fc.map(|_| &self.lag);
+        forecast_from(&self.params, lag, self.dt, (self.h, self.ua), self.u_prev, u, out);
         Ok(())
     }
 
@@ -677,6 +963,7 @@ impl OnlineIdentifier for HorizonIdentifier {
         self.ua = 0.0;
         self.u_prev = None;
         self.buffer.fill(Entry::default());
+        self.travels.fill(0.0);
         self.next = 0;
         self.start = 0;
         self.mid = 0;
@@ -685,6 +972,9 @@ impl OnlineIdentifier for HorizonIdentifier {
         self.last_mse = f64::INFINITY;
         self.damping = cfg.damping;
         self.status = HorizonStatus { damping: cfg.damping, ..HorizonStatus::default() };
+        self.pass_end = 0;
+        self.pending = None;
+        self.fitted = 0;
     }
 }
 

@@ -25,6 +25,7 @@ impl Snapshot for HorizonIdentifier {
             ua,
             u_prev,
             buffer,
+            travels,
             next,
             start,
             mid,
@@ -33,6 +34,10 @@ impl Snapshot for HorizonIdentifier {
             last_mse,
             damping,
             status,
+            mode,
+            pass_end,
+            pending,
+            fitted,
         } = self;
         let HorizonConfig {
             memory_travel_v,
@@ -68,8 +73,9 @@ impl Snapshot for HorizonIdentifier {
         w.u64(*mid);
         let first = next.saturating_sub(buffer.len() as u64);
         for k in first..*next {
-            let Entry { u, x, travel, h, dh, ua, dua } = &buffer[(k % buffer.len() as u64) as usize];
-            w.f64s(&[*u, *x, *travel, *h, *ua, *dua]);
+            let slot = (k % buffer.len() as u64) as usize;
+            let Entry { u, x, h, dh, ua, dua } = &buffer[slot];
+            w.f64s(&[*u, *x, travels[slot], *h, *ua, *dua]);
             w.f64s(dh);
         }
         let Pass {
@@ -113,6 +119,8 @@ impl Snapshot for HorizonIdentifier {
             damping: s_damping,
             step_limited,
             projected,
+            behind_samples,
+            behind_s,
         } = status;
         w.u64(*samples);
         w.u8(*updated as u8);
@@ -121,6 +129,25 @@ impl Snapshot for HorizonIdentifier {
         w.f64s(&[*window_travel_v, *rms_um, *s_damping]);
         w.u8(*step_limited as u8);
         w.u8(*projected as u8);
+        w.u64(*behind_samples);
+        w.f64(*behind_s);
+        w.u8(match mode {
+            RefineMode::Sync => 0,
+            RefineMode::Cooperative => 1,
+        });
+        w.u64(*pass_end);
+        w.u64(*fitted);
+        match pending {
+            None => w.u8(0),
+            Some(Pending { at, params, ln_fc, h, ua, fitted }) => {
+                w.u8(1);
+                w.u64(*at);
+                write_params(&mut w, params);
+                w.opt_f64(*ln_fc);
+                w.f64s(&[*h, *ua]);
+                w.u64(*fitted);
+            }
+        }
         w.finish()
     }
 
@@ -181,7 +208,8 @@ impl Snapshot for HorizonIdentifier {
             let [u, x, travel, h, ua, dua] = r.f64s::<6>()?;
             let dh = r.f64s::<ND>()?;
             let slot = (k % cap) as usize;
-            id.buffer[slot] = Entry { u, x, travel, h, dh, ua, dua };
+            id.buffer[slot] = Entry { u, x, h, dh, ua, dua };
+            id.travels[slot] = travel;
         }
         let at = r.offset();
         let p_start = r.u64()?;
@@ -232,6 +260,39 @@ impl Snapshot for HorizonIdentifier {
         id.status.damping = damping;
         id.status.step_limited = r.bool()?;
         id.status.projected = r.bool()?;
+        id.status.behind_samples = r.u64()?;
+        id.status.behind_s = r.f64()?;
+        let at = r.offset();
+        id.mode = match r.u8()? {
+            0 => RefineMode::Sync,
+            1 => RefineMode::Cooperative,
+            _ => return Err(corrupt(at, "snapshot holds an unknown refine mode")),
+        };
+        let at = r.offset();
+        id.pass_end = r.u64()?;
+        id.fitted = r.u64()?;
+        if id.pass_end > id.next || id.fitted > id.next {
+            return Err(corrupt(at, "snapshot holds an invalid pass"));
+        }
+        let at = r.offset();
+        id.pending = match r.u8()? {
+            0 => None,
+            1 => {
+                let p_at = r.u64()?;
+                let params = r.params()?;
+                let ln_fc = r.opt_f64()?;
+                let [h, ua] = [r.finite()?, r.finite()?];
+                let fitted = r.u64()?;
+                if p_at >= id.next || fitted > id.next || ln_fc.is_some() != id.ln_fc.is_some() {
+                    return Err(corrupt(at, "snapshot holds an invalid pending update"));
+                }
+                if ln_fc.is_some_and(|l| !l.is_finite()) {
+                    return Err(corrupt(at, "snapshot holds an invalid input lag"));
+                }
+                Some(Pending { at: p_at, params, ln_fc, h, ua, fitted })
+            }
+            _ => return Err(corrupt(at, "snapshot holds an invalid pending update")),
+        };
         r.end()?;
         Ok(id)
     }
