@@ -262,6 +262,25 @@ def print_targets(targets: dict[str, Any], out: TextIO) -> None:
         print(f"  {target['rule']}: {verdict} over {target['cases']} case(s)", file=out)
 
 
+def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The cases as one Markdown table (the one the README shows): effects with their
+    confidence, RMS error [µm] in-record and on unseen data, base → returned, diagnosis time."""
+    lines = [
+        "| case | effects returned | in-record base → returned | unseen base → returned | diagnosis |",
+        "|---|---|---|---|---|",
+    ]
+    for r in rows:
+        levels = r.get("confidence", {})
+        named = ", ".join(f"{k} ({levels[k]['level']})" if k in levels else k for k in r["effects"]) or "none"
+        fit, new = r["in_record"], r["unseen"]
+        lines.append(
+            f"| {r['case']} | {named} | {fit['base']['rms_um']:.4f} → {fit['returned']['rms_um']:.4f} "
+            f"({_pct(fit['rms_change'])}) | {new['base']['rms_um']:.4f} → {new['returned']['rms_um']:.4f} "
+            f"({_pct(new['rms_change'])}) | {r['time_s']:.0f} s |"
+        )
+    return "\n".join(lines)
+
+
 def run(
     out_dir: str | Path | None = DEFAULT_OUT,
     *,
@@ -287,6 +306,7 @@ def run(
     targets = check_targets(rows)
     if rows:
         print_targets(targets, out)
+        print("\n" + markdown_table(rows), file=out)
     else:
         print("no measured record available: nothing measured", file=out)
     doc = {"cases": rows, "targets": targets, "skipped": skipped, "seed": seed}
