@@ -1451,7 +1451,13 @@ def diagnose_record(
         x_extended=x_ext,
         effect_set=effect_set,
         unexplained=left,
-        confidence=confidence(added, evidence, LOOKALIKE_MARGIN, explained=share if partial else None),
+        confidence=confidence(
+            added,
+            evidence,
+            LOOKALIKE_MARGIN,
+            explained=share if partial else None,
+            earns=lambda trial: _earns(trial, min_gain),
+        ),
         at_bounds=on_bounds(final, record),
     )
     say(result.summary())
