@@ -139,7 +139,7 @@ MAX_DELAY_SAMPLES = 8
 DRIFT_PROFILE = (0.5, 0.8, 1.0, 1.25)
 
 
-def _solved_at(record: Record, fr: ExtendedFit, workers: int | None, jacobian: Any = None) -> Solved:
+def _solved_at(record: Record, fr: ExtendedFit, jacobian: Any = None) -> Solved:
     """``fr`` with its simulated displacement and Jacobian over ``record`` (a fit made
     elsewhere, or on another copy of the record); ``jacobian``, when given, is that
     Jacobian, already known."""
@@ -624,7 +624,7 @@ def score_round(
         with lock:
             note(message)
 
-    scored_cur = _scored(record, _solved_at(record, current, workers, current_jacobian), folds)
+    scored_cur = _scored(record, _solved_at(record, current, current_jacobian), folds)
     cur_cv = scored_cur.cv
     basis = _refit_basis(scored_cur.jacobian)
     null_nfev = _null_effort(trial_nfev)
@@ -1304,7 +1304,7 @@ def diagnose_record(
             }
             full_only = [k for k in candidates(current.effects.names) if k not in names]
             if "delay" in full_only:
-                solved = _solved_at(record, current, workers, current_jac)
+                solved = _solved_at(record, current, current_jac)
                 current_jac = solved.jacobian
                 if _delay_hopeless(record, solved, folds):
                     say("  - delay    : hopeless: the model's rate does not explain the residual")
