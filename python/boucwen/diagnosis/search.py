@@ -1122,10 +1122,10 @@ def _base_fit(base: FitResult) -> ExtendedFit:
     return ExtendedFit(base.params, EffectSet(), base.h0, base.rms_um, base.max_um, base.nfev, base.success)
 
 
-def _cv_rms(record: Record, fit: ExtendedFit, folds: int, workers: int | None) -> float:
+def _cv_rms(record: Record, fit: ExtendedFit, folds: int) -> float:
     """The blocked cross-validated RMS error [µm] of ``fit`` over ``record``: what it
     predicts of each block when refitted without it (:mod:`~boucwen.diagnosis.validation`)."""
-    return _scored(record, _solved_at(record, fit, workers), folds).cv.rms_um
+    return _scored(record, _solved_at(record, fit), folds).cv.rms_um
 
 
 def on_bounds(fit: ExtendedFit, record: Record) -> list[dict[str, Any]]:
@@ -1417,11 +1417,11 @@ def diagnose_record(
         evidence["partial"] = {"effects": list(added), "explained_share": share, "rms_um": rms(x - x_ext)}
     base_fit = _base_fit(base)
     final = ext if added else base_fit
-    cv_before = _cv_rms(record, base_fit, folds, workers)
+    cv_before = _cv_rms(record, base_fit, folds)
     unseen: dict[str, Any] = {
         "folds": folds,
         "cv_rms_before_um": cv_before,
-        "cv_rms_after_um": _cv_rms(record, final, folds, workers) if added else cv_before,
+        "cv_rms_after_um": _cv_rms(record, final, folds) if added else cv_before,
     }
     if validate is not None:
         on_val_base, on_val = prediction_error(base_fit, validate), prediction_error(final, validate)
