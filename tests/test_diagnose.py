@@ -117,11 +117,12 @@ def test_two_modes_ringing_together_after_a_step_are_both_found():
     # A single step rings through two modes at 8 kHz (20 kHz sampling), 23× the noise
     # after the base fit: from the grid's starts one mode cut 3 % and was not kept, so a
     # second mode (tried only beside a first) was never tried and nothing was named.
-    # Both modes started together explained it; now the lone mode, started at the
-    # residual's spectral peak, earns its place (+16 %) and the second follows.
+    # Both modes started together explained it; now the lone mode is also started at the
+    # residual's spectral peak. Which of the two paths names them (the lone mode earning
+    # first, or both at once) hangs on the last bits of the fits (it differs between
+    # BLAS kernels); the answer does not.
     rec, d = _two_modes(0.02, "single_step", 143, 20_000.0, "paper_200hz")
     assert d.effects == ["resonance", "resonance2"]
-    assert d.evidence["rounds"][0]["trials"]["resonance"]["gain_over_null"] > MIN_GAIN
     assert d.unexplained is not None and d.unexplained.ratio_to_noise < 1.2
     assert _rms(d.x_extended - rec.x_true) < 0.1 * _rms(d.x_base - rec.x_true)
 
