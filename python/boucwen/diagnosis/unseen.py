@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -57,13 +57,7 @@ class ValidationError:
     h0_um: float
 
     def to_dict(self) -> dict[str, float]:
-        return {
-            "rms_um": self.rms_um,
-            "max_um": self.max_um,
-            "offset_um": self.offset_um,
-            "trend_um_per_s": self.trend_um_per_s,
-            "h0_um": self.h0_um,
-        }
+        return asdict(self)
 
 
 def device_part(effects: EffectSet) -> EffectSet:
@@ -138,10 +132,11 @@ def judged_on(
     and the evidence (per effect: the validation RMS errors with and without it)."""
     margin = sampling_margin(len(validation))
     evidence: dict[str, Any] = {"margin": margin}
+    # The current model's error there changes only when an effect is dropped.
+    with_it = prediction_error(current, validation)
     for name in list(added):
         if name in RECORD_EFFECTS or (name == "resonance" and "resonance2" in current.effects.names):
             continue
-        with_it = prediction_error(current, validation)
         rest = refit(without(current.effects, name))
         without_it = prediction_error(rest, validation)
         if with_it is None or without_it is None:
@@ -153,6 +148,6 @@ def judged_on(
             + ("" if earns else " — dropped")
         )
         if not earns:
-            current = rest
+            current, with_it = rest, without_it
             added = [k for k in added if k != name]
     return current, added, evidence
