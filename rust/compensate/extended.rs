@@ -50,7 +50,7 @@ use super::inverse::{first_sample_voltage, solve, tolerance, Clip, IntervalEquat
 use crate::effects::electrostriction::quadratic_root;
 use crate::effects::{first_order_coefficient, first_order_step, stack_output, EffectSet, Electrostriction};
 use crate::error::{finite_sample, positive_dt, Error, Result};
-use crate::model::integrator::{abs_pow, advance_h_carried};
+use crate::model::integrator::{abs_pow, advance_h_carried, Drive};
 use crate::params::Params;
 use alloc::vec;
 use alloc::vec::Vec;
@@ -224,7 +224,7 @@ impl ExtendedInverse {
                     Some(l) => l.advance(s.ua_prev, u_prev, u, self.dt),
                     None => u,
                 };
-                (s.h, *hn) = advance_h_carried(p, s.h, *hn, s.ua_prev, ua, self.dt);
+                (s.h, *hn) = advance_h_carried(&Drive::of(u_prev, u).params(p), s.h, *hn, s.ua_prev, ua, self.dt);
                 for ((c, g), step) in s.creep.iter_mut().zip(gains).zip(&self.creep_steps) {
                     *c = step.advance(*c, g * s.ua_prev, g * ua, self.dt);
                 }

@@ -21,7 +21,7 @@ use super::resonance::{mode_stage_seeded, ModeNames, ResonanceStage};
 use super::saturation::clip;
 use super::{EffectSet, RESONANCE_SUBSTEPS};
 use crate::error::Result;
-use crate::model::integrator::{abs_pow, advance_h_carrying, advance_seeded_carrying, Power};
+use crate::model::integrator::{abs_pow, advance_h_carrying, advance_seeded_carrying, Drive, Power};
 use crate::model::scalar::{Dual, Scalar};
 use crate::params::Params;
 
@@ -99,7 +99,15 @@ pub(crate) trait ChainScalar: Scalar {
     /// h after one interval of `dt` \[s\] in which u_a moves linearly from `ua0` to `ua1`
     /// \[V\], given |h|^n and ln|h| at the start (`None`: computed); also returns them at
     /// the end where the integrator carries them.
-    fn advance_h(p: &Params, h: Self, power: Option<Power>, ua0: Self, ua1: Self, dt: f64) -> (Self, Option<Power>);
+    fn advance_h(
+        p: &Params,
+        h: Self,
+        power: Option<Power>,
+        ua0: Self,
+        ua1: Self,
+        dt: f64,
+        drive: Drive,
+    ) -> (Self, Option<Power>);
 }
 
 impl ChainScalar for f64 {
@@ -115,9 +123,17 @@ impl ChainScalar for f64 {
     }
     /// The model's integrator, |h|^n carried as by [`crate::Model`].
     #[inline(always)]
-    fn advance_h(p: &Params, h: f64, power: Option<Power>, ua0: f64, ua1: f64, dt: f64) -> (f64, Option<Power>) {
+    fn advance_h(
+        p: &Params,
+        h: f64,
+        power: Option<Power>,
+        ua0: f64,
+        ua1: f64,
+        dt: f64,
+        drive: Drive,
+    ) -> (f64, Option<Power>) {
         let hn = power.map_or_else(|| abs_pow(h, p.n), |(hn, _)| hn);
-        let (next, carried) = advance_h_carrying(p, h, hn, ua0, ua1, dt);
+        let (next, carried) = advance_h_carrying(&drive.params(p), h, hn, ua0, ua1, dt);
         (next, Some((carried.unwrap_or_else(|| abs_pow(next, p.n)), 0.0)))
     }
 }
@@ -150,7 +166,15 @@ impl<const M: usize> ChainScalar for Dual<M> {
     /// The integrator on [`NarrowDual`]s with A, β, γ, n, δ seeded at their slots and
     /// the voltage's derivative at [`SLOT_LN_FC`].
     #[inline(always)]
-    fn advance_h(p: &Params, h: Self, power: Option<Power>, ua0: Self, ua1: Self, dt: f64) -> (Self, Option<Power>) {
+    fn advance_h(
+        p: &Params,
+        h: Self,
+        power: Option<Power>,
+        ua0: Self,
+        ua1: Self,
+        dt: f64,
+        drive: Drive,
+    ) -> (Self, Option<Power>) {
         let (next, carried) = advance_seeded_carrying::<NARROW, SLOT_A, SLOT_LN_FC>(
             p,
             narrow(h),
@@ -159,6 +183,7 @@ impl<const M: usize> ChainScalar for Dual<M> {
             narrow(ua1),
             dt,
             None,
+            drive,
         );
         (widen(next), carried)
     }
@@ -302,7 +327,8 @@ impl<S: ChainScalar> Chain<S> {
                     Some(lag) => lag.advance(self.ua_prev, S::cst(u0), S::cst(u1), dt_sub),
                     None => S::cst(u1),
                 };
-                (self.h, self.power) = S::advance_h(&self.params, self.h, self.power, self.ua_prev, ua, dt_sub);
+                let drive = Drive::of(u0, u1);
+                (self.h, self.power) = S::advance_h(&self.params, self.h, self.power, self.ua_prev, ua, dt_sub, drive);
                 let c = match &self.creep {
                     Some(creep) => creep.advance(&mut self.creep_states, self.ua_prev, ua, dt_sub),
                     None => S::cst(0.0),

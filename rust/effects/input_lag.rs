@@ -91,6 +91,8 @@ impl LagStage {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::effects::EffectSet;
+    use crate::params::Params;
 
     #[test]
     fn matches_a_fine_euler_solution_on_a_ramp() {
@@ -106,6 +108,37 @@ mod tests {
         }
         // Forward Euler with 1e5 steps is first order: its own error is about 2e-7 here.
         assert!((exact - y).abs() < 1e-6, "{exact} vs {y}");
+    }
+
+    /// A sine, then a hold of `hold` samples at the voltage it stopped at.
+    fn sine_then_hold(dt: f64, hold: usize) -> Vec<f64> {
+        let mut u: Vec<f64> =
+            (0..800).map(|k| 2.0 + 1.5 * (2.0 * core::f64::consts::PI * k as f64 * dt).sin()).collect();
+        let last = *u.last().unwrap();
+        u.extend(core::iter::repeat(last).take(hold));
+        u
+    }
+
+    /// Behind the lag a hold still moves h while the stack's voltage settles (A, β, γ),
+    /// but the δ term does not integrate δ·u through the settling tail ([`Drive`]): ten
+    /// time constants into the hold the displacement has stopped (to 1 nm). Before,
+    /// the term ran until u_a met u to the last bit, about 36 τ: δ·u·26 τ ≈ 2.5 µm
+    /// after ten time constants with these parameters.
+    ///
+    /// [`Drive`]: crate::model::integrator::Drive
+    #[test]
+    fn a_hold_behind_the_lag_stops_within_ten_time_constants() {
+        let p = Params { kv: 14.6, x0: -122.0, a: -2.72, beta: 0.108, gamma: -0.026, n: 2.52, delta: -2.43 };
+        let lag = InputLag { fc_hz: 7.95 };
+        let dt = 0.005;
+        let u = sine_then_hold(dt, 1000);
+        let effects = EffectSet { input_lag: Some(lag), ..EffectSet::none() };
+        let x = crate::effects::simulate_extended(&p, &effects, &u, dt, 0.0).unwrap();
+        let settled = 800 + (10.0 * lag.tau_s() / dt).ceil() as usize;
+        let moved = (x[x.len() - 1] - x[settled]).abs();
+        assert!(moved < 1e-3, "the displacement still moved {moved} µm after ten time constants of the hold");
+        // The settling itself is there: the first samples of the hold move.
+        assert!((x[801] - x[800]).abs() > 1e-3);
     }
 
     #[test]

@@ -212,7 +212,11 @@ mod tests {
     /// largest entry on this record (measured: below 1e-6). A wrong derivative is off by
     /// its own size.
     fn check(p: &Params, e: &EffectSet, h0: f64) {
-        let (u, dt) = record();
+        check_on(p, e, h0, record());
+    }
+
+    /// [`check`] on the record `(u, dt)`.
+    fn check_on(p: &Params, e: &EffectSet, h0: f64, (u, dt): (Vec<f64>, f64)) {
         let jac = simulate_extended_with_jacobian(p, e, &u, dt, h0).unwrap();
         let v = pack(p, e, h0);
         assert_eq!(jac.columns, v.len());
@@ -235,6 +239,17 @@ mod tests {
             assert!(largest > 0.0, "column {j} of {:?} is zero", e.names());
             assert!(worst <= 1e-5 * largest, "column {j} of {:?}: {worst:e} against {largest:e}", e.names());
         }
+    }
+
+    /// Through a hold behind the input lag the δ term is off while the stack settles
+    /// (`Drive`): the δ column and every other stays that of the simulator's map.
+    #[test]
+    fn columns_match_central_differences_through_a_hold_behind_the_lag() {
+        let (mut u, dt) = record();
+        let held = u[500];
+        u[500..800].iter_mut().for_each(|v| *v = held);
+        let effects = EffectSet { input_lag: Some(InputLag { fc_hz: 40.0 }), ..EffectSet::none() };
+        check_on(&Params::paper_1hz(), &effects, 0.3, (u, dt));
     }
 
     #[test]

@@ -193,6 +193,8 @@ pub(crate) struct Seeded<const M: usize, const FIRST: usize, const INPUT: usize>
     gamma: f64,
     n: f64,
     delta: f64,
+    /// sgn(u̇) of the δ term is kept (the command moves) or replaced by 0 ([`Drive`]).
+    drive: Drive,
 }
 
 impl<const M: usize, const FIRST: usize, const INPUT: usize> Seeded<M, FIRST, INPUT> {
@@ -205,7 +207,7 @@ impl<const M: usize, const FIRST: usize, const INPUT: usize> Seeded<M, FIRST, IN
     /// `None` when those are non-zero outside slot `INPUT` (then the seeded
     /// [`Coefficients`] serve).
     #[inline(always)]
-    pub(crate) fn new(p: &Params, du0: &SVector<f64, M>, du1: &SVector<f64, M>) -> Option<Self> {
+    pub(crate) fn new(p: &Params, du0: &SVector<f64, M>, du1: &SVector<f64, M>, drive: Drive) -> Option<Self> {
         let () = Self::LAYOUT;
         for j in 0..M {
             // NaN counts as non-zero.
@@ -213,7 +215,7 @@ impl<const M: usize, const FIRST: usize, const INPUT: usize> Seeded<M, FIRST, IN
                 return None;
             }
         }
-        Some(Seeded { a: p.a, beta: p.beta, gamma: p.gamma, n: p.n, delta: p.delta })
+        Some(Seeded { a: p.a, beta: p.beta, gamma: p.gamma, n: p.n, delta: p.delta, drive })
     }
 }
 
@@ -251,7 +253,8 @@ impl<const M: usize, const FIRST: usize, const INPUT: usize> Law<Dual<M>> for Se
         let w = udot.re * su;
         let t1 = self.a * udot.re;
         let t5 = self.beta * w * sh + self.gamma * udot.re;
-        let t9 = self.delta * u.re * su;
+        let sd = self.drive.delta_sign(su);
+        let t9 = self.delta * u.re * sd;
         let re = t1 - t5 * hn.re + t9;
         // Every slot has −∂hn·t5; A adds ∂t1 = u̇, β −(∂t5 = w·sh)·hn, γ −(∂t5 = u̇)·hn,
         // δ ∂t9 = u·sgn(u̇), the input slot all its terms.
@@ -265,11 +268,11 @@ impl<const M: usize, const FIRST: usize, const INPUT: usize> Law<Dual<M>> for Se
             } else if j == FIRST + 2 {
                 y + -(udot.re * hn.re)
             } else if j == FIRST + 4 {
-                y + u.re * su
+                y + u.re * sd
             } else if j == INPUT {
                 let d = udot.du[j];
                 let dt5 = d * su * self.beta * sh + d * self.gamma;
-                ((y + -(dt5 * hn.re)) + d * self.a) + u.du[j] * self.delta * su
+                ((y + -(dt5 * hn.re)) + d * self.a) + u.du[j] * self.delta * sd
             } else {
                 y
             };
@@ -524,12 +527,66 @@ pub(crate) fn advance_seeded<const M: usize, const FIRST: usize, const INPUT: us
     u1: Dual<M>,
     dt: f64,
     forced: Option<u32>,
+    drive: Drive,
 ) -> Dual<M> {
-    advance_seeded_carrying::<M, FIRST, INPUT>(p, h, None, u0, u1, dt, forced).0
+    advance_seeded_carrying::<M, FIRST, INPUT>(p, h, None, u0, u1, dt, forced, drive).0
 }
 
 /// |h|^n and ln|h| of a state, carried from one interval to the next.
 pub(crate) type Power = (f64, f64);
+
+/// Whether the *command* moves over an interval, which decides whether the δ term of
+/// eq. (5) acts there.
+///
+/// δ·u·sgn(u̇) is the paper's term for a moving drive: unlike A·u̇, β and γ (each
+/// proportional to |u̇|, so that a short approach adds a short stretch of loop), it adds
+/// δ·u [µm/s] for as long as u̇ ≠ 0, however slowly u moves. With the voltage on the
+/// stack straight from the command, a hold stops it at once (u̇ = 0). Behind an input
+/// lag the stack's voltage approaches a held command exponentially and, in exact
+/// arithmetic, never arrives: the term would integrate δ·u for the whole hold, and in
+/// floating point it stops only when u_a reaches u to the last bit — an amount of h set
+/// by the rounding of u (about 36 τ of δ·u). So the term follows the command: it acts
+/// over an interval in which the command moves, with the sign of the stack's motion
+/// (the same numbers as before wherever the stack's voltage is the command's); while
+/// the command holds, the stack's settling still moves h through A, β and γ, and the
+/// δ term is off, as in the model without a lag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Drive {
+    /// The command moves over the interval: the δ term acts.
+    Moving,
+    /// The command holds (the stack's voltage may still settle): no δ term.
+    Held,
+}
+
+impl Drive {
+    /// The drive over an interval in which the command moves from `u0` to `u1` \[V\].
+    #[inline(always)]
+    pub(crate) fn of(u0: f64, u1: f64) -> Self {
+        if u0 == u1 {
+            Drive::Held
+        } else {
+            Drive::Moving
+        }
+    }
+
+    /// The sign the δ term takes, given sgn(u̇) = `su` of the stack's voltage.
+    #[inline(always)]
+    fn delta_sign(self, su: f64) -> f64 {
+        match self {
+            Drive::Moving => su,
+            Drive::Held => 0.0,
+        }
+    }
+
+    /// `p` with δ = 0 where the term is off (the value only: the plain-number paths).
+    #[inline(always)]
+    pub(crate) fn params(self, p: &Params) -> Params {
+        match self {
+            Drive::Moving => *p,
+            Drive::Held => Params { delta: 0.0, ..*p },
+        }
+    }
+}
 
 /// [`advance_seeded`] given (|h|^n, ln|h|) at the start (`None`: computed), also
 /// returning them at the end where the interval's series gives them (as
@@ -544,10 +601,17 @@ pub(crate) fn advance_seeded_carrying<const M: usize, const FIRST: usize, const 
     u1: Dual<M>,
     dt: f64,
     forced: Option<u32>,
+    drive: Drive,
 ) -> (Dual<M>, Option<Power>) {
-    match Seeded::<M, FIRST, INPUT>::new(p, &u0.du, &u1.du) {
+    match Seeded::<M, FIRST, INPUT>::new(p, &u0.du, &u1.du, drive) {
         Some(law) => advance_from_power(p, &law, h, power, u0, u1, dt, forced),
-        None => advance_from_power(p, &Coefficients::seeded(p, FIRST), h, power, u0, u1, dt, forced),
+        None => {
+            let mut law = Coefficients::seeded(p, FIRST);
+            if drive == Drive::Held {
+                law.delta = Dual::cst(0.0);
+            }
+            advance_from_power(p, &law, h, power, u0, u1, dt, forced)
+        }
     }
 }
 
@@ -930,7 +994,7 @@ mod tests {
                     if lag {
                         u1.du[6] = 0.3 * (k as f64 * 0.01).sin();
                     }
-                    let seeded = Seeded::<7, 0, 6>::new(&p, &u_prev.du, &u1.du).unwrap();
+                    let seeded = Seeded::<7, 0, 6>::new(&p, &u_prev.du, &u1.du, Drive::Moving).unwrap();
                     a = advance_forced(&p, &law, a, u_prev, u1, dt, None);
                     b = advance_forced(&p, &seeded, b, u_prev, u1, dt, None);
                     assert_eq!(a.re.to_bits(), b.re.to_bits());
@@ -941,7 +1005,7 @@ mod tests {
         }
         let (zero, mut two) = (SVector::<f64, 7>::zeros(), SVector::<f64, 7>::zeros());
         two[1] = 1.0;
-        assert!(Seeded::<7, 0, 6>::new(&Params::paper_1hz(), &zero, &two).is_none());
+        assert!(Seeded::<7, 0, 6>::new(&Params::paper_1hz(), &zero, &two, Drive::Moving).is_none());
     }
 
     #[test]

@@ -98,7 +98,7 @@ use crate::effects::input_lag::LagStage;
 use crate::effects::{EffectSet, InputLag};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::math;
-use crate::model::integrator::{advance_seeded_carrying, Power};
+use crate::model::integrator::{advance_seeded_carrying, Drive, Power};
 use crate::model::scalar::{Dual, Scalar};
 use crate::model::{advance_h, output, H_LIMIT_UM};
 use crate::params::Params;
@@ -164,7 +164,7 @@ fn loop_interval(
         Some(lag) => lag.advance(ua, u0, u, dt),
         None => u,
     };
-    (advance_h(p, h, ua, ua_next, dt), ua_next)
+    (advance_h(&Drive::of(u0, u).params(p), h, ua, ua_next, dt), ua_next)
 }
 
 /// The loop's model run open loop over the voltages `u` \[V\] from state (h, u_a) after
@@ -547,6 +547,7 @@ impl HorizonIdentifier {
                 ua1,
                 self.dt,
                 None,
+                Drive::of(u0, e.u),
             );
             self.pass.ua = ua1;
         }

@@ -6,7 +6,7 @@ use nalgebra::SVector;
 
 use super::*;
 use crate::effects::{first_order_coefficient, first_order_step, InputLag};
-use crate::model::integrator::advance_seeded;
+use crate::model::integrator::{advance_seeded, Drive};
 use crate::model::output;
 use crate::model::scalar::Dual;
 
@@ -27,7 +27,7 @@ pub fn advance_h_with_gradient<const M: usize>(
     u1: (f64, &SVector<f64, M>),
     dt: f64,
 ) -> (f64, SVector<f64, M>) {
-    advance_with_substeps(p, h, dh, u0, u1, dt, None)
+    advance_with_substeps(p, h, dh, u0, u1, dt, None, Drive::of(u0.0, u1.0))
 }
 
 /// [`advance_h_with_gradient`] with the number of RK4 sub-steps optionally forced.
@@ -40,12 +40,13 @@ pub(super) fn advance_with_substeps<const M: usize>(
     (u1, du1): (f64, &SVector<f64, M>),
     dt: f64,
     forced: Option<u32>,
+    drive: Drive,
 ) -> (f64, SVector<f64, M>) {
     // A, β, γ, n, δ are consecutive in θ.
     const _: () = assert!(I_BETA == I_A + 1 && I_GAMMA == I_A + 2 && I_N == I_A + 3 && I_DELTA == I_A + 4);
     let (h, u0, u1) = (Dual::new(h, *dh), Dual::new(u0, *du0), Dual::new(u1, *du1));
     // The voltages' derivatives are in the lag's slot (beyond M = 7 without effects).
-    let r = advance_seeded::<M, I_A, I_LN_FC>(p, h, u0, u1, dt, forced);
+    let r = advance_seeded::<M, I_A, I_LN_FC>(p, h, u0, u1, dt, forced, drive);
     (r.re, r.du)
 }
 
@@ -192,8 +193,17 @@ impl Chain {
                 } else {
                     self.ua = u;
                 }
-                (self.h, self.dh) =
-                    advance_h_with_gradient(p, self.h, &self.dh, (ua0, &dua0), (self.ua, &self.dua), dt);
+                // The δ term follows the command ([`Drive`]), not the lagged voltage.
+                (self.h, self.dh) = advance_with_substeps(
+                    p,
+                    self.h,
+                    &self.dh,
+                    (ua0, &dua0),
+                    (self.ua, &self.dua),
+                    dt,
+                    None,
+                    Drive::of(u0, u),
+                );
                 for i in 0..shape.n_creep {
                     let (tau, decay) = (shape.creep_tau[i], shape.creep_decay[i]);
                     self.creep[i] = first_order_step(self.creep[i], ua0, self.ua, tau, decay, dt);

@@ -2,6 +2,7 @@
 
 use super::chain::advance_with_substeps;
 use super::*;
+use crate::model::integrator::Drive;
 use crate::model::{advance_h, paper_input, simulate};
 
 /// h and ∂h/∂θ over a whole record (`forced`: fixed number of RK4 sub-steps).
@@ -11,7 +12,7 @@ fn run_gradient(p: &Params, u: &[f64], dt: f64, forced: Option<u32>) -> (Vec<f64
     let mut hs = vec![h];
     let mut gs = vec![g];
     for w in u.windows(2) {
-        (h, g) = advance_with_substeps(p, h, &g, (w[0], &zero), (w[1], &zero), dt, forced);
+        (h, g) = advance_with_substeps(p, h, &g, (w[0], &zero), (w[1], &zero), dt, forced, Drive::of(w[0], w[1]));
         hs.push(h);
         gs.push(g);
     }
@@ -86,7 +87,7 @@ fn sensitivities_through_the_input_match_finite_differences() {
         let mut hs = vec![h];
         for k in 1..u.len() {
             let (u0, u1) = (u[k - 1] + theta0 * v[k - 1], u[k] + theta0 * v[k]);
-            h = advance_with_substeps(&p, h, &zero, (u0, &zero), (u1, &zero), dt, Some(3)).0;
+            h = advance_with_substeps(&p, h, &zero, (u0, &zero), (u1, &zero), dt, Some(3), Drive::of(u0, u1)).0;
             hs.push(h);
         }
         hs
@@ -101,7 +102,7 @@ fn sensitivities_through_the_input_match_finite_differences() {
         let (mut d0, mut d1) = (ParamVector::zeros(), ParamVector::zeros());
         d0[0] = v[k - 1];
         d1[0] = v[k];
-        (h, g) = advance_with_substeps(&p, h, &g, (u[k - 1], &d0), (u[k], &d1), dt, Some(3));
+        (h, g) = advance_with_substeps(&p, h, &g, (u[k - 1], &d0), (u[k], &d1), dt, Some(3), Drive::of(u[k - 1], u[k]));
         let fd = (hp[k] - hm[k]) / (2.0 * eps);
         worst = worst.max((fd - g[0]).abs());
         largest = largest.max(g[0].abs());
