@@ -16,7 +16,6 @@ import pytest
 from boucwen import DiagnosisPolicy, diagnose
 from boucwen.cli import main
 from boucwen.diagnosis import residual_evidence
-from boucwen.diagnosis.credit import Credit, earns
 from boucwen.experiments.suite_records import make_suite_record
 from boucwen.experiments.undeclared_records import make_record
 from boucwen.experiments.undeclared_records import test_input as make_input  # not a test
@@ -129,19 +128,6 @@ def test_a_trial_whose_start_promises_a_cut_is_not_stopped_after_its_first_steps
     assert d.unexplained is not None and d.unexplained.ratio_to_noise < 1.2
 
 
-def test_an_effect_kept_first_whose_work_a_later_one_does_is_dropped():
-    # An amplifier lag under a staircase (20 kHz, 1 nm noise): creep, whose fastest
-    # element imitates the lag, is kept first; the lag then explains nearly everything
-    # (a delay kept after it, refitted at every whole-sample shift, is a passenger too).
-    # Taken out, creep costs the others less than the rule asks of it, and it goes;
-    # the lag earns its place.
-    _, d = _diagnosed((("input_lag", 0.3),), "staircase", 65, fs_hz=20_000.0, param_set="paper_200hz", noise_um=0.001)
-    assert d.effects == ["input_lag"]
-    pruned = d.evidence["pruned"]
-    assert not earns(Credit.from_dict(pruned["creep"]), POLICY) and pruned["input_lag"]["gain_over_null"] > MIN_GAIN
-    assert d.unexplained is not None and d.unexplained.consistent_with_noise
-
-
 def test_a_look_alike_kept_before_its_partner_is_swapped_for_the_one_the_test_names():
     # A drift beside a mode ringing after a single step (20 kHz, 5 nm noise): creep is
     # kept first (its relaxation after the step imitates the drift), then the
@@ -156,17 +142,6 @@ def test_a_look_alike_kept_before_its_partner_is_swapped_for_the_one_the_test_na
     swaps = [c["swapped_for"] for c in d.evidence.get("pruned", {}).values() if "swapped_for" in c]
     assert all(list(swap) == ["drift"] for swap in swaps)
     assert d.unexplained is not None and d.unexplained.consistent_with_noise
-
-
-def test_on_a_short_record_every_look_alike_is_tried_in_the_backward_step():
-    # A gain drift and a delay after a single step (5 kHz, 20 nm noise): drift is kept
-    # first and, beside the delay, the look-alike test on the residual without it names
-    # drift again; the gain drift tried in its place all the same earns more (+76.0 %
-    # against +75.5 %). A record short enough not to be screened affords the trial.
-    effects = (("gain_drift", 0.08), ("delay", 0.08))
-    _, d = _diagnosed(effects, "single_step", 276, fs_hz=5_000.0, param_set="paper_1hz", noise_um=0.02)
-    assert sorted(d.effects) == ["delay", "gain_drift"]
-    assert d.evidence["pruned"]["drift"]["swapped_for"]["gain_drift"]["test_named"] == "drift"
 
 
 def test_a_trial_still_converging_when_its_effort_ends_goes_on():

@@ -109,7 +109,7 @@ class TrialStart:
         params, effects, h0: the current fit (base parameters, effects, h0 [µm]).
         ranked: the effect's starts (:meth:`Effect.starts` added to ``effects``), best
             first by the first-order refit of the current model.
-        screened: the record is a screened copy, or will be refitted on one.
+        screened: the record is screened: its refits run on its decimated copy.
         screened_refits: how many variants a refit start may try on a screened record.
     """
 
