@@ -18,13 +18,14 @@ import pytest
 
 import boucwen
 from boucwen import EffectSet, Params
-from boucwen.diagnosis import noise_level, unexplained
-from boucwen.diagnosis.search import MIN_GAIN, score_round
+from boucwen.diagnosis import DiagnosisPolicy, noise_level, unexplained
+from boucwen.diagnosis.rounds import score_round
 from boucwen.effects import fit_extended_record
 from boucwen.experiments.undeclared_records import PARAM_SETS, make_record
 from boucwen.record import validate_record
 
 NOISE = 0.02
+MIN_GAIN = DiagnosisPolicy().min_gain
 
 
 def _fitted(u, x, dt):
@@ -157,7 +158,7 @@ def test_null_trial_keeps_a_passenger_out():
     p = PARAM_SETS["paper_1hz"]
     start = Params(p.kv * 1.15, p.x0 + 0.5, p.A * 0.8, p.beta, p.gamma, p.n, p.delta)
     current = fit_extended_record(record, start, EffectSet(), 0.0, max_nfev=2)
-    rnd = score_round(record, current)
+    rnd = score_round(record, current, policy=DiagnosisPolicy())
     ev = rnd.evidence
     trials = {k: v for k, v in ev["trials"].items() if "cv_rms_um" in v}
     cur = ev["current"]["in_sample_rms_um"]

@@ -37,7 +37,7 @@ from ._core import (
     simulate_extended,
 )
 from .config import HorizonConfig, PaperConfig, RpemConfig
-from .diagnosis import Diagnosis, diagnose
+from .diagnosis import Diagnosis, DiagnosisPolicy, diagnose
 from .effects import (
     Creep,
     Delay,
@@ -61,6 +61,7 @@ __all__ = [
     "Creep",
     "Delay",
     "Diagnosis",
+    "DiagnosisPolicy",
     "Drift",
     "EffectSet",
     "Electrostriction",

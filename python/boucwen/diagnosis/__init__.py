@@ -121,13 +121,28 @@ tests' outcomes and, when screened, the screening round.
 With no effect in the data, every trial fails step 5 and the result says so
 (``effects == []``).
 
-Modules: :mod:`~boucwen.diagnosis.evidence` (the residual statistics),
+Every threshold of the procedure is a field of a
+:class:`~boucwen.diagnosis.policy.DiagnosisPolicy` (``diagnose(..., policy=...)``), and
+what is particular to one effect (its starts, its partner, what makes it no candidate,
+its look-alikes) is declared on its class (:class:`boucwen.effects.Effect`): the search
+names no effect.
+
+Modules: :mod:`~boucwen.diagnosis.policy` (the thresholds),
+:mod:`~boucwen.diagnosis.search` (the procedure above, its loop of rounds),
+:mod:`~boucwen.diagnosis.rounds` (one round: its trials, the one kept),
+:mod:`~boucwen.diagnosis.trial` (a trial's stages), :mod:`~boucwen.diagnosis.starts`
+(where a trial starts), :mod:`~boucwen.diagnosis.credit` (what a trial is credited with,
+and when that earns its parameters), :mod:`~boucwen.diagnosis.pairs` (effects that
+explain only together), :mod:`~boucwen.diagnosis.backward` (the backward step),
+:mod:`~boucwen.diagnosis.screening` (long records), :mod:`~boucwen.diagnosis.scoring`
+(a fit scored), :mod:`~boucwen.diagnosis.outcome` (the end: final refit, unseen data,
+confidence), :mod:`~boucwen.diagnosis.evidence` (the residual statistics),
 :mod:`~boucwen.diagnosis.validation` (blocked cross-validation),
 :mod:`~boucwen.diagnosis.lookalike` (the tests that tell look-alikes apart),
-:mod:`~boucwen.diagnosis.unexplained` (what the final model leaves, step 7),
-:mod:`~boucwen.diagnosis.search` (the procedure above),
-:mod:`~boucwen.diagnosis.margins` (decisions with margins),
-:mod:`~boucwen.diagnosis.confidence` (how sure each name is),
+:mod:`~boucwen.diagnosis.unexplained` (what the final model leaves, step 8, with
+:mod:`~boucwen.diagnosis.noise`, :mod:`~boucwen.diagnosis.lines` and
+:mod:`~boucwen.diagnosis.spans`), :mod:`~boucwen.diagnosis.margins` (decisions with
+margins), :mod:`~boucwen.diagnosis.confidence` (how sure each name is),
 :mod:`~boucwen.diagnosis.unseen` (errors on unseen data),
 :mod:`~boucwen.diagnosis.report` (:class:`Diagnosis`, its JSON and CSV files); the
 figure is :func:`boucwen.plots.plot_diagnosis`.
@@ -135,6 +150,7 @@ figure is :func:`boucwen.plots.plot_diagnosis`.
 
 from .evidence import residual_evidence, residual_evidence_record
 from .lookalike import lookalike_tests
+from .policy import DiagnosisPolicy
 from .report import Diagnosis, write_predictions, write_report
 from .search import FOLDS, MAX_DELAY_SAMPLES, MIN_GAIN, TRIAL_NFEV, diagnose, diagnose_record
 from .unexplained import Unexplained, noise_level, unexplained
@@ -145,6 +161,7 @@ __all__ = [
     "MIN_GAIN",
     "TRIAL_NFEV",
     "Diagnosis",
+    "DiagnosisPolicy",
     "Unexplained",
     "diagnose",
     "diagnose_record",

@@ -9,12 +9,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..checks import FloatArray, as_float_vector
-from ..effects import ExtendedFit, best_delay
+from ..effects import Delay, ExtendedFit, best_delay
 from ..metrics import rms, spectrum
 from ..record import Record, validate_record
 from .unexplained import noise_level
 
-__all__ = ["delay_evidence", "residual_evidence", "residual_evidence_record"]
+__all__ = ["delay_evidence", "fit_evidence", "residual_evidence", "residual_evidence_record", "spectral_peak"]
 
 
 def _holds(u: FloatArray, dt: float, min_s: float = 0.05) -> list[tuple[int, int]]:
@@ -120,25 +120,37 @@ def residual_evidence_record(record: Record, x_model: FloatArray) -> dict[str, A
     c = float(np.corrcoef(r, xdot)[0, 1]) if np.std(r) > 0 and np.std(xdot) > 0 else 0.0
     ev["input_lag"] = {"lag_s": tau, "corr_with_rate": -c, "band_ratio": _band_ratios(r, xm, dt)}
 
-    try:
-        f, pxx = spectrum(r, dt)
-        sel = f > max(4.0 * f[1] if f.size > 1 else 0.0, 0.02 / dt)
-        if np.any(sel) and np.median(pxx[sel]) > 0:
-            k = int(np.argmax(pxx[sel]))
-            ev["resonance"] = {
-                "peak_hz": float(f[sel][k]),
-                "peak_over_median": float(pxx[sel][k] / np.median(pxx[sel])),
-            }
-        else:
-            ev["resonance"] = {"peak_hz": 0.0, "peak_over_median": 0.0}
-    except ValueError:  # pragma: no cover - record shorter than a segment
-        ev["resonance"] = {"peak_hz": 0.0, "peak_over_median": 0.0}
+    ev["resonance"] = spectral_peak(r, dt)
 
     basis = np.column_stack([t, np.ones_like(t)])
     coef, *_ = np.linalg.lstsq(basis, r, rcond=None)
     var = float(np.var(r))
     explained = float(np.var(basis @ coef) / var) if var > 0 else 0.0
     ev["drift"] = {"slope_um_per_s": float(coef[0]), "variance_share": explained}
+    return ev
+
+
+def spectral_peak(r: FloatArray, dt: float) -> dict[str, float]:
+    """The largest peak of the residual ``r``'s spectrum [µm] above 2 % of the sampling
+    rate (1/``dt`` [s]) and four bins: ``{"peak_hz", "peak_over_median"}`` (its power over
+    the median of those bins; zeros where there is none)."""
+    try:
+        f, pxx = spectrum(r, dt)
+    except ValueError:  # pragma: no cover - record shorter than a segment
+        return {"peak_hz": 0.0, "peak_over_median": 0.0}
+    sel = f > max(4.0 * f[1] if f.size > 1 else 0.0, 0.02 / dt)
+    if np.any(sel) and np.median(pxx[sel]) > 0:
+        k = int(np.argmax(pxx[sel]))
+        return {"peak_hz": float(f[sel][k]), "peak_over_median": float(pxx[sel][k] / np.median(pxx[sel]))}
+    return {"peak_hz": 0.0, "peak_over_median": 0.0}
+
+
+def fit_evidence(record: Record, fitted: ExtendedFit, x_model: FloatArray, max_samples: int) -> dict[str, Any]:
+    """:func:`residual_evidence_record` of the fit ``fitted`` (prediction ``x_model``
+    [µm]), with the whole-sample shift that best aligns it with x
+    (:func:`delay_evidence`, up to ``max_samples``)."""
+    ev = residual_evidence_record(record, x_model)
+    ev[Delay.name] = delay_evidence(record, fitted, max_samples)
     return ev
 
 

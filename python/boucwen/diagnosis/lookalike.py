@@ -30,7 +30,7 @@ their outcomes (JSON-ready); :func:`named` reads what an outcome names.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from typing import Any
 
 import numpy as np
@@ -39,7 +39,7 @@ from scipy.signal import coherence, csd, lfilter, welch
 from ..checks import FloatArray
 from ..record import Record
 
-__all__ = ["GROUPS", "lookalike_tests", "named", "phase_shape", "what_it_follows"]
+__all__ = ["GROUPS", "TESTS", "lookalike_tests", "named", "phase_shape", "what_it_follows"]
 
 #: The groups of look-alike effects and the test that separates each.
 GROUPS: dict[str, tuple[str, ...]] = {
@@ -150,6 +150,13 @@ def named(outcome: dict[str, Any], among: Collection[str] = ()) -> str:
     return said
 
 
+#: The test of each group of :data:`GROUPS`, by the group's name.
+TESTS: dict[str, Callable[[Record, FloatArray], dict[str, Any]]] = {
+    "follows": what_it_follows,
+    "phase": phase_shape,
+}
+
+
 def lookalike_tests(record: Record, x_model: FloatArray) -> dict[str, Any]:
     """Both tests on the residual of ``x_model`` [µm] (module docs)."""
-    return {"follows": what_it_follows(record, x_model), "phase": phase_shape(record, x_model)}
+    return {test: run(record, x_model) for test, run in TESTS.items()}

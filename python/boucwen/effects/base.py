@@ -12,6 +12,22 @@ the extended fit needs to know about it:
   the optimiser);
 * :meth:`Effect.starts`: the starting values tried when the effect is added to a fit.
 
+and what the diagnosis needs to know about it when it tries the effect on a record
+(the search itself names no effect; see :mod:`boucwen.diagnosis`):
+
+* :meth:`Effect.refit_starts`: where the current model, bent to follow the effect, is
+  refitted to variants of the record before the trial starts (a delay: the record
+  shifted by whole samples; a drift: the record less a trend; an input lag: u lagged);
+* :attr:`Effect.partner`, :meth:`Effect.beside`: an effect tried beside another, whose
+  trial adds both while the model lacks the other (a second resonance mode);
+* :meth:`Effect.rejects`: a fitted value that makes the effect no candidate (a
+  resonance without a peak);
+* :attr:`Effect.full_rate_only`, :meth:`Effect.direction`, :attr:`Effect.spectral_peak`:
+  how the effect fares on a record's screened (decimated) copy;
+* :attr:`Effect.bars_lookalikes`, :attr:`Effect.bars_when_undecided`,
+  :attr:`Effect.swappable`: the relations with its look-alikes (the groups and their
+  tests are :mod:`boucwen.diagnosis.lookalike`'s).
+
 The simulation itself is the Rust core's (:func:`boucwen.simulate_extended`), which
 also validates the parameters: building an effect checks it there, so that an effect
 that exists can be simulated.
@@ -21,7 +37,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar, TypeVar, cast
 
@@ -34,7 +50,9 @@ __all__ = [
     "UNBOUNDED",
     "Context",
     "Effect",
+    "RefitStarts",
     "Start",
+    "TrialStart",
     "params_of",
     "set_of",
     "simulate_chain",
@@ -81,6 +99,46 @@ class Start:
     creep_tau_s: tuple[float, ...] | None = None
 
 
+@dataclass(frozen=True, eq=False)
+class TrialStart:
+    """A trial about to add an effect to the current fit (what :meth:`Effect.refit_starts`
+    is asked with).
+
+    Attributes:
+        record: the record the trial fits.
+        params, effects, h0: the current fit (base parameters, effects, h0 [µm]).
+        ranked: the effect's starts (:meth:`Effect.starts` added to ``effects``), best
+            first by the first-order refit of the current model.
+        screened: the record is screened: its refits run on its decimated copy.
+        screened_refits: how many variants a refit start may try on a screened record.
+    """
+
+    record: Record
+    params: Params
+    effects: EffectSet
+    h0: float
+    ranked: tuple[EffectSet, ...]
+    screened: bool
+    screened_refits: int
+
+
+@dataclass(frozen=True, eq=False)
+class RefitStarts:
+    """Starts of a trial that first refit the current model to variants of the record.
+
+    Attributes:
+        variants: each variant of the record (made of the full record), in order.
+        starts: the effects the trial starts with after the refit to each variant.
+        hopeless: per variant, why the trial is hopeless when that variant is the best
+            and fits no better than the record itself; None: the trial then starts
+            from the current model with its best-ranked start.
+    """
+
+    variants: tuple[Callable[[Record], Record], ...]
+    starts: tuple[EffectSet, ...]
+    hopeless: tuple[str, ...] | None = None
+
+
 @dataclass(frozen=True)
 class Effect(ABC):
     """An effect: a frozen dataclass of its parameters (see the module docs).
@@ -93,6 +151,23 @@ class Effect(ABC):
 
     #: The effect's name in :data:`boucwen.EffectSet.vocabulary`.
     name: ClassVar[str]
+    #: The effect this one is tried beside (None: any model); while the model lacks it,
+    #: the trial of this one adds both (:meth:`beside`), under the name ``joint``.
+    partner: ClassVar[str | None] = None
+    joint: ClassVar[str] = ""
+    #: Its parameters are whole samples of the record's rate: it is not tried on a
+    #: screened (decimated) copy, and a model holding it is not screened.
+    full_rate_only: ClassVar[bool] = False
+    #: It describes a spectral peak (a mode): tried on the full record too when the
+    #: residual's spectrum peaks above what the screened copy can hold.
+    spectral_peak: ClassVar[bool] = False
+    #: In the model, it bars the other members of its look-alike group unless the
+    #: group's test on the current residual names them ...
+    bars_lookalikes: ClassVar[bool] = False
+    #: ... also when the test names none of them (it leaves a look-alike of its own).
+    bars_when_undecided: ClassVar[bool] = False
+    #: The backward step may swap it for a look-alike the group's test names.
+    swappable: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         raw = {f.name: getattr(self, f.name) for f in fields(self)}
@@ -150,6 +225,32 @@ class Effect(ABC):
     def starts(cls: type[E], at: Start) -> list[E]:
         """The starting values tried when this effect is added to the fit ``at``
         (the caller keeps the one of least error)."""
+
+    @classmethod
+    def refit_starts(cls, at: TrialStart) -> RefitStarts | None:
+        """Variants of the record to refit the current model to before the trial (the
+        current fit has bent itself to follow what the effect describes, and the
+        effect added to that bend starts wrong); None: the trial starts from the
+        current model with the best-ranked start."""
+        return None
+
+    @classmethod
+    def beside(cls, partner_start: EffectSet) -> EffectSet:
+        """The start of the joint trial (:attr:`partner`), from the partner's best start."""
+        return partner_start
+
+    @classmethod
+    def direction(cls, x_model: FloatArray) -> FloatArray | None:
+        """The first-order change the effect makes to a model's prediction ``x_model``
+        [µm] (per unit of its unknown), where that is known without a fit: a trial is
+        hopeless where this direction does not cut the cross-validated error; None: not
+        known."""
+        return None
+
+    def rejects(self) -> str | None:
+        """Why the fitted effect is no candidate (the trial is recorded, not credited),
+        or None."""
+        return None
 
 
 def _plain(value: Any) -> Any:

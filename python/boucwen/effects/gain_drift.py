@@ -26,6 +26,8 @@ class GainDrift(Effect):
     """
 
     name: ClassVar[str] = "gain_drift"
+    bars_lookalikes: ClassVar[bool] = True
+    swappable: ClassVar[bool] = True
     rate_per_s: float
 
     def unknowns(self) -> tuple[str, ...]:

@@ -102,6 +102,10 @@ class Resonance(Effect):
     """
 
     name: ClassVar[str] = "resonance"
+    spectral_peak: ClassVar[bool] = True
+    #: A second-order low-pass has a peak only for ζ below 1/√2; without one it is a lag
+    #: shape the other effects describe.
+    PEAK_ZETA: ClassVar[float] = 1.0 / math.sqrt(2.0)
     fn_hz: float
     zeta: float
 
@@ -120,6 +124,12 @@ class Resonance(Effect):
 
     def typical(self, context: Context, span_u: float, span_x: float) -> tuple[float, ...]:
         return (1.0, 1.0)
+
+    def rejects(self) -> str | None:
+        """A fitted mode without a peak (ζ ≥ 1/√2) is no candidate."""
+        if self.zeta >= self.PEAK_ZETA:
+            return f"no resonance peak: fitted zeta {self.zeta:.3g} ≥ 1/√2"
+        return None
 
     @classmethod
     def starts(cls, at: Start) -> list[Resonance]:

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from .._core import EffectSet
+from .base import params_of, with_effect
 from .resonance import Resonance
 
 __all__ = ["Resonance2"]
@@ -27,3 +29,15 @@ class Resonance2(Resonance):
     """
 
     name: ClassVar[str] = "resonance2"
+    partner: ClassVar[str | None] = Resonance.name
+    joint: ClassVar[str] = "two modes"
+    #: The joint trial starts the second mode at this multiple of the first's frequency:
+    #: distinct, so that the two can part (two peaks close together, or a double peak).
+    SPLIT: ClassVar[float] = 1.05
+
+    @classmethod
+    def beside(cls, partner_start: EffectSet) -> EffectSet:
+        """Both modes: the first at its best start, the second at :data:`SPLIT` × its
+        frequency with the same damping."""
+        mode = params_of(partner_start)[Resonance.name]
+        return with_effect(partner_start, cls(fn_hz=cls.SPLIT * mode["fn_hz"], zeta=mode["zeta"]))
