@@ -1,0 +1,245 @@
+"""The tables of ``README.md`` and ``docs/results.md``, written from the runs.
+
+Every table those documents show of the main job's runs sits between two markers::
+
+    <!-- report:NAME -->
+    | … the table … |
+    <!-- /report:NAME -->
+
+and is written by this module from the JSON the runs leave in ``out/`` (``bash
+scripts/main.sh``): ``out/reproduce/results.json`` (Tables 1 and 1b), ``out/measured/
+results.json`` (the measured records) and ``out/track/results.json`` (closed-loop
+tracking). Nothing between the markers is written by hand; the prose around them is.
+
+Run as ``python -m boucwen.experiments.report [--runs out] [FILE ...]`` (default files:
+``README.md`` and ``docs/results.md``): each block whose run is present is rewritten;
+a block whose run is missing is left as it is and named; a marker with an
+unknown name is an error (exit status 1, nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .measured import markdown_table
+
+__all__ = ["BLOCKS", "Block", "blocks_in", "main", "render", "update_text"]
+
+#: Frequencies of the paper's tables [Hz], as keys of ``results.json``.
+FREQUENCIES = ("1", "10", "100", "200")
+
+#: A run's JSON, by the run's folder name under ``--runs``.
+Runs = Mapping[str, Mapping[str, Any]]
+
+_MARKER = re.compile(r"<!-- report:([a-z0-9_]+) -->\n(.*?)<!-- /report:\1 -->", re.DOTALL)
+_OPEN = re.compile(r"<!-- report:([a-z0-9_]+) -->")
+
+
+@dataclass(frozen=True)
+class Block:
+    """A table: the run it is written from (folder under ``--runs``) and how."""
+
+    run: str
+    write: Callable[[Mapping[str, Any]], str]
+
+
+def _freq_row(label: str, values: Mapping[str, float], *, bold: bool = False, fmt: str = "{:.3f}") -> str:
+    cells = [_num(values[f], fmt) for f in FREQUENCIES]
+    if bold:
+        label, cells = f"**{label}**", [f"**{c}**" for c in cells]
+    return f"| {label} | " + " | ".join(cells) + " |"
+
+
+def _num(v: float, fmt: str) -> str:
+    """``fmt`` for errors below 100 µm, one decimal above (a failed model's hundreds of µm)."""
+    return f"{v:.1f}" if abs(v) >= 100 else fmt.format(v)
+
+
+_HEAD = "| {} | 1 Hz | 10 Hz | 100 Hz | 200 Hz |\n|---|---|---|---|---|"
+
+
+def _table1(r: Mapping[str, Any], rows: Sequence[tuple[str, str, bool]]) -> str:
+    """Period-ahead rows ``(key, label, bold)``; keys of ``table1``, or ``paper`` and
+    ``paper_online`` (the paper's own rows), ``oracle``, ``best_fixed``."""
+    t1 = r["table1"]
+    sources = {
+        "paper": {k: float(v) for k, v in r["paper"]["table1"]["traditional"].items()},
+        "paper_online": {k: float(v) for k, v in r["paper"]["table1"]["online"].items()},
+        "oracle": r["refit_oracle"],
+        "best_fixed": r["best_fixed_per_frequency"],
+    }
+    lines = [_HEAD.format("method")]
+    for key, label, bold in rows:
+        values = sources.get(key) or t1[key]
+        lines.append(_freq_row(label, values, bold=bold, fmt="{:.2f}" if key.startswith("paper") else "{:.3f}"))
+    return "\n".join(lines)
+
+
+def _one_step(r: Mapping[str, Any], methods: Sequence[tuple[str, str]]) -> str:
+    lines = [_HEAD.format("predictor")]
+    lines += [_freq_row(label, r["table1_one_step"][key]) for key, label in methods]
+    lines.append(_freq_row("persistence x̂ₖ = xₖ₋₁ (no model)", r["baselines"]["persistence"]))
+    lines.append(_freq_row("two-tap x̂ₖ = 2xₖ₋₁ − xₖ₋₂ (no model)", r["baselines"]["two_tap"]))
+    return "\n".join(lines)
+
+
+_README_TABLE1 = (
+    ("traditional", "traditional (offline fit at 1 Hz, then fixed)", False),
+    ("paper", "traditional, paper", False),
+    ("online_horizon", "online `horizon` (library default, input lag identified)", True),
+    ("online_rpem", "online `rpem`", False),
+    ("online_paper", "online `paper` (the paper's method, N = 50)", False),
+    ("oracle", "refit oracle (offline fit on the 2 periods before)", False),
+)
+_RESULTS_TABLE1 = (
+    ("traditional", "traditional (offline fit at 1 Hz, then fixed), this bench", False),
+    ("paper", "traditional, paper", False),
+    (
+        "online_horizon",
+        "online `horizon` (moving-horizon output error, input lag identified; library default)",
+        True,
+    ),
+    ("online_horizon_base", "online `horizon`, seven parameters only (`Identifier.horizon`)", False),
+    ("online_rpem", "online `rpem` (recursive prediction error)", False),
+    ("online_paper", "online `paper` (the paper's method, default repair, N = 50)", False),
+    ("online_paper_literal", "online `paper`, literal line decomposition", False),
+    ("paper_online", "online, paper", False),
+    ("oracle", "refit oracle: offline fit on the 2 periods before the scored one", False),
+    ("best_fixed", "best fixed parameters per frequency (in-sample, no fair target)", False),
+)
+
+
+def _track(r: Mapping[str, Any], bench: str, refs: Sequence[str] | None, *, rms: bool) -> str:
+    """Max (and RMS) tracking error [µm] with the max in % of range, per reference and
+    method, on ``bench`` (``vibration_off`` / ``vibration_on``)."""
+    methods: Mapping[str, str] = r["settings"]["methods"]
+    references: Mapping[str, Mapping[str, Any]] = r["settings"]["references"]
+    table = r["benches"][bench]["table"]
+    lines = ["| reference | " + " | ".join(methods.values()) + " |", "|---|" + "---|" * len(methods)]
+    for ref in refs if refs is not None else list(references):
+        cells = []
+        for m in methods:
+            v = table[ref][m]
+            pair = f"{v['max_um']:.3f} / {v['rms_um']:.3f}" if rms else f"{v['max_um']:.3f}"
+            cells.append(f"{pair} ({v['max_pct']:.2f} %)")
+        lines.append(f"| {references[ref]['label']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+#: Every table the documents may hold, by marker name.
+BLOCKS: dict[str, Block] = {
+    "readme_table1": Block("reproduce", lambda r: _table1(r, _README_TABLE1)),
+    "results_table1": Block("reproduce", lambda r: _table1(r, _RESULTS_TABLE1)),
+    "readme_one_step": Block("reproduce", lambda r: _one_step(r, (("online_horizon", "online `horizon`, one step"),))),
+    "results_one_step": Block(
+        "reproduce",
+        lambda r: _one_step(
+            r,
+            (
+                ("online_horizon", "online `horizon`, one step"),
+                ("online_horizon_base", "online `horizon`, seven parameters, one step"),
+                ("online_rpem", "online `rpem`, one step"),
+            ),
+        ),
+    ),
+    "measured": Block("measured", lambda r: markdown_table(r["cases"])),
+    "readme_track": Block(
+        "track",
+        lambda r: _track(r, "vibration_off", ("sine_1hz", "sine_100hz", "sine_200hz", "staircase"), rms=False),
+    ),
+    "track_off": Block("track", lambda r: _track(r, "vibration_off", None, rms=True)),
+    "track_on": Block("track", lambda r: _track(r, "vibration_on", None, rms=True)),
+}
+
+
+def load_runs(runs_dir: str | Path) -> dict[str, dict[str, Any]]:
+    """The ``results.json`` of every run folder under ``runs_dir`` that has one."""
+    found: dict[str, dict[str, Any]] = {}
+    for name in sorted({b.run for b in BLOCKS.values()}):
+        path = Path(runs_dir) / name / "results.json"
+        if path.is_file():
+            with open(path, encoding="utf-8") as fh:
+                found[name] = json.load(fh)
+    return found
+
+
+def blocks_in(text: str) -> list[str]:
+    """The marker names in ``text``, in order."""
+    return _OPEN.findall(text)
+
+
+def render(name: str, runs: Runs) -> str | None:
+    """The table of block ``name`` from ``runs``; None when its run is missing.
+
+    Raises:
+        ValueError: ``name`` is not a block of :data:`BLOCKS`.
+    """
+    if name not in BLOCKS:
+        raise ValueError(f"unknown report block {name!r} (known: {', '.join(sorted(BLOCKS))})")
+    block = BLOCKS[name]
+    return None if block.run not in runs else block.write(runs[block.run])
+
+
+def update_text(text: str, runs: Runs) -> tuple[str, list[str], list[str]]:
+    """``text`` with every block rewritten from ``runs``; also the names written and
+    those left as they were (their run missing).
+
+    Raises:
+        ValueError: a marker names an unknown block, or a block is not closed.
+    """
+    for name in blocks_in(text):
+        if name not in BLOCKS:
+            raise ValueError(f"unknown report block {name!r} (known: {', '.join(sorted(BLOCKS))})")
+    closed = [m.group(1) for m in _MARKER.finditer(text)]
+    unclosed = [n for n in blocks_in(text) if n not in closed]
+    if unclosed:
+        raise ValueError(f"report block {unclosed[0]!r} has no closing <!-- /report:{unclosed[0]} -->")
+    written: list[str] = []
+    left: list[str] = []
+
+    def replace(m: re.Match[str]) -> str:
+        name = m.group(1)
+        table = render(name, runs)
+        if table is None:
+            left.append(name)
+            return m.group(0)
+        written.append(name)
+        return f"<!-- report:{name} -->\n{table}\n<!-- /report:{name} -->"
+
+    return _MARKER.sub(replace, text), written, left
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m boucwen.experiments.report", description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", default="out", help="folder holding the runs' results (default: out)")
+    ap.add_argument("files", nargs="*", default=["README.md", "docs/results.md"], help="documents to update")
+    args = ap.parse_args(argv)
+    runs = load_runs(args.runs)
+    if not runs:
+        print(f"report: no run found under {args.runs}/ (run bash scripts/main.sh first)", file=sys.stderr)
+        return 1
+    updated: dict[Path, str] = {}
+    for name in args.files:
+        path = Path(name)
+        try:
+            text = path.read_text(encoding="utf-8")
+            new, written, left = update_text(text, runs)
+        except (OSError, ValueError) as exc:
+            print(f"report: {path}: {exc}", file=sys.stderr)
+            return 1
+        updated[path] = new
+        print(f"{path}: {len(written)} table(s) written" + (f"; left as they were: {', '.join(left)}" if left else ""))
+    for path, text in updated.items():
+        path.write_text(text, encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
