@@ -7,14 +7,19 @@ The model (Zhu, Bian & Rui, Precision Engineering 38 (2014) 921–927)::
 
 u: voltage [V]; x, h: displacement [µm]; t: time [s].
 
-Every invalid argument or non-finite sample raises ``ValueError`` with a
-one-line message naming the offending value; an argument of the wrong kind
-(a string or ``None`` for an array) raises ``TypeError``.
+Every invalid argument or non-finite sample raises a ``ValueError`` with a
+one-line message naming the offending value, of a named subclass where the core
+knows the kind (``InvalidParams``, ``InvalidConfig``, ``InvalidRecord``,
+``CorruptSnapshot``, ``LengthMismatch``: one per variant of the Rust ``Error``);
+an argument of the wrong kind (a string or ``None`` for an array) raises
+``TypeError``.
 
 Layout of this file, one section per part of the extension, so that a new
 part is one new section (and one line in ``__all__``):
 
 - module constants
+- exceptions: ``InvalidParams``, ``InvalidConfig``, ``InvalidRecord``,
+  ``CorruptSnapshot``, ``LengthMismatch``
 - parameters: ``Params``
 - simulation: ``simulate``, ``paper_input``, ``Model``
 - online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
@@ -39,9 +44,14 @@ __all__ = [
     "INVERSE_TOLERANCE_UM",
     "Bank",
     "Compensator",
+    "CorruptSnapshot",
     "EffectSet",
     "Identifier",
+    "InvalidConfig",
+    "InvalidParams",
+    "InvalidRecord",
     "Inverse",
+    "LengthMismatch",
     "Model",
     "Params",
     "__version__",
@@ -62,6 +72,30 @@ __version__: str
 INVERSE_TOLERANCE_UM: float
 """The inverse's tolerance on |model x − x_d| [µm] per µm of max(1 µm, |x_d|): 1e-7, a
 tenth of a picometre, a thousand times below the best capacitive sensors' resolution."""
+
+# ---------------------------------------------------------------- exceptions
+
+class InvalidParams(ValueError):
+    """A model or effect parameter is out of its domain (non-finite, n <= 0, an unknown
+    or missing name, a wrong count); raised before anything is built or changed."""
+
+class InvalidConfig(ValueError):
+    """A configuration value is invalid: the sampling interval dt [s], a window length, a
+    tuning option of HorizonConfig/RpemConfig/PaperConfig, a channel count, an option of
+    fit or diagnose."""
+
+class InvalidRecord(ValueError):
+    """A record or signal cannot be used: a NaN or infinite sample (rejected; an
+    identifier's state is kept), an array not 1-D or empty, u and x of different
+    lengths, a CSV file or column that cannot be read."""
+
+class CorruptSnapshot(ValueError):
+    """Snapshot bytes (a pickled Model, Identifier, Inverse...) are truncated, foreign or
+    corrupt; nothing is built from them."""
+
+class LengthMismatch(ValueError):
+    """Two arrays handed to the core that must have the same length do not (creep gains
+    and time constants, a bank frame and the channel count, u and x of push_many)."""
 
 # ---------------------------------------------------------------- parameters
 
@@ -378,8 +412,9 @@ class Identifier:
     def method(self) -> _IdentifierMethod:
         """The online method in use."""
     @property
-    def config(self) -> dict[str, Any]:
-        """The configuration in use, as a dict of the options of the method's config class."""
+    def config(self) -> HorizonConfig | RpemConfig | PaperConfig:
+        """The configuration in use, as the method's frozen config object (equal to the one
+        given; the method's defaults when none was; the paper's window is ``window``)."""
     @property
     def window(self) -> int | None:
         """The paper method's window N [samples]; None for the other methods."""

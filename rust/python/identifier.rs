@@ -5,14 +5,14 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 
-use super::config::{horizon_config, horizon_slots, paper_config, paper_slots, rpem_config, rpem_slots, slots_dict};
+use super::config::{config_object, horizon_config, horizon_slots, paper_config, paper_slots, rpem_config, rpem_slots};
 use super::effects::PyEffectSet;
 use super::params::PyParams;
-use super::{samples, value_error};
+use super::{samples, value_error, InvalidConfig};
 use crate::effects::EffectSet;
 use crate::identify::{
-    AnyIdentifier, AnyStatus, BackgroundHorizon, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier,
-    RefineMode, RpemConfig, RpemIdentifier,
+    AnyIdentifier, AnyStatus, BackgroundHorizon, HorizonIdentifier, OnlineIdentifier, PaperIdentifier, RefineMode,
+    RpemConfig, RpemIdentifier,
 };
 
 /// Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
@@ -126,7 +126,7 @@ fn refine_arg(refine: &str) -> PyResult<Refine> {
         "sync" => Ok(Refine::Mode(RefineMode::Sync)),
         "cooperative" => Ok(Refine::Mode(RefineMode::Cooperative)),
         "background" => Ok(Refine::Background),
-        other => Err(PyValueError::new_err(format!(
+        other => Err(InvalidConfig::new_err(format!(
             "invalid refine = {other:?}: expected \"sync\", \"cooperative\" or \"background\""
         ))),
     }
@@ -256,14 +256,7 @@ impl PyIdentifier {
     ) -> PyResult<Self> {
         check_config_class(config, "PaperConfig")?;
         let window = count_arg(window, "window")?;
-        if !(PaperConfig::MIN_WINDOW as i64..=PaperConfig::MAX_WINDOW as i64).contains(&window) {
-            return Err(PyValueError::new_err(format!(
-                "invalid window = {window}: the window holds {} to {} samples",
-                PaperConfig::MIN_WINDOW,
-                PaperConfig::MAX_WINDOW
-            )));
-        }
-        let cfg = paper_config(config, window as usize)?;
+        let cfg = paper_config(config, window)?;
         let id = PaperIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
         Ok(PyIdentifier { inner: Inner::Any(AnyIdentifier::Paper(id)) })
     }
@@ -361,16 +354,22 @@ impl PyIdentifier {
         self.inner.method()
     }
 
-    /// The configuration in use, as a dict of its options (the fields of the
-    /// method's `HorizonConfig`, `RpemConfig` or `PaperConfig`: `RpemConfig(**ident.config)`
-    /// rebuilds it; the paper's window is `window`).
+    /// The configuration in use, as the method's frozen config object: a
+    /// `HorizonConfig`, `RpemConfig` or `PaperConfig` equal to the one given (the
+    /// method's defaults when none was; the paper's window is `window`).
     #[getter]
-    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         match &self.inner {
-            Inner::Any(AnyIdentifier::Rpem(id)) => slots_dict(py, rpem_slots(&mut id.config().clone())),
-            Inner::Any(AnyIdentifier::Paper(id)) => slots_dict(py, paper_slots(&mut id.config().clone())),
-            Inner::Any(AnyIdentifier::Horizon(id)) => slots_dict(py, horizon_slots(&mut id.config().clone())),
-            Inner::Background(id) => slots_dict(py, horizon_slots(&mut id.config().clone())),
+            Inner::Any(AnyIdentifier::Rpem(id)) => {
+                config_object(py, "RpemConfig", rpem_slots(&mut id.config().clone()))
+            }
+            Inner::Any(AnyIdentifier::Paper(id)) => {
+                config_object(py, "PaperConfig", paper_slots(&mut id.config().clone()))
+            }
+            Inner::Any(AnyIdentifier::Horizon(id)) => {
+                config_object(py, "HorizonConfig", horizon_slots(&mut id.config().clone()))
+            }
+            Inner::Background(id) => config_object(py, "HorizonConfig", horizon_slots(&mut id.config().clone())),
         }
     }
 
