@@ -105,7 +105,7 @@ class Params:
 
     kv [µm/V], x0 [µm], A [µm/V], beta and gamma [µm^(1−n)/V], n [-] (> 0),
     delta [µm/(V·s)]. Immutable and hashable; ``repr`` round-trips; pickles.
-    Building one with a non-finite value or n ≤ 0 raises ``ValueError``
+    Building one with a non-finite value or n ≤ 0 raises ``InvalidParams``
     naming the parameter.
     """
 
@@ -141,7 +141,7 @@ class Params:
         """``[kv, x0, A, beta, gamma, n, delta]`` as a new float64 array."""
     @staticmethod
     def from_array(values: ArrayLike) -> Params:
-        """Inverse of :meth:`to_array` (7 values); ``ValueError`` naming an invalid parameter."""
+        """Inverse of :meth:`to_array` (7 values); ``InvalidParams`` naming an invalid parameter."""
     def to_dict(self) -> dict[str, float]:
         """``{"kv": …, "x0": …, "A": …, "beta": …, "gamma": …, "n": …, "delta": …}``."""
     @staticmethod
@@ -294,7 +294,7 @@ def _config_defaults(method: _IdentifierMethod) -> dict[str, Any]:
     """Default options of a method's config (``boucwen.config`` takes them from here)."""
 
 def _validate_config(method: _IdentifierMethod, config: object) -> None:
-    """``ValueError`` naming the offending option of a method's config object."""
+    """``InvalidConfig`` naming the offending option of a method's config object."""
 
 @final
 class Identifier:
@@ -303,7 +303,7 @@ class Identifier:
     ``push(u, x)`` takes a voltage u [V] and a measured displacement x [µm] and
     returns the model's displacement [µm] for that sample, predicted with the
     estimates from *before* the sample and with the model's own simulated h;
-    then it updates the estimates. A non-finite sample raises ``ValueError``
+    then it updates the estimates. A non-finite sample raises ``InvalidRecord``
     and leaves the identifier exactly as it was.
 
     One constructor per method, each with its own frozen config class:
@@ -387,7 +387,7 @@ class Identifier:
     def forecast(self, u: ArrayLike) -> NDArray[np.float64]:
         """Open-loop x̂ [µm] for the future voltages ``u`` [V]: the current estimates and
         state (effects included) simulated on from the last sample pushed. The
-        identifier does not change; ``ValueError`` on a non-finite ``u``."""
+        identifier does not change; ``InvalidRecord`` on a non-finite ``u``."""
     def push(self, u: float, x: float) -> float:
         """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""
     def refine(self, max_intervals: int) -> int:
@@ -400,7 +400,7 @@ class Identifier:
         """Where the horizon method's window pass runs; None for the other methods."""
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
         """``push`` over arrays with the GIL released; predictions [µm] identical to a
-        loop of ``push``. A non-finite value anywhere raises ``ValueError`` before any
+        loop of ``push``. A non-finite value anywhere raises ``InvalidRecord`` before any
         sample is used (the state is unchanged)."""
     @property
     def params(self) -> Params:

@@ -20,7 +20,7 @@ use crate::identify::{
 /// `push(u, x)` takes a voltage u \[V\] and a measured displacement x \[µm\] and
 /// returns the model's displacement \[µm\] for that sample, predicted with the
 /// estimates from *before* the sample and with the model's own simulated h; then
-/// it updates the estimates. A non-finite sample raises ValueError and leaves
+/// it updates the estimates. A non-finite sample raises InvalidRecord and leaves
 /// the identifier exactly as it was.
 ///
 /// Constructors, one per method:
@@ -292,7 +292,7 @@ impl PyIdentifier {
 
     /// `push` over arrays, with the GIL released; returns the predictions \[µm\],
     /// identical to a loop of `push`. If any value is NaN or infinite the whole call
-    /// raises ValueError before any sample is used (the state is unchanged).
+    /// raises InvalidRecord before any sample is used (the state is unchanged).
     fn push_many<'py>(
         &mut self,
         py: Python<'py>,
@@ -340,7 +340,7 @@ impl PyIdentifier {
     /// The model's open-loop displacement x̂ \[µm\] for the future voltages `u` \[V\]:
     /// the current estimates and model state (with the effects identified along)
     /// simulated on from the last sample pushed, the interval from it to `u[0]`
-    /// included. Nothing changes in the identifier. ValueError on a non-finite `u`.
+    /// included. Nothing changes in the identifier. InvalidRecord on a non-finite `u`.
     fn forecast<'py>(&self, py: Python<'py>, u: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = samples(u, "u")?;
         let mut out = vec![0.0; u.len()];
@@ -450,7 +450,7 @@ impl PyIdentifier {
         Ok((restore, args))
     }
 
-    /// Rebuilds an identifier from the bytes written by `__reduce__` (ValueError if
+    /// Rebuilds an identifier from the bytes written by `__reduce__` (CorruptSnapshot if
     /// corrupt); `refine="background"` restarts a horizon identifier's worker.
     #[classmethod]
     #[pyo3(signature = (data, refine = None))]
