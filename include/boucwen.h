@@ -30,13 +30,26 @@ typedef enum {
   BW_BUFFER_TOO_SMALL = 7,
   // A Rust panic was caught (a bug): destroy the object.
   BW_PANIC = 8,
+  // The call belongs to another method than the identifier's (e.g. the horizon
+  // method's refine on an rpem identifier): nothing was done.
+  BW_WRONG_METHOD = 9,
 } BwStatus;
+
+// The online method an identifier runs.
+typedef enum {
+  // The moving-horizon output-error method (the recommended one).
+  BW_METHOD_HORIZON = 0,
+  // The recursive prediction-error method on the output error.
+  BW_METHOD_RPEM = 1,
+  // The paper's limited-memory RLS with least-squares sub-fits.
+  BW_METHOD_PAPER = 2,
+} BwMethod;
 
 // Where a horizon identifier's window pass runs (see `RefineMode` in the Rust docs).
 typedef enum {
   // In every push (the default; the predictions of earlier releases bit for bit).
   BW_REFINE_SYNC = 0,
-  // In `bw_horizon_refine`, called when the loop has time; push only predicts and
+  // In `bw_identifier_refine`, called when the loop has time; push only predicts and
   // stores. Deterministic for a given schedule of calls.
   BW_REFINE_COOPERATIVE = 1,
 } BwRefineMode;
@@ -44,20 +57,14 @@ typedef enum {
 // Opaque bank of channels (identifier, model and inverse each).
 typedef struct BwBank BwBank;
 
-// Opaque horizon identifier.
-typedef struct BwHorizon BwHorizon;
+// Opaque online identifier, of any method (horizon, rpem or paper).
+typedef struct BwIdentifier BwIdentifier;
 
 // Opaque inverse of the model (feedforward compensation).
 typedef struct BwInverse BwInverse;
 
 // Opaque per-sample model.
 typedef struct BwModel BwModel;
-
-// Opaque paper identifier.
-typedef struct BwPaper BwPaper;
-
-// Opaque rpem identifier.
-typedef struct BwRpem BwRpem;
 
 // The seven parameters of eqs. (3) and (5): kv \[µm/V\], x0 \[µm\], A \[µm/V\], β and γ
 // [µm^(1−n)/V], n \[-\], δ \[µm/(V·s)\].
@@ -94,20 +101,6 @@ typedef struct {
   double fc_max_hz;
 } BwRpemConfig;
 
-// What the last push of an rpem identifier did (see `RpemStatus` in the Rust docs).
-typedef struct {
-  uint64_t samples;
-  bool updated;
-  bool step_limited;
-  bool projected;
-  bool trace_capped;
-  bool restarted;
-  // x − x̂ of the sample \[µm\].
-  double innovation_um;
-  // tr P (scaled units).
-  double trace;
-} BwRpemStatus;
-
 // Tuning of the paper's method (see `PaperConfig` in the Rust docs); fill it with
 // `bw_paper_config_default` first. `decomposition`: 0 = model (default), 1 = line.
 typedef struct {
@@ -127,17 +120,6 @@ typedef struct {
   double n_min;
   double n_max;
 } BwPaperConfig;
-
-// What the last push of a paper identifier did; each sub-fit 0 = held, 1 = reduced, 2 = ran.
-typedef struct {
-  uint64_t samples;
-  bool window_full;
-  bool refreshed;
-  uint32_t line_fit;
-  uint32_t rate_fit;
-  uint32_t shape_fit;
-  uint32_t return_fit;
-} BwPaperStatus;
 
 // Tuning of the horizon method (see `HorizonConfig` in the Rust docs for each value's
 // meaning, units and default); fill it with `bw_horizon_config_default` first.
@@ -177,6 +159,41 @@ typedef struct {
   // The same in seconds \[s\].
   double behind_s;
 } BwHorizonStatus;
+
+// What the last push of an rpem identifier did (see `RpemStatus` in the Rust docs).
+typedef struct {
+  uint64_t samples;
+  bool updated;
+  bool step_limited;
+  bool projected;
+  bool trace_capped;
+  bool restarted;
+  // x − x̂ of the sample \[µm\].
+  double innovation_um;
+  // tr P (scaled units).
+  double trace;
+} BwRpemStatus;
+
+// What the last push of a paper identifier did; each sub-fit 0 = held, 1 = reduced, 2 = ran.
+typedef struct {
+  uint64_t samples;
+  bool window_full;
+  bool refreshed;
+  uint32_t line_fit;
+  uint32_t rate_fit;
+  uint32_t shape_fit;
+  uint32_t return_fit;
+} BwPaperStatus;
+
+// What the last push of an identifier did: `method` says which of `horizon`, `rpem`
+// and `paper` is filled (the other two are zero); `samples` is the samples pushed.
+typedef struct {
+  BwMethod method;
+  uint64_t samples;
+  BwHorizonStatus horizon;
+  BwRpemStatus rpem;
+  BwPaperStatus paper;
+} BwIdentifierStatus;
 
 // What the last step of an inverse did: `clip` 0 = within the limits, 1 = on the
 // lower, 2 = on the upper limit.
@@ -241,145 +258,98 @@ BwStatus bw_simulate(const BwParams *params,
 // The rpem method's defaults.
 BwStatus bw_rpem_config_default(BwRpemConfig *out);
 
-// An rpem identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
-// `config` or null for the defaults) into `*out`.
-BwStatus bw_rpem_new(double dt,
-                     const BwParams *init,
-                     double h0,
-                     const BwRpemConfig *config,
-                     BwRpem **out);
-
-// Releases an rpem identifier (null is ignored).
-void bw_rpem_free(BwRpem *id);
-
-// One sample (u \[V\], measured x \[µm\]); the prediction made before x is used \[µm\]
-// to `*x_hat`. No allocation.
-BwStatus bw_rpem_push(BwRpem *id, double u, double x, double *x_hat);
-
-// `len` samples at once; predictions into `out`. Rejected whole (state kept) if any
-// value is non-finite.
-BwStatus bw_rpem_push_many(BwRpem *id, const double *u, const double *x, size_t len, double *out);
-
-// The current estimates.
-BwStatus bw_rpem_params(const BwRpem *id, BwParams *out);
-
-// What the last push did.
-BwStatus bw_rpem_status(const BwRpem *id, BwRpemStatus *out);
-
-// The model's h \[µm\] after the last sample.
-BwStatus bw_rpem_h(const BwRpem *id, double *h);
-
-// Back to the state right after construction.
-BwStatus bw_rpem_reset(BwRpem *id);
-
-// The identifier's snapshot bytes (see `bw_model_snapshot`).
-BwStatus bw_rpem_snapshot(const BwRpem *id, uint8_t *buf, size_t capacity, size_t *len);
-
-// An rpem identifier rebuilt from snapshot bytes into `*out`; it continues bit for bit.
-BwStatus bw_rpem_restore(const uint8_t *buf, size_t len, BwRpem **out);
-
 // The paper method's defaults for a window of `window_len` samples.
 BwStatus bw_paper_config_default(size_t window_len, BwPaperConfig *out);
-
-// A paper identifier (`dt` \[s\], `init`, `h0` \[µm\], tuning `config` with its
-// window) into `*out`. The window is allocated here, once.
-BwStatus bw_paper_new(double dt,
-                      const BwParams *init,
-                      double h0,
-                      const BwPaperConfig *config,
-                      BwPaper **out);
-
-// Releases a paper identifier (null is ignored).
-void bw_paper_free(BwPaper *id);
-
-// One sample (see `bw_rpem_push`).
-BwStatus bw_paper_push(BwPaper *id, double u, double x, double *x_hat);
-
-// `len` samples at once (see `bw_rpem_push_many`).
-BwStatus bw_paper_push_many(BwPaper *id, const double *u, const double *x, size_t len, double *out);
-
-// The current estimates.
-BwStatus bw_paper_params(const BwPaper *id, BwParams *out);
-
-// What the last push did.
-BwStatus bw_paper_status(const BwPaper *id, BwPaperStatus *out);
-
-// The model's h \[µm\] after the last sample.
-BwStatus bw_paper_h(const BwPaper *id, double *h);
-
-// Back to the state right after construction.
-BwStatus bw_paper_reset(BwPaper *id);
-
-// The identifier's snapshot bytes (see `bw_model_snapshot`).
-BwStatus bw_paper_snapshot(const BwPaper *id, uint8_t *buf, size_t capacity, size_t *len);
-
-// A paper identifier rebuilt from snapshot bytes into `*out`.
-BwStatus bw_paper_restore(const uint8_t *buf, size_t len, BwPaper **out);
 
 // The horizon method's defaults.
 BwStatus bw_horizon_config_default(BwHorizonConfig *out);
 
-// A horizon identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
-// `config` or null for the defaults) into `*out`. `lag_fc_hz` > 0: an input lag
-// (amplifier bandwidth) is identified along, starting at that corner frequency \[Hz\]
-// (the recommended model starts at 0.3/dt, as `Identifier(dt, init)` in Python);
-// 0: the seven-parameter model alone. The window is allocated here, once.
-BwStatus bw_horizon_new(double dt,
-                        const BwParams *init,
-                        double h0,
-                        double lag_fc_hz,
-                        const BwHorizonConfig *config,
-                        BwHorizon **out);
+// A horizon identifier, the recommended method (`dt` \[s\], starting values `init`, h
+// `h0` \[µm\], tuning `config` or null for the defaults) into `*out`. `lag_fc_hz` > 0:
+// an input lag (amplifier bandwidth) is identified along, starting at that corner
+// frequency \[Hz\] (the recommended model starts at 0.3/dt, as `Identifier(dt, init)`
+// in Python); 0: the seven-parameter model alone. The window is allocated here, once.
+BwStatus bw_identifier_new_horizon(double dt,
+                                   const BwParams *init,
+                                   double h0,
+                                   double lag_fc_hz,
+                                   const BwHorizonConfig *config,
+                                   BwIdentifier **out);
 
-// Releases a horizon identifier (null is ignored).
-void bw_horizon_free(BwHorizon *id);
+// An rpem identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
+// `config` or null for the defaults) into `*out`.
+BwStatus bw_identifier_new_rpem(double dt,
+                                const BwParams *init,
+                                double h0,
+                                const BwRpemConfig *config,
+                                BwIdentifier **out);
 
-// One sample (see `bw_rpem_push`). No allocation.
-BwStatus bw_horizon_push(BwHorizon *id, double u, double x, double *x_hat);
+// A paper identifier (`dt` \[s\], `init`, `h0` \[µm\], tuning `config` with its
+// window, not null) into `*out`. The window is allocated here, once.
+BwStatus bw_identifier_new_paper(double dt,
+                                 const BwParams *init,
+                                 double h0,
+                                 const BwPaperConfig *config,
+                                 BwIdentifier **out);
 
-// `len` samples at once (see `bw_rpem_push_many`).
-BwStatus bw_horizon_push_many(BwHorizon *id,
-                              const double *u,
-                              const double *x,
-                              size_t len,
-                              double *out);
+// An identifier rebuilt from snapshot bytes (`bw_identifier_snapshot`) into `*out`,
+// of the method the bytes record; it continues bit for bit.
+BwStatus bw_identifier_restore(const uint8_t *buf, size_t len, BwIdentifier **out);
 
-// Switches where the window pass runs (at any sample; see `HorizonIdentifier::set_mode`
-// in the Rust docs). A new identifier runs it in every push (`BW_REFINE_SYNC`).
-BwStatus bw_horizon_set_refine(BwHorizon *id, BwRefineMode mode);
+// Releases an identifier (null is ignored).
+void bw_identifier_free(BwIdentifier *id);
 
-// Cooperative mode: runs the window pass at most `max_intervals` integration
-// intervals on the samples pushed so far and writes the number run into `*ran` (0:
-// nothing to do until more samples come; also in sync mode). An update is adopted
-// here; the next `bw_horizon_push` predicts with it. Call it from the idle loop or a
-// lower-priority task, never concurrently with a push on the same handle. No
-// allocation.
-BwStatus bw_horizon_refine(BwHorizon *id, size_t max_intervals, size_t *ran);
+// The identifier's method.
+BwStatus bw_identifier_method(const BwIdentifier *id, BwMethod *out);
+
+// One sample (u \[V\], measured x \[µm\]); the prediction made before x is used \[µm\]
+// to `*x_hat`. No allocation.
+BwStatus bw_identifier_push(BwIdentifier *id, double u, double x, double *x_hat);
+
+// `len` samples at once; predictions into `out`. Rejected whole (state kept) if any
+// value is non-finite.
+BwStatus bw_identifier_push_many(BwIdentifier *id,
+                                 const double *u,
+                                 const double *x,
+                                 size_t len,
+                                 double *out);
 
 // The current estimates.
-BwStatus bw_horizon_params(const BwHorizon *id, BwParams *out);
+BwStatus bw_identifier_params(const BwIdentifier *id, BwParams *out);
 
-// The identified input lag's corner frequency \[Hz\] (0 without the lag).
-BwStatus bw_horizon_lag_fc(const BwHorizon *id, double *fc_hz);
+// The identified input lag's corner frequency \[Hz\] (0 without a lag, and for paper).
+BwStatus bw_identifier_lag_fc(const BwIdentifier *id, double *fc_hz);
 
-// What the last push did.
-BwStatus bw_horizon_status(const BwHorizon *id, BwHorizonStatus *out);
+// What the last push did: `out->method` says which of `out->paper`, `out->rpem` and
+// `out->horizon` is filled (the others are zero).
+BwStatus bw_identifier_status(const BwIdentifier *id, BwIdentifierStatus *out);
 
 // The model's h \[µm\] after the last sample.
-BwStatus bw_horizon_h(const BwHorizon *id, double *h);
+BwStatus bw_identifier_h(const BwIdentifier *id, double *h);
 
-// The identified model (lag included) run open loop over the future voltages `u`
+// The identified model (effects included) run open loop over the future voltages `u`
 // \[V\] from the last sample pushed, into `out` \[µm\]; the identifier does not change.
-BwStatus bw_horizon_forecast(const BwHorizon *id, const double *u, size_t len, double *out);
+BwStatus bw_identifier_forecast(const BwIdentifier *id, const double *u, size_t len, double *out);
 
 // Back to the state right after construction.
-BwStatus bw_horizon_reset(BwHorizon *id);
+BwStatus bw_identifier_reset(BwIdentifier *id);
 
-// The identifier's snapshot bytes (see `bw_model_snapshot`).
-BwStatus bw_horizon_snapshot(const BwHorizon *id, uint8_t *buf, size_t capacity, size_t *len);
+// The identifier's snapshot bytes (see `bw_model_snapshot`); `bw_identifier_restore`
+// rebuilds it.
+BwStatus bw_identifier_snapshot(const BwIdentifier *id, uint8_t *buf, size_t capacity, size_t *len);
 
-// A horizon identifier rebuilt from snapshot bytes into `*out`; it continues bit for bit.
-BwStatus bw_horizon_restore(const uint8_t *buf, size_t len, BwHorizon **out);
+// Horizon only (`BW_WRONG_METHOD` otherwise): switches where the window pass runs (at
+// any sample; see `HorizonIdentifier::set_mode` in the Rust docs). A new identifier
+// runs it in every push (`BW_REFINE_SYNC`).
+BwStatus bw_identifier_set_refine(BwIdentifier *id, BwRefineMode mode);
+
+// Horizon only (`BW_WRONG_METHOD` otherwise), cooperative mode: runs the window pass
+// at most `max_intervals` integration intervals on the samples pushed so far and
+// writes the number run into `*ran` (0: nothing to do until more samples come; also
+// in sync mode). An update is adopted here; the next `bw_identifier_push` predicts
+// with it. Call it from the idle loop or a lower-priority task, never concurrently
+// with a push on the same handle. No allocation.
+BwStatus bw_identifier_refine(BwIdentifier *id, size_t max_intervals, size_t *ran);
 
 // The inverse of the model with parameters `params`, `dt` \[s\], h `h0` \[µm\] and
 // voltage limits \[V\] (±INFINITY for none) into `*out`.
@@ -409,22 +379,12 @@ BwStatus bw_inverse_h(const BwInverse *inv, double *h);
 // Back to the state right after construction.
 BwStatus bw_inverse_reset(BwInverse *inv);
 
-// A bank of `channels` rpem channels (identifier + model each), all starting from
-// `init`, h `h0` \[µm\], tuning `config` (null: defaults), into `*out`.
-BwStatus bw_bank_new_rpem(size_t channels,
-                          double dt,
-                          const BwParams *init,
-                          double h0,
-                          const BwRpemConfig *config,
-                          BwBank **out);
-
-// A bank of `channels` paper channels with tuning `config` (its window included).
-BwStatus bw_bank_new_paper(size_t channels,
-                           double dt,
-                           const BwParams *init,
-                           double h0,
-                           const BwPaperConfig *config,
-                           BwBank **out);
+// A bank of `channels` copies of the identifier `prototype` as it is now (usually
+// fresh from a `bw_identifier_new_*`; it stays the caller's), each channel then
+// learning on its own, with a model and an inverse starting from its parameters and
+// h; `dt` \[s\] the identifier's. Every method may be banked; a horizon channel holds
+// its own window (`max_window` samples of about 100 bytes).
+BwStatus bw_bank_new(size_t channels, double dt, const BwIdentifier *prototype, BwBank **out);
 
 // Releases a bank (null is ignored).
 void bw_bank_free(BwBank *bank);

@@ -17,6 +17,9 @@ Precision Engineering 38 (2014) 921–927).
   :func:`effects_of` convert);
 - :class:`Inverse` and :func:`invert` give the voltage for a desired displacement,
   :class:`Compensator` does so in a control loop with online identification and feedback;
+- every bad input raises a ``ValueError``, named by its kind: :class:`InvalidParams`,
+  :class:`InvalidConfig`, :class:`InvalidRecord`, :class:`CorruptSnapshot`,
+  :class:`LengthMismatch`;
 - :mod:`boucwen.reference` is a plain NumPy version of the same, for reading and tests.
 """
 
@@ -25,9 +28,14 @@ from ._core import (
     INVERSE_TOLERANCE_UM,
     Bank,
     Compensator,
+    CorruptSnapshot,
     EffectSet,
     Identifier,
+    InvalidConfig,
+    InvalidParams,
+    InvalidRecord,
     Inverse,
+    LengthMismatch,
     Model,
     Params,
     __version__,
@@ -58,6 +66,7 @@ __all__ = [
     "INVERSE_TOLERANCE_UM",
     "Bank",
     "Compensator",
+    "CorruptSnapshot",
     "Creep",
     "Delay",
     "Diagnosis",
@@ -70,7 +79,11 @@ __all__ = [
     "HorizonConfig",
     "Identifier",
     "InputLag",
+    "InvalidConfig",
+    "InvalidParams",
+    "InvalidRecord",
     "Inverse",
+    "LengthMismatch",
     "Model",
     "PaperConfig",
     "Params",

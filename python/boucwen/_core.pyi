@@ -7,14 +7,19 @@ The model (Zhu, Bian & Rui, Precision Engineering 38 (2014) 921–927)::
 
 u: voltage [V]; x, h: displacement [µm]; t: time [s].
 
-Every invalid argument or non-finite sample raises ``ValueError`` with a
-one-line message naming the offending value; an argument of the wrong kind
-(a string or ``None`` for an array) raises ``TypeError``.
+Every invalid argument or non-finite sample raises a ``ValueError`` with a
+one-line message naming the offending value, of a named subclass where the core
+knows the kind (``InvalidParams``, ``InvalidConfig``, ``InvalidRecord``,
+``CorruptSnapshot``, ``LengthMismatch``: one per variant of the Rust ``Error``);
+an argument of the wrong kind (a string or ``None`` for an array) raises
+``TypeError``.
 
 Layout of this file, one section per part of the extension, so that a new
 part is one new section (and one line in ``__all__``):
 
 - module constants
+- exceptions: ``InvalidParams``, ``InvalidConfig``, ``InvalidRecord``,
+  ``CorruptSnapshot``, ``LengthMismatch``
 - parameters: ``Params``
 - simulation: ``simulate``, ``paper_input``, ``Model``
 - online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
@@ -39,9 +44,14 @@ __all__ = [
     "INVERSE_TOLERANCE_UM",
     "Bank",
     "Compensator",
+    "CorruptSnapshot",
     "EffectSet",
     "Identifier",
+    "InvalidConfig",
+    "InvalidParams",
+    "InvalidRecord",
     "Inverse",
+    "LengthMismatch",
     "Model",
     "Params",
     "__version__",
@@ -63,6 +73,30 @@ INVERSE_TOLERANCE_UM: float
 """The inverse's tolerance on |model x − x_d| [µm] per µm of max(1 µm, |x_d|): 1e-7, a
 tenth of a picometre, a thousand times below the best capacitive sensors' resolution."""
 
+# ---------------------------------------------------------------- exceptions
+
+class InvalidParams(ValueError):
+    """A model or effect parameter is out of its domain (non-finite, n <= 0, an unknown
+    or missing name, a wrong count); raised before anything is built or changed."""
+
+class InvalidConfig(ValueError):
+    """A configuration value is invalid: the sampling interval dt [s], a window length, a
+    tuning option of HorizonConfig/RpemConfig/PaperConfig, a channel count, an option of
+    fit or diagnose."""
+
+class InvalidRecord(ValueError):
+    """A record or signal cannot be used: a NaN or infinite sample (rejected; an
+    identifier's state is kept), an array not 1-D or empty, u and x of different
+    lengths, a CSV file or column that cannot be read."""
+
+class CorruptSnapshot(ValueError):
+    """Snapshot bytes (a pickled Model, Identifier, Inverse...) are truncated, foreign or
+    corrupt; nothing is built from them."""
+
+class LengthMismatch(ValueError):
+    """Two arrays handed to the core that must have the same length do not (creep gains
+    and time constants, a bank frame and the channel count, u and x of push_many)."""
+
 # ---------------------------------------------------------------- parameters
 
 @final
@@ -71,7 +105,7 @@ class Params:
 
     kv [µm/V], x0 [µm], A [µm/V], beta and gamma [µm^(1−n)/V], n [-] (> 0),
     delta [µm/(V·s)]. Immutable and hashable; ``repr`` round-trips; pickles.
-    Building one with a non-finite value or n ≤ 0 raises ``ValueError``
+    Building one with a non-finite value or n ≤ 0 raises ``InvalidParams``
     naming the parameter.
     """
 
@@ -107,7 +141,7 @@ class Params:
         """``[kv, x0, A, beta, gamma, n, delta]`` as a new float64 array."""
     @staticmethod
     def from_array(values: ArrayLike) -> Params:
-        """Inverse of :meth:`to_array` (7 values); ``ValueError`` naming an invalid parameter."""
+        """Inverse of :meth:`to_array` (7 values); ``InvalidParams`` naming an invalid parameter."""
     def to_dict(self) -> dict[str, float]:
         """``{"kv": …, "x0": …, "A": …, "beta": …, "gamma": …, "n": …, "delta": …}``."""
     @staticmethod
@@ -260,7 +294,7 @@ def _config_defaults(method: _IdentifierMethod) -> dict[str, Any]:
     """Default options of a method's config (``boucwen.config`` takes them from here)."""
 
 def _validate_config(method: _IdentifierMethod, config: object) -> None:
-    """``ValueError`` naming the offending option of a method's config object."""
+    """``InvalidConfig`` naming the offending option of a method's config object."""
 
 @final
 class Identifier:
@@ -269,7 +303,7 @@ class Identifier:
     ``push(u, x)`` takes a voltage u [V] and a measured displacement x [µm] and
     returns the model's displacement [µm] for that sample, predicted with the
     estimates from *before* the sample and with the model's own simulated h;
-    then it updates the estimates. A non-finite sample raises ``ValueError``
+    then it updates the estimates. A non-finite sample raises ``InvalidRecord``
     and leaves the identifier exactly as it was.
 
     One constructor per method, each with its own frozen config class:
@@ -353,7 +387,7 @@ class Identifier:
     def forecast(self, u: ArrayLike) -> NDArray[np.float64]:
         """Open-loop x̂ [µm] for the future voltages ``u`` [V]: the current estimates and
         state (effects included) simulated on from the last sample pushed. The
-        identifier does not change; ``ValueError`` on a non-finite ``u``."""
+        identifier does not change; ``InvalidRecord`` on a non-finite ``u``."""
     def push(self, u: float, x: float) -> float:
         """Takes one sample, u [V] and measured x [µm]; returns the predicted x [µm]."""
     def refine(self, max_intervals: int) -> int:
@@ -366,7 +400,7 @@ class Identifier:
         """Where the horizon method's window pass runs; None for the other methods."""
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
         """``push`` over arrays with the GIL released; predictions [µm] identical to a
-        loop of ``push``. A non-finite value anywhere raises ``ValueError`` before any
+        loop of ``push``. A non-finite value anywhere raises ``InvalidRecord`` before any
         sample is used (the state is unchanged)."""
     @property
     def params(self) -> Params:
@@ -378,8 +412,9 @@ class Identifier:
     def method(self) -> _IdentifierMethod:
         """The online method in use."""
     @property
-    def config(self) -> dict[str, Any]:
-        """The configuration in use, as a dict of the options of the method's config class."""
+    def config(self) -> HorizonConfig | RpemConfig | PaperConfig:
+        """The configuration in use, as the method's frozen config object (equal to the one
+        given; the method's defaults when none was; the paper's window is ``window``)."""
     @property
     def window(self) -> int | None:
         """The paper method's window N [samples]; None for the other methods."""

@@ -2,11 +2,15 @@
 structs ``RpemConfig`` and ``PaperConfig`` field by field.
 
 The defaults come from the Rust core (one place for each value); a config is
-validated when it is built (``ValueError`` naming the offending option)::
+validated when it is built (:class:`boucwen.InvalidConfig`, a ``ValueError``, naming
+the offending option)::
 
     cfg = boucwen.RpemConfig(memory_travel_v=600.0)
     ident = boucwen.Identifier.rpem(dt, init, config=cfg)
     ident = boucwen.Identifier.paper(dt, 1000, init, config=boucwen.PaperConfig(decomposition="line"))
+
+Configs are immutable values (equality, hash, repr, pickling); ``ident.config`` gives
+back the one an identifier runs with, equal to the one it was given.
 """
 
 from __future__ import annotations

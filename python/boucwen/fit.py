@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from ._core import Params, simulate, simulate_extended_with_jacobian
+from ._core import InvalidRecord, Params, simulate, simulate_extended_with_jacobian
 from .checks import FloatArray, check_finite, check_int
 from .lsq import OutputErrorProblem, Ridge, finite_or_none, with_jacobian_or_none, worker_threads
 from .metrics import max_abs, rms
@@ -318,9 +318,9 @@ def fit_record(
     """:func:`fit` on a checked :class:`~boucwen.record.Record` (same options, same result)."""
     started = time.perf_counter()
     if record.u.size < 16:
-        raise ValueError(f"fit needs at least 16 samples, got {record.u.size}")
+        raise InvalidRecord(f"fit needs at least 16 samples, got {record.u.size}")
     if not np.ptp(record.u) > 0:
-        raise ValueError("u is constant; the fit needs a varying voltage")
+        raise InvalidRecord("u is constant; the fit needs a varying voltage")
     if init is not None and not isinstance(init, Params):
         raise TypeError(f"init must be a boucwen.Params, got {type(init).__name__}")
     if h0 is not None:

@@ -26,8 +26,9 @@ Uniform sampling means that every step ``t[k+1] - t[k]`` lies within
 The first term allows the jitter of a real clock, the second the rounding of
 time stamps printed with 9 significant digits (as :func:`write_csv` does).
 
-Every failure raises :class:`ValueError` with a one-line message that names the
-file and, where it applies, the line and column.
+Every failure of a file raises :class:`boucwen.InvalidRecord` (a ``ValueError``)
+with a one-line message that names the file and, where it applies, the line and
+column; a bad option (``dt``, ``resample``) raises :class:`boucwen.InvalidConfig`.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from ._core import InvalidConfig, InvalidRecord
 from .checks import check_dt
 from .record import Record, validate_samples
 
@@ -90,9 +92,9 @@ STAMP_RTOL = 1e-8
 # --------------------------------------------------------------------------- CSV
 
 
-def _fail(path: Path, message: str, line: int | None = None) -> ValueError:
+def _fail(path: Path, message: str, line: int | None = None) -> InvalidRecord:
     where = f"{path}: line {line}: " if line is not None else f"{path}: "
-    return ValueError(where + message)
+    return InvalidRecord(where + message)
 
 
 def _parse_number(text: str) -> float:
@@ -201,8 +203,9 @@ def read_csv(
         when resampled, ``"resampled"`` (:func:`resample`).
 
     Raises:
-        ValueError: for every problem with the file, naming the file and, where it
-            applies, the line (1 = header) and column; and for bad options.
+        InvalidRecord: for every problem with the file, naming the file and, where it
+            applies, the line (1 = header) and column.
+        InvalidConfig: for bad options (both are ``ValueError``).
     """
     if dt is not None:
         dt = check_dt(dt)
@@ -210,10 +213,10 @@ def read_csv(
         try:
             resample = check_dt(resample)
         except (TypeError, ValueError):
-            raise ValueError(f"resample must be a step in s, finite and > 0, got {resample!r}") from None
+            raise InvalidConfig(f"resample must be a step in s, finite and > 0, got {resample!r}") from None
     path = Path(path)
     if not path.exists():
-        raise ValueError(f"no such file: {path}")
+        raise InvalidRecord(f"no such file: {path}")
     if path.is_dir():
         raise _fail(path, "is a directory, not a CSV file")
     try:
@@ -350,11 +353,11 @@ def resample_samples(
     step = check_dt(step)
     steps = np.diff(t)
     if np.any(steps <= 0.0):
-        raise ValueError("time not strictly increasing: cannot resample")
+        raise InvalidRecord("time not strictly increasing: cannot resample")
     span = float(t[-1] - t[0])
     n = math.floor(span / step * (1.0 + 1e-12)) + 1
     if n < 3:
-        raise ValueError(f"resample step {step:g} s leaves {n} sample(s) over the record's {span:g} s, at least 3")
+        raise InvalidConfig(f"resample step {step:g} s leaves {n} sample(s) over the record's {span:g} s, at least 3")
     grid = t[0] + np.arange(n) * step
     # The sample at or before each grid time (a grid time a rounding below a sample's is at it).
     held = np.clip(np.searchsorted(t, grid + 1e-9 * step, side="right") - 1, 0, t.size - 1)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ._core import InvalidRecord
 from .checks import FloatArray, as_float_vector, check_dt
 
 __all__ = ["Record", "validate_record", "validate_samples"]
@@ -27,7 +28,7 @@ def _checked_pair(u: Any, x: Any) -> tuple[FloatArray, FloatArray]:
     u_arr = as_float_vector(u, "u")
     x_arr = as_float_vector(x, "x")
     if u_arr.size != x_arr.size:
-        raise ValueError(f"u and x must have the same length, got {u_arr.size} and {x_arr.size}")
+        raise InvalidRecord(f"u and x must have the same length, got {u_arr.size} and {x_arr.size}")
     return u_arr, x_arr
 
 
@@ -50,8 +51,8 @@ class Record:
 
     Raises:
         TypeError: non-numeric data or dt.
-        ValueError: arrays not 1-D, empty, of different lengths or not finite; dt
-            not finite and > 0.
+        InvalidRecord: arrays not 1-D, empty, of different lengths or not finite.
+        InvalidConfig: dt not finite and > 0 (both are ``ValueError``).
     """
 
     t: FloatArray
@@ -65,7 +66,7 @@ class Record:
         u, x, dt = _checked(self.u, self.x, self.dt)
         t = as_float_vector(self.t, "t")
         if t.shape != u.shape:
-            raise ValueError(f"t has {t.size} samples but u and x have {u.size}")
+            raise InvalidRecord(f"t has {t.size} samples but u and x have {u.size}")
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "u", u)
         object.__setattr__(self, "x", x)
@@ -98,12 +99,12 @@ class Record:
         """Samples ``start`` … ``stop − 1`` (Python slice rules) as a record, without ``meta``.
 
         The arrays are views of this record's; the part is valid by construction and
-        not checked again. Raises ``ValueError`` if it would be empty.
+        not checked again. Raises :class:`boucwen.InvalidRecord` if it would be empty.
         """
         sel = slice(start, stop)
         u = self.u[sel]
         if u.size == 0:
-            raise ValueError(f"samples {start}:{stop} of a record of {len(self)} are empty")
+            raise InvalidRecord(f"samples {start}:{stop} of a record of {len(self)} are empty")
         return Record._of_checked(self.t[sel], u, self.x[sel], self.dt, self.name)
 
     def decimated(self, factor: int) -> Record:

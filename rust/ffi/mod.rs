@@ -1,7 +1,11 @@
-//! The C ABI (feature `ffi`): the per-sample [`Model`], the online methods (`horizon`,
-//! the recommended one, `rpem`, `paper`), the [`Inverse`] of the model,
-//! [`simulate`](crate::simulate) and the channel [`Bank`], behind opaque handles. The header `include/boucwen.h` is generated from this file by cbindgen
-//! (`cbindgen.toml`; the test `rust/tests/ffi_header.rs` fails when it is stale).
+//! The C ABI (feature `ffi`): the per-sample [`Model`], the online identifier (one
+//! handle, `BwIdentifier`, over [`AnyIdentifier`]: built by `bw_identifier_new_horizon`,
+//! the recommended method, `_new_rpem` or `_new_paper`, then the same calls whatever the
+//! method), the [`Inverse`] of the model, [`simulate`](crate::simulate) and the channel
+//! [`Bank`], behind opaque handles. A call that belongs to one method (the horizon
+//! method's `refine`) returns `BW_WRONG_METHOD` on an identifier of another. The header
+//! `include/boucwen.h` is generated from this file by cbindgen (`cbindgen.toml`; the
+//! test `rust/tests/ffi_header.rs` fails when it is stale).
 //!
 //! Conventions, for every function:
 //! - the return value is a [`BwStatus`]: `BW_OK`, or the reason the call did nothing
@@ -13,7 +17,7 @@
 //! - no Rust panic crosses the boundary: each call runs under `catch_unwind` and a
 //!   panic (a bug; none is known) returns `BW_PANIC`, after which the object should
 //!   be destroyed;
-//! - `*_new` and `*_restore` allocate the object, `*_free` releases it (null is
+//! - `*_new*` and `*_restore` allocate the object, `*_free` releases it (null is
 //!   ignored); `push`, `push_many`, `step` and the bank's frame calls allocate
 //!   nothing; `*_snapshot` copies the bytes into the caller's buffer (with
 //!   `BW_BUFFER_TOO_SMALL` and the needed length when it is too short, so a call with
@@ -24,7 +28,7 @@
 //! # Safety
 //!
 //! Every function takes raw pointers from C. A handle must come from the matching
-//! `*_new`/`*_restore` and not be used after `*_free`, nor from two threads at
+//! `*_new*`/`*_restore` and not be used after `*_free`, nor from two threads at
 //! once; an array pointer must point to at least as many `double`s as the length
 //! given (it may be null when the length is 0).
 #![allow(clippy::missing_safety_doc)]
@@ -38,8 +42,8 @@ use crate::effects::{EffectSet, InputLag};
 use crate::error::Error;
 use crate::format::Snapshot;
 use crate::identify::{
-    AnyIdentifier, Decomposition, HorizonConfig, HorizonIdentifier, HorizonStatus, OnlineIdentifier, PaperConfig,
-    PaperIdentifier, PaperStatus, RefineMode, RpemConfig, RpemIdentifier, RpemStatus, SubFit,
+    AnyIdentifier, AnyStatus, Decomposition, HorizonConfig, HorizonIdentifier, HorizonStatus, OnlineIdentifier,
+    PaperConfig, PaperIdentifier, PaperStatus, RefineMode, RpemConfig, RpemIdentifier, RpemStatus, SubFit,
 };
 use crate::model::Model;
 use crate::params::Params;
@@ -67,6 +71,9 @@ pub enum BwStatus {
     BW_BUFFER_TOO_SMALL = 7,
     /// A Rust panic was caught (a bug): destroy the object.
     BW_PANIC = 8,
+    /// The call belongs to another method than the identifier's (e.g. the horizon
+    /// method's refine on an rpem identifier): nothing was done.
+    BW_WRONG_METHOD = 9,
 }
 
 impl From<Error> for BwStatus {
@@ -258,7 +265,7 @@ impl BwPaperConfig {
 
 /// What the last push of an rpem identifier did (see `RpemStatus` in the Rust docs).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BwRpemStatus {
     pub samples: u64,
     pub updated: bool,
@@ -351,7 +358,7 @@ impl BwHorizonConfig {
 
 /// What the last push of a horizon identifier did (see `HorizonStatus` in the Rust docs).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BwHorizonStatus {
     pub samples: u64,
     pub updated: bool,
@@ -395,7 +402,7 @@ impl From<HorizonStatus> for BwHorizonStatus {
 pub enum BwRefineMode {
     /// In every push (the default; the predictions of earlier releases bit for bit).
     BW_REFINE_SYNC = 0,
-    /// In `bw_horizon_refine`, called when the loop has time; push only predicts and
+    /// In `bw_identifier_refine`, called when the loop has time; push only predicts and
     /// stores. Deterministic for a given schedule of calls.
     BW_REFINE_COOPERATIVE = 1,
 }
@@ -434,7 +441,7 @@ impl From<InverseStatus> for BwInverseStatus {
 
 /// What the last push of a paper identifier did; each sub-fit 0 = held, 1 = reduced, 2 = ran.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct BwPaperStatus {
     pub samples: u64,
     pub window_full: bool,
@@ -467,14 +474,71 @@ impl From<PaperStatus> for BwPaperStatus {
     }
 }
 
+/// The online method an identifier runs.
+#[allow(non_camel_case_types)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BwMethod {
+    /// The moving-horizon output-error method (the recommended one).
+    BW_METHOD_HORIZON = 0,
+    /// The recursive prediction-error method on the output error.
+    BW_METHOD_RPEM = 1,
+    /// The paper's limited-memory RLS with least-squares sub-fits.
+    BW_METHOD_PAPER = 2,
+}
+
+impl BwMethod {
+    fn of(id: &AnyIdentifier) -> Self {
+        match id {
+            AnyIdentifier::Horizon(_) => BwMethod::BW_METHOD_HORIZON,
+            AnyIdentifier::Rpem(_) => BwMethod::BW_METHOD_RPEM,
+            AnyIdentifier::Paper(_) => BwMethod::BW_METHOD_PAPER,
+        }
+    }
+}
+
+/// What the last push of an identifier did: `method` says which of `horizon`, `rpem`
+/// and `paper` is filled (the other two are zero); `samples` is the samples pushed.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BwIdentifierStatus {
+    pub method: BwMethod,
+    pub samples: u64,
+    pub horizon: BwHorizonStatus,
+    pub rpem: BwRpemStatus,
+    pub paper: BwPaperStatus,
+}
+
+impl From<AnyStatus> for BwIdentifierStatus {
+    fn from(s: AnyStatus) -> Self {
+        let zero = BwIdentifierStatus {
+            method: BwMethod::BW_METHOD_HORIZON,
+            samples: 0,
+            horizon: BwHorizonStatus::default(),
+            rpem: BwRpemStatus::default(),
+            paper: BwPaperStatus::default(),
+        };
+        match s {
+            AnyStatus::Horizon(h) => BwIdentifierStatus {
+                method: BwMethod::BW_METHOD_HORIZON,
+                samples: h.samples,
+                horizon: h.into(),
+                ..zero
+            },
+            AnyStatus::Rpem(r) => {
+                BwIdentifierStatus { method: BwMethod::BW_METHOD_RPEM, samples: r.samples, rpem: r.into(), ..zero }
+            }
+            AnyStatus::Paper(p) => {
+                BwIdentifierStatus { method: BwMethod::BW_METHOD_PAPER, samples: p.samples, paper: p.into(), ..zero }
+            }
+        }
+    }
+}
+
 /// Opaque per-sample model.
 pub struct BwModel(Model);
-/// Opaque rpem identifier.
-pub struct BwRpem(RpemIdentifier);
-/// Opaque paper identifier.
-pub struct BwPaper(PaperIdentifier);
-/// Opaque horizon identifier.
-pub struct BwHorizon(HorizonIdentifier);
+/// Opaque online identifier, of any method (horizon, rpem or paper).
+pub struct BwIdentifier(AnyIdentifier);
 /// Opaque inverse of the model (feedforward compensation).
 pub struct BwInverse(Inverse);
 /// Opaque bank of channels (identifier, model and inverse each).
@@ -576,6 +640,7 @@ pub extern "C" fn bw_status_message(status: BwStatus) -> *const c_char {
         BwStatus::BW_NULL_POINTER => b"null pointer\0",
         BwStatus::BW_BUFFER_TOO_SMALL => b"buffer too small (needed length written)\0",
         BwStatus::BW_PANIC => b"internal error (panic caught); destroy the object\0",
+        BwStatus::BW_WRONG_METHOD => b"the call belongs to another method than the identifier's\0",
     };
     text.as_ptr().cast()
 }
@@ -681,7 +746,7 @@ pub unsafe extern "C" fn bw_simulate(
     })
 }
 
-// -- rpem -------------------------------------------------------------------------
+// -- identifier -------------------------------------------------------------------
 
 /// The rpem method's defaults.
 #[no_mangle]
@@ -689,33 +754,102 @@ pub unsafe extern "C" fn bw_rpem_config_default(out: *mut BwRpemConfig) -> BwSta
     guard(|| put(out, RpemConfig::default().into()))
 }
 
+/// The paper method's defaults for a window of `window_len` samples.
+#[no_mangle]
+pub unsafe extern "C" fn bw_paper_config_default(window_len: usize, out: *mut BwPaperConfig) -> BwStatus {
+    guard(|| put(out, PaperConfig::with_window(window_len).into()))
+}
+
+/// The horizon method's defaults.
+#[no_mangle]
+pub unsafe extern "C" fn bw_horizon_config_default(out: *mut BwHorizonConfig) -> BwStatus {
+    guard(|| put(out, HorizonConfig::default().into()))
+}
+
+/// A horizon identifier, the recommended method (`dt` \[s\], starting values `init`, h
+/// `h0` \[µm\], tuning `config` or null for the defaults) into `*out`. `lag_fc_hz` > 0:
+/// an input lag (amplifier bandwidth) is identified along, starting at that corner
+/// frequency \[Hz\] (the recommended model starts at 0.3/dt, as `Identifier(dt, init)`
+/// in Python); 0: the seven-parameter model alone. The window is allocated here, once.
+#[no_mangle]
+pub unsafe extern "C" fn bw_identifier_new_horizon(
+    dt: f64,
+    init: *const BwParams,
+    h0: f64,
+    lag_fc_hz: f64,
+    config: *const BwHorizonConfig,
+    out: *mut *mut BwIdentifier,
+) -> BwStatus {
+    guard(|| {
+        let p = get(init)?.to_params()?;
+        let cfg = if config.is_null() { HorizonConfig::default() } else { (*config).to_config() };
+        let effects = if lag_fc_hz == 0.0 {
+            EffectSet::none()
+        } else {
+            EffectSet { input_lag: Some(InputLag { fc_hz: lag_fc_hz }), ..EffectSet::none() }
+        };
+        let id = HorizonIdentifier::with_effects(dt, p, &effects, h0, cfg)?;
+        boxed(out, BwIdentifier(AnyIdentifier::Horizon(id)))
+    })
+}
+
 /// An rpem identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
 /// `config` or null for the defaults) into `*out`.
 #[no_mangle]
-pub unsafe extern "C" fn bw_rpem_new(
+pub unsafe extern "C" fn bw_identifier_new_rpem(
     dt: f64,
     init: *const BwParams,
     h0: f64,
     config: *const BwRpemConfig,
-    out: *mut *mut BwRpem,
+    out: *mut *mut BwIdentifier,
 ) -> BwStatus {
     guard(|| {
         let p = get(init)?.to_params()?;
         let cfg = if config.is_null() { RpemConfig::default() } else { (*config).to_config() };
-        boxed(out, BwRpem(RpemIdentifier::new(dt, p, h0, cfg)?))
+        boxed(out, BwIdentifier(AnyIdentifier::Rpem(RpemIdentifier::new(dt, p, h0, cfg)?)))
     })
 }
 
-/// Releases an rpem identifier (null is ignored).
+/// A paper identifier (`dt` \[s\], `init`, `h0` \[µm\], tuning `config` with its
+/// window, not null) into `*out`. The window is allocated here, once.
 #[no_mangle]
-pub unsafe extern "C" fn bw_rpem_free(id: *mut BwRpem) {
+pub unsafe extern "C" fn bw_identifier_new_paper(
+    dt: f64,
+    init: *const BwParams,
+    h0: f64,
+    config: *const BwPaperConfig,
+    out: *mut *mut BwIdentifier,
+) -> BwStatus {
+    guard(|| {
+        let p = get(init)?.to_params()?;
+        let cfg = get(config)?.to_config()?;
+        boxed(out, BwIdentifier(AnyIdentifier::Paper(PaperIdentifier::new(dt, p, h0, cfg)?)))
+    })
+}
+
+/// An identifier rebuilt from snapshot bytes (`bw_identifier_snapshot`) into `*out`,
+/// of the method the bytes record; it continues bit for bit.
+#[no_mangle]
+pub unsafe extern "C" fn bw_identifier_restore(buf: *const u8, len: usize, out: *mut *mut BwIdentifier) -> BwStatus {
+    guard(|| boxed(out, BwIdentifier(AnyIdentifier::from_snapshot(bytes(buf, len)?)?)))
+}
+
+/// Releases an identifier (null is ignored).
+#[no_mangle]
+pub unsafe extern "C" fn bw_identifier_free(id: *mut BwIdentifier) {
     release(id)
+}
+
+/// The identifier's method.
+#[no_mangle]
+pub unsafe extern "C" fn bw_identifier_method(id: *const BwIdentifier, out: *mut BwMethod) -> BwStatus {
+    guard(|| put(out, BwMethod::of(&get(id)?.0)))
 }
 
 /// One sample (u \[V\], measured x \[µm\]); the prediction made before x is used \[µm\]
 /// to `*x_hat`. No allocation.
 #[no_mangle]
-pub unsafe extern "C" fn bw_rpem_push(id: *mut BwRpem, u: f64, x: f64, x_hat: *mut f64) -> BwStatus {
+pub unsafe extern "C" fn bw_identifier_push(id: *mut BwIdentifier, u: f64, x: f64, x_hat: *mut f64) -> BwStatus {
     guard(|| {
         let id = get_mut(id)?;
         if x_hat.is_null() {
@@ -728,8 +862,8 @@ pub unsafe extern "C" fn bw_rpem_push(id: *mut BwRpem, u: f64, x: f64, x_hat: *m
 /// `len` samples at once; predictions into `out`. Rejected whole (state kept) if any
 /// value is non-finite.
 #[no_mangle]
-pub unsafe extern "C" fn bw_rpem_push_many(
-    id: *mut BwRpem,
+pub unsafe extern "C" fn bw_identifier_push_many(
+    id: *mut BwIdentifier,
     u: *const f64,
     x: *const f64,
     len: usize,
@@ -740,271 +874,41 @@ pub unsafe extern "C" fn bw_rpem_push_many(
 
 /// The current estimates.
 #[no_mangle]
-pub unsafe extern "C" fn bw_rpem_params(id: *const BwRpem, out: *mut BwParams) -> BwStatus {
+pub unsafe extern "C" fn bw_identifier_params(id: *const BwIdentifier, out: *mut BwParams) -> BwStatus {
     guard(|| put(out, get(id)?.0.params().into()))
 }
 
-/// What the last push did.
+/// The identified input lag's corner frequency \[Hz\] (0 without a lag, and for paper).
 #[no_mangle]
-pub unsafe extern "C" fn bw_rpem_status(id: *const BwRpem, out: *mut BwRpemStatus) -> BwStatus {
-    guard(|| put(out, get(id)?.0.status().into()))
-}
-
-/// The model's h \[µm\] after the last sample.
-#[no_mangle]
-pub unsafe extern "C" fn bw_rpem_h(id: *const BwRpem, h: *mut f64) -> BwStatus {
-    guard(|| put(h, get(id)?.0.h()))
-}
-
-/// Back to the state right after construction.
-#[no_mangle]
-pub unsafe extern "C" fn bw_rpem_reset(id: *mut BwRpem) -> BwStatus {
+pub unsafe extern "C" fn bw_identifier_lag_fc(id: *const BwIdentifier, fc_hz: *mut f64) -> BwStatus {
     guard(|| {
-        get_mut(id)?.0.reset();
-        Ok(())
-    })
-}
-
-/// The identifier's snapshot bytes (see `bw_model_snapshot`).
-#[no_mangle]
-pub unsafe extern "C" fn bw_rpem_snapshot(
-    id: *const BwRpem,
-    buf: *mut u8,
-    capacity: usize,
-    len: *mut usize,
-) -> BwStatus {
-    guard(|| write_snapshot(&get(id)?.0.to_bytes(), buf, capacity, len))
-}
-
-/// An rpem identifier rebuilt from snapshot bytes into `*out`; it continues bit for bit.
-#[no_mangle]
-pub unsafe extern "C" fn bw_rpem_restore(buf: *const u8, len: usize, out: *mut *mut BwRpem) -> BwStatus {
-    guard(|| boxed(out, BwRpem(RpemIdentifier::from_bytes(bytes(buf, len)?)?)))
-}
-
-// -- paper ------------------------------------------------------------------------
-
-/// The paper method's defaults for a window of `window_len` samples.
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_config_default(window_len: usize, out: *mut BwPaperConfig) -> BwStatus {
-    guard(|| put(out, PaperConfig::with_window(window_len).into()))
-}
-
-/// A paper identifier (`dt` \[s\], `init`, `h0` \[µm\], tuning `config` with its
-/// window) into `*out`. The window is allocated here, once.
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_new(
-    dt: f64,
-    init: *const BwParams,
-    h0: f64,
-    config: *const BwPaperConfig,
-    out: *mut *mut BwPaper,
-) -> BwStatus {
-    guard(|| {
-        let p = get(init)?.to_params()?;
-        let cfg = get(config)?.to_config()?;
-        boxed(out, BwPaper(PaperIdentifier::new(dt, p, h0, cfg)?))
-    })
-}
-
-/// Releases a paper identifier (null is ignored).
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_free(id: *mut BwPaper) {
-    release(id)
-}
-
-/// One sample (see `bw_rpem_push`).
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_push(id: *mut BwPaper, u: f64, x: f64, x_hat: *mut f64) -> BwStatus {
-    guard(|| {
-        let id = get_mut(id)?;
-        if x_hat.is_null() {
-            return Err(BwStatus::BW_NULL_POINTER);
-        }
-        put(x_hat, id.0.push(u, x)?)
-    })
-}
-
-/// `len` samples at once (see `bw_rpem_push_many`).
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_push_many(
-    id: *mut BwPaper,
-    u: *const f64,
-    x: *const f64,
-    len: usize,
-    out: *mut f64,
-) -> BwStatus {
-    guard(|| Ok(get_mut(id)?.0.push_many(slice(u, len)?, slice(x, len)?, slice_mut(out, len)?)?))
-}
-
-/// The current estimates.
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_params(id: *const BwPaper, out: *mut BwParams) -> BwStatus {
-    guard(|| put(out, get(id)?.0.params().into()))
-}
-
-/// What the last push did.
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_status(id: *const BwPaper, out: *mut BwPaperStatus) -> BwStatus {
-    guard(|| put(out, get(id)?.0.status().into()))
-}
-
-/// The model's h \[µm\] after the last sample.
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_h(id: *const BwPaper, h: *mut f64) -> BwStatus {
-    guard(|| put(h, get(id)?.0.h()))
-}
-
-/// Back to the state right after construction.
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_reset(id: *mut BwPaper) -> BwStatus {
-    guard(|| {
-        get_mut(id)?.0.reset();
-        Ok(())
-    })
-}
-
-/// The identifier's snapshot bytes (see `bw_model_snapshot`).
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_snapshot(
-    id: *const BwPaper,
-    buf: *mut u8,
-    capacity: usize,
-    len: *mut usize,
-) -> BwStatus {
-    guard(|| write_snapshot(&get(id)?.0.to_bytes(), buf, capacity, len))
-}
-
-/// A paper identifier rebuilt from snapshot bytes into `*out`.
-#[no_mangle]
-pub unsafe extern "C" fn bw_paper_restore(buf: *const u8, len: usize, out: *mut *mut BwPaper) -> BwStatus {
-    guard(|| boxed(out, BwPaper(PaperIdentifier::from_bytes(bytes(buf, len)?)?)))
-}
-
-// -- horizon ----------------------------------------------------------------------
-
-/// The horizon method's defaults.
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_config_default(out: *mut BwHorizonConfig) -> BwStatus {
-    guard(|| put(out, HorizonConfig::default().into()))
-}
-
-/// A horizon identifier (`dt` \[s\], starting values `init`, h `h0` \[µm\], tuning
-/// `config` or null for the defaults) into `*out`. `lag_fc_hz` > 0: an input lag
-/// (amplifier bandwidth) is identified along, starting at that corner frequency \[Hz\]
-/// (the recommended model starts at 0.3/dt, as `Identifier(dt, init)` in Python);
-/// 0: the seven-parameter model alone. The window is allocated here, once.
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_new(
-    dt: f64,
-    init: *const BwParams,
-    h0: f64,
-    lag_fc_hz: f64,
-    config: *const BwHorizonConfig,
-    out: *mut *mut BwHorizon,
-) -> BwStatus {
-    guard(|| {
-        let p = get(init)?.to_params()?;
-        let cfg = if config.is_null() { HorizonConfig::default() } else { (*config).to_config() };
-        let effects = if lag_fc_hz == 0.0 {
-            EffectSet::none()
-        } else {
-            EffectSet { input_lag: Some(InputLag { fc_hz: lag_fc_hz }), ..EffectSet::none() }
+        let effects = match &get(id)?.0 {
+            AnyIdentifier::Horizon(h) => h.effects(),
+            AnyIdentifier::Rpem(r) => r.effects(),
+            AnyIdentifier::Paper(_) => EffectSet::none(),
         };
-        boxed(out, BwHorizon(HorizonIdentifier::with_effects(dt, p, &effects, h0, cfg)?))
+        put(fc_hz, effects.input_lag.map_or(0.0, |l| l.fc_hz))
     })
 }
 
-/// Releases a horizon identifier (null is ignored).
+/// What the last push did: `out->method` says which of `out->paper`, `out->rpem` and
+/// `out->horizon` is filled (the others are zero).
 #[no_mangle]
-pub unsafe extern "C" fn bw_horizon_free(id: *mut BwHorizon) {
-    release(id)
-}
-
-/// One sample (see `bw_rpem_push`). No allocation.
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_push(id: *mut BwHorizon, u: f64, x: f64, x_hat: *mut f64) -> BwStatus {
-    guard(|| {
-        let id = get_mut(id)?;
-        if x_hat.is_null() {
-            return Err(BwStatus::BW_NULL_POINTER);
-        }
-        put(x_hat, id.0.push(u, x)?)
-    })
-}
-
-/// `len` samples at once (see `bw_rpem_push_many`).
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_push_many(
-    id: *mut BwHorizon,
-    u: *const f64,
-    x: *const f64,
-    len: usize,
-    out: *mut f64,
-) -> BwStatus {
-    guard(|| Ok(get_mut(id)?.0.push_many(slice(u, len)?, slice(x, len)?, slice_mut(out, len)?)?))
-}
-
-/// Switches where the window pass runs (at any sample; see `HorizonIdentifier::set_mode`
-/// in the Rust docs). A new identifier runs it in every push (`BW_REFINE_SYNC`).
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_set_refine(id: *mut BwHorizon, mode: BwRefineMode) -> BwStatus {
-    guard(|| {
-        let mode = match mode {
-            BwRefineMode::BW_REFINE_SYNC => RefineMode::Sync,
-            BwRefineMode::BW_REFINE_COOPERATIVE => RefineMode::Cooperative,
-        };
-        get_mut(id)?.0.set_mode(mode);
-        Ok(())
-    })
-}
-
-/// Cooperative mode: runs the window pass at most `max_intervals` integration
-/// intervals on the samples pushed so far and writes the number run into `*ran` (0:
-/// nothing to do until more samples come; also in sync mode). An update is adopted
-/// here; the next `bw_horizon_push` predicts with it. Call it from the idle loop or a
-/// lower-priority task, never concurrently with a push on the same handle. No
-/// allocation.
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_refine(id: *mut BwHorizon, max_intervals: usize, ran: *mut usize) -> BwStatus {
-    guard(|| {
-        let id = get_mut(id)?;
-        if ran.is_null() {
-            return Err(BwStatus::BW_NULL_POINTER);
-        }
-        put(ran, id.0.refine(max_intervals))
-    })
-}
-
-/// The current estimates.
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_params(id: *const BwHorizon, out: *mut BwParams) -> BwStatus {
-    guard(|| put(out, get(id)?.0.params().into()))
-}
-
-/// The identified input lag's corner frequency \[Hz\] (0 without the lag).
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_lag_fc(id: *const BwHorizon, fc_hz: *mut f64) -> BwStatus {
-    guard(|| put(fc_hz, get(id)?.0.effects().input_lag.map_or(0.0, |l| l.fc_hz)))
-}
-
-/// What the last push did.
-#[no_mangle]
-pub unsafe extern "C" fn bw_horizon_status(id: *const BwHorizon, out: *mut BwHorizonStatus) -> BwStatus {
+pub unsafe extern "C" fn bw_identifier_status(id: *const BwIdentifier, out: *mut BwIdentifierStatus) -> BwStatus {
     guard(|| put(out, get(id)?.0.status().into()))
 }
 
 /// The model's h \[µm\] after the last sample.
 #[no_mangle]
-pub unsafe extern "C" fn bw_horizon_h(id: *const BwHorizon, h: *mut f64) -> BwStatus {
+pub unsafe extern "C" fn bw_identifier_h(id: *const BwIdentifier, h: *mut f64) -> BwStatus {
     guard(|| put(h, get(id)?.0.h()))
 }
 
-/// The identified model (lag included) run open loop over the future voltages `u`
+/// The identified model (effects included) run open loop over the future voltages `u`
 /// \[V\] from the last sample pushed, into `out` \[µm\]; the identifier does not change.
 #[no_mangle]
-pub unsafe extern "C" fn bw_horizon_forecast(
-    id: *const BwHorizon,
+pub unsafe extern "C" fn bw_identifier_forecast(
+    id: *const BwIdentifier,
     u: *const f64,
     len: usize,
     out: *mut f64,
@@ -1014,28 +918,67 @@ pub unsafe extern "C" fn bw_horizon_forecast(
 
 /// Back to the state right after construction.
 #[no_mangle]
-pub unsafe extern "C" fn bw_horizon_reset(id: *mut BwHorizon) -> BwStatus {
+pub unsafe extern "C" fn bw_identifier_reset(id: *mut BwIdentifier) -> BwStatus {
     guard(|| {
         get_mut(id)?.0.reset();
         Ok(())
     })
 }
 
-/// The identifier's snapshot bytes (see `bw_model_snapshot`).
+/// The identifier's snapshot bytes (see `bw_model_snapshot`); `bw_identifier_restore`
+/// rebuilds it.
 #[no_mangle]
-pub unsafe extern "C" fn bw_horizon_snapshot(
-    id: *const BwHorizon,
+pub unsafe extern "C" fn bw_identifier_snapshot(
+    id: *const BwIdentifier,
     buf: *mut u8,
     capacity: usize,
     len: *mut usize,
 ) -> BwStatus {
-    guard(|| write_snapshot(&get(id)?.0.to_bytes(), buf, capacity, len))
+    guard(|| write_snapshot(&get(id)?.0.to_snapshot(), buf, capacity, len))
 }
 
-/// A horizon identifier rebuilt from snapshot bytes into `*out`; it continues bit for bit.
+/// The horizon identifier behind `id`; `BW_WRONG_METHOD` for another method.
+unsafe fn horizon<'a>(id: *mut BwIdentifier) -> Result<&'a mut HorizonIdentifier, BwStatus> {
+    match &mut get_mut(id)?.0 {
+        AnyIdentifier::Horizon(h) => Ok(h),
+        _ => Err(BwStatus::BW_WRONG_METHOD),
+    }
+}
+
+/// Horizon only (`BW_WRONG_METHOD` otherwise): switches where the window pass runs (at
+/// any sample; see `HorizonIdentifier::set_mode` in the Rust docs). A new identifier
+/// runs it in every push (`BW_REFINE_SYNC`).
 #[no_mangle]
-pub unsafe extern "C" fn bw_horizon_restore(buf: *const u8, len: usize, out: *mut *mut BwHorizon) -> BwStatus {
-    guard(|| boxed(out, BwHorizon(HorizonIdentifier::from_bytes(bytes(buf, len)?)?)))
+pub unsafe extern "C" fn bw_identifier_set_refine(id: *mut BwIdentifier, mode: BwRefineMode) -> BwStatus {
+    guard(|| {
+        let mode = match mode {
+            BwRefineMode::BW_REFINE_SYNC => RefineMode::Sync,
+            BwRefineMode::BW_REFINE_COOPERATIVE => RefineMode::Cooperative,
+        };
+        horizon(id)?.set_mode(mode);
+        Ok(())
+    })
+}
+
+/// Horizon only (`BW_WRONG_METHOD` otherwise), cooperative mode: runs the window pass
+/// at most `max_intervals` integration intervals on the samples pushed so far and
+/// writes the number run into `*ran` (0: nothing to do until more samples come; also
+/// in sync mode). An update is adopted here; the next `bw_identifier_push` predicts
+/// with it. Call it from the idle loop or a lower-priority task, never concurrently
+/// with a push on the same handle. No allocation.
+#[no_mangle]
+pub unsafe extern "C" fn bw_identifier_refine(
+    id: *mut BwIdentifier,
+    max_intervals: usize,
+    ran: *mut usize,
+) -> BwStatus {
+    guard(|| {
+        let id = horizon(id)?;
+        if ran.is_null() {
+            return Err(BwStatus::BW_NULL_POINTER);
+        }
+        put(ran, id.refine(max_intervals))
+    })
 }
 
 // -- inverse ----------------------------------------------------------------------
@@ -1109,39 +1052,20 @@ pub unsafe extern "C" fn bw_inverse_reset(inv: *mut BwInverse) -> BwStatus {
 
 // -- bank -------------------------------------------------------------------------
 
-/// A bank of `channels` rpem channels (identifier + model each), all starting from
-/// `init`, h `h0` \[µm\], tuning `config` (null: defaults), into `*out`.
+/// A bank of `channels` copies of the identifier `prototype` as it is now (usually
+/// fresh from a `bw_identifier_new_*`; it stays the caller's), each channel then
+/// learning on its own, with a model and an inverse starting from its parameters and
+/// h; `dt` \[s\] the identifier's. Every method may be banked; a horizon channel holds
+/// its own window (`max_window` samples of about 100 bytes).
 #[no_mangle]
-pub unsafe extern "C" fn bw_bank_new_rpem(
+pub unsafe extern "C" fn bw_bank_new(
     channels: usize,
     dt: f64,
-    init: *const BwParams,
-    h0: f64,
-    config: *const BwRpemConfig,
+    prototype: *const BwIdentifier,
     out: *mut *mut BwBank,
 ) -> BwStatus {
     guard(|| {
-        let p = get(init)?.to_params()?;
-        let cfg = if config.is_null() { RpemConfig::default() } else { (*config).to_config() };
-        let id = AnyIdentifier::Rpem(RpemIdentifier::new(dt, p, h0, cfg)?);
-        boxed(out, BwBank(Bank::new(channels, id, dt)?))
-    })
-}
-
-/// A bank of `channels` paper channels with tuning `config` (its window included).
-#[no_mangle]
-pub unsafe extern "C" fn bw_bank_new_paper(
-    channels: usize,
-    dt: f64,
-    init: *const BwParams,
-    h0: f64,
-    config: *const BwPaperConfig,
-    out: *mut *mut BwBank,
-) -> BwStatus {
-    guard(|| {
-        let p = get(init)?.to_params()?;
-        let cfg = get(config)?.to_config()?;
-        let id = AnyIdentifier::Paper(PaperIdentifier::new(dt, p, h0, cfg)?);
+        let id = get(prototype)?.0.clone();
         boxed(out, BwBank(Bank::new(channels, id, dt)?))
     })
 }
@@ -1254,34 +1178,149 @@ mod tests {
         unsafe {
             let mut p = BwParams { kv: 0.0, x0: 0.0, a: 0.0, beta: 0.0, gamma: 0.0, n: 0.0, delta: 0.0 };
             assert_eq!(bw_params_paper_1hz(&mut p), BwStatus::BW_OK);
-            let mut id: *mut BwRpem = core::ptr::null_mut();
-            assert_eq!(bw_rpem_new(1e-4, &p, 0.0, core::ptr::null(), &mut id), BwStatus::BW_OK);
+            let mut id: *mut BwIdentifier = core::ptr::null_mut();
+            assert_eq!(bw_identifier_new_rpem(1e-4, &p, 0.0, core::ptr::null(), &mut id), BwStatus::BW_OK);
             let mut x_hat = 0.0;
-            assert_eq!(bw_rpem_push(id, 1.0, 0.2, &mut x_hat), BwStatus::BW_OK);
+            assert_eq!(bw_identifier_push(id, 1.0, 0.2, &mut x_hat), BwStatus::BW_OK);
             let before = (*id).0.clone();
-            assert_eq!(bw_rpem_push(id, f64::NAN, 0.2, &mut x_hat), BwStatus::BW_NON_FINITE_SAMPLE);
-            assert_eq!(bw_rpem_push(id, 1.0, 0.2, core::ptr::null_mut()), BwStatus::BW_NULL_POINTER);
+            assert_eq!(bw_identifier_push(id, f64::NAN, 0.2, &mut x_hat), BwStatus::BW_NON_FINITE_SAMPLE);
+            assert_eq!(bw_identifier_push(id, 1.0, 0.2, core::ptr::null_mut()), BwStatus::BW_NULL_POINTER);
             assert_eq!((*id).0, before);
-            assert_eq!(bw_rpem_push(core::ptr::null_mut(), 1.0, 0.2, &mut x_hat), BwStatus::BW_NULL_POINTER);
+            assert_eq!(bw_identifier_push(core::ptr::null_mut(), 1.0, 0.2, &mut x_hat), BwStatus::BW_NULL_POINTER);
             let mut len = 0usize;
-            assert_eq!(bw_rpem_snapshot(id, core::ptr::null_mut(), 0, &mut len), BwStatus::BW_BUFFER_TOO_SMALL);
+            assert_eq!(bw_identifier_snapshot(id, core::ptr::null_mut(), 0, &mut len), BwStatus::BW_BUFFER_TOO_SMALL);
             let mut buf = vec![0u8; len];
-            assert_eq!(bw_rpem_snapshot(id, buf.as_mut_ptr(), len, &mut len), BwStatus::BW_OK);
-            let mut copy: *mut BwRpem = core::ptr::null_mut();
-            assert_eq!(bw_rpem_restore(buf.as_ptr(), len, &mut copy), BwStatus::BW_OK);
+            assert_eq!(bw_identifier_snapshot(id, buf.as_mut_ptr(), len, &mut len), BwStatus::BW_OK);
+            let mut copy: *mut BwIdentifier = core::ptr::null_mut();
+            assert_eq!(bw_identifier_restore(buf.as_ptr(), len, &mut copy), BwStatus::BW_OK);
             assert_eq!((*copy).0, (*id).0);
-            assert_eq!(bw_rpem_restore(buf.as_ptr(), len - 1, &mut copy), BwStatus::BW_CORRUPT_SNAPSHOT);
-            bw_rpem_free(copy);
-            bw_rpem_free(id);
-            bw_rpem_free(core::ptr::null_mut());
+            assert_eq!(bw_identifier_restore(buf.as_ptr(), len - 1, &mut copy), BwStatus::BW_CORRUPT_SNAPSHOT);
+            bw_identifier_free(copy);
+            bw_identifier_free(id);
+            bw_identifier_free(core::ptr::null_mut());
             let bad = BwParams { n: -1.0, ..p };
             let mut m: *mut BwModel = core::ptr::null_mut();
             assert_eq!(bw_model_new(&bad, 1e-4, 0.0, &mut m), BwStatus::BW_INVALID_PARAMETER);
             assert!(m.is_null());
+            let mut rpem: *mut BwIdentifier = core::ptr::null_mut();
+            assert_eq!(bw_identifier_new_rpem(1e-4, &p, 0.0, core::ptr::null(), &mut rpem), BwStatus::BW_OK);
             let mut bank: *mut BwBank = core::ptr::null_mut();
-            assert_eq!(bw_bank_new_rpem(0, 1e-4, &p, 0.0, core::ptr::null(), &mut bank), BwStatus::BW_INVALID_CONFIG);
+            assert_eq!(bw_bank_new(0, 1e-4, rpem, &mut bank), BwStatus::BW_INVALID_CONFIG);
+            assert_eq!(bw_bank_new(2, 1e-4, core::ptr::null(), &mut bank), BwStatus::BW_NULL_POINTER);
+            assert!(bank.is_null());
+            bw_identifier_free(rpem);
             let msg = std::ffi::CStr::from_ptr(bw_status_message(BwStatus::BW_NON_FINITE_SAMPLE));
             assert!(msg.to_str().unwrap().contains("non-finite"));
+            let msg = std::ffi::CStr::from_ptr(bw_status_message(BwStatus::BW_WRONG_METHOD));
+            assert!(msg.to_str().unwrap().contains("another method"));
+        }
+    }
+
+    /// One identifier of each method, through the one handle.
+    unsafe fn each_method(p: &BwParams) -> [*mut BwIdentifier; 3] {
+        let mut ids = [core::ptr::null_mut(); 3];
+        let mut cfg = core::mem::zeroed::<BwPaperConfig>();
+        assert_eq!(bw_paper_config_default(200, &mut cfg), BwStatus::BW_OK);
+        assert_eq!(bw_identifier_new_horizon(1e-4, p, 0.0, 3000.0, core::ptr::null(), &mut ids[0]), BwStatus::BW_OK);
+        assert_eq!(bw_identifier_new_rpem(1e-4, p, 0.0, core::ptr::null(), &mut ids[1]), BwStatus::BW_OK);
+        assert_eq!(bw_identifier_new_paper(1e-4, p, 0.0, &cfg, &mut ids[2]), BwStatus::BW_OK);
+        ids
+    }
+
+    #[test]
+    fn one_handle_serves_every_method_and_method_calls_refuse_the_others() {
+        unsafe {
+            let mut p = core::mem::zeroed::<BwParams>();
+            assert_eq!(bw_params_paper_1hz(&mut p), BwStatus::BW_OK);
+            let ids = each_method(&p);
+            let methods = [BwMethod::BW_METHOD_HORIZON, BwMethod::BW_METHOD_RPEM, BwMethod::BW_METHOD_PAPER];
+            let u: Vec<f64> = (0..600).map(|k| 40.0 * (1.0 - (k as f64 * 0.02).cos())).collect();
+            let x: Vec<f64> = u.iter().map(|v| 0.2 * v).collect();
+            for (&id, &method) in ids.iter().zip(&methods) {
+                let mut got = BwMethod::BW_METHOD_PAPER;
+                assert_eq!(bw_identifier_method(id, &mut got), BwStatus::BW_OK);
+                assert_eq!(got, method);
+                let mut out = vec![0.0; u.len()];
+                assert_eq!(
+                    bw_identifier_push_many(id, u.as_ptr(), x.as_ptr(), u.len(), out.as_mut_ptr()),
+                    BwStatus::BW_OK
+                );
+                let mut status = core::mem::zeroed::<BwIdentifierStatus>();
+                assert_eq!(bw_identifier_status(id, &mut status), BwStatus::BW_OK);
+                assert_eq!((status.method, status.samples), (method, 600));
+                let filled = [status.horizon.samples, status.rpem.samples, status.paper.samples];
+                assert_eq!(filled.iter().filter(|&&n| n == 600).count(), 1);
+                // A forecast does not change the identifier.
+                let before = (*id).0.clone();
+                let mut ahead = [0.0; 5];
+                assert_eq!(bw_identifier_forecast(id, u.as_ptr(), 5, ahead.as_mut_ptr()), BwStatus::BW_OK);
+                assert!(ahead.iter().all(|v| v.is_finite()));
+                assert_eq!((*id).0, before);
+                let mut fc = -1.0;
+                assert_eq!(bw_identifier_lag_fc(id, &mut fc), BwStatus::BW_OK);
+                assert_eq!(fc > 0.0, method == BwMethod::BW_METHOD_HORIZON);
+                // A snapshot comes back as the same method, equal.
+                let mut len = 0usize;
+                assert_eq!(
+                    bw_identifier_snapshot(id, core::ptr::null_mut(), 0, &mut len),
+                    BwStatus::BW_BUFFER_TOO_SMALL
+                );
+                let mut buf = vec![0u8; len];
+                assert_eq!(bw_identifier_snapshot(id, buf.as_mut_ptr(), len, &mut len), BwStatus::BW_OK);
+                let mut copy: *mut BwIdentifier = core::ptr::null_mut();
+                assert_eq!(bw_identifier_restore(buf.as_ptr(), len, &mut copy), BwStatus::BW_OK);
+                assert_eq!((*copy).0.to_snapshot(), buf);
+                let mut next = [0.0; 2];
+                let mut twin = (*id).0.clone();
+                assert_eq!(bw_identifier_push(copy, u[3], x[3], &mut next[0]), BwStatus::BW_OK);
+                next[1] = twin.push(u[3], x[3]).expect("finite");
+                assert_eq!(next[0].to_bits(), next[1].to_bits());
+                bw_identifier_free(copy);
+                // The horizon method's own calls.
+                let mut ran = 7usize;
+                let refine = bw_identifier_refine(id, 16, &mut ran);
+                let set = bw_identifier_set_refine(id, BwRefineMode::BW_REFINE_COOPERATIVE);
+                if method == BwMethod::BW_METHOD_HORIZON {
+                    assert_eq!((refine, set, ran), (BwStatus::BW_OK, BwStatus::BW_OK, 0));
+                    let mut y = 0.0;
+                    assert_eq!(bw_identifier_push(id, u[10], x[10], &mut y), BwStatus::BW_OK);
+                    assert_eq!(bw_identifier_refine(id, 16, &mut ran), BwStatus::BW_OK);
+                    assert!(ran > 0);
+                } else {
+                    assert_eq!((refine, set, ran), (BwStatus::BW_WRONG_METHOD, BwStatus::BW_WRONG_METHOD, 7));
+                    assert_eq!((*id).0, before);
+                }
+                assert_eq!(bw_identifier_reset(id), BwStatus::BW_OK);
+                assert_eq!(bw_identifier_status(id, &mut status), BwStatus::BW_OK);
+                assert_eq!(status.samples, 0);
+                bw_identifier_free(id);
+            }
+        }
+    }
+
+    #[test]
+    fn a_bank_of_any_method_equals_its_single_identifier() {
+        unsafe {
+            let mut p = core::mem::zeroed::<BwParams>();
+            assert_eq!(bw_params_paper_1hz(&mut p), BwStatus::BW_OK);
+            for id in each_method(&p) {
+                let mut bank: *mut BwBank = core::ptr::null_mut();
+                assert_eq!(bw_bank_new(2, 1e-4, id, &mut bank), BwStatus::BW_OK);
+                for k in 0..300 {
+                    let u = 30.0 * (1.0 - (k as f64 * 0.03).cos());
+                    let (mut single, mut frame) = (0.0, [0.0; 2]);
+                    assert_eq!(bw_identifier_push(id, u, 0.2 * u, &mut single), BwStatus::BW_OK);
+                    let (uf, xf) = ([u, u], [0.2 * u, 0.2 * u]);
+                    assert_eq!(bw_bank_push(bank, uf.as_ptr(), xf.as_ptr(), frame.as_mut_ptr()), BwStatus::BW_OK);
+                    assert_eq!(frame.map(f64::to_bits), [single.to_bits(); 2]);
+                }
+                let (mut a, mut b) = (core::mem::zeroed::<BwParams>(), core::mem::zeroed::<BwParams>());
+                assert_eq!(bw_bank_params(bank, 1, &mut a), BwStatus::BW_OK);
+                assert_eq!(bw_identifier_params(id, &mut b), BwStatus::BW_OK);
+                assert_eq!(a, b);
+                bw_bank_free(bank);
+                bw_identifier_free(id);
+            }
         }
     }
 }

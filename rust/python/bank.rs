@@ -1,14 +1,15 @@
 //! `boucwen.Bank`: C channels (identifier + model each) stepped one frame per call.
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyIndexError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyIndexError, PyTypeError};
 use pyo3::prelude::*;
 
 use super::config::{paper_config, rpem_config};
+use super::errors::LengthMismatch;
 use super::params::PyParams;
-use super::{samples, value_error};
+use super::{samples, value_error, InvalidConfig, InvalidRecord};
 use crate::bank::Bank;
-use crate::identify::{AnyIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RpemConfig, RpemIdentifier};
+use crate::identify::{AnyIdentifier, OnlineIdentifier, PaperIdentifier, RpemConfig, RpemIdentifier};
 
 /// C independent channels, each an online identifier and a model, stepped with one
 /// call per frame (adaptive optics, multi-axis stages).
@@ -33,7 +34,7 @@ pub struct PyBank {
 
 fn channel_count(channels: i64) -> PyResult<usize> {
     if !(1..=1 << 20).contains(&channels) {
-        return Err(PyValueError::new_err(format!("invalid channels = {channels}: a bank has 1 to 1048576 channels")));
+        return Err(InvalidConfig::new_err(format!("invalid channels = {channels}: a bank has 1 to 1048576 channels")));
     }
     Ok(channels as usize)
 }
@@ -53,13 +54,13 @@ fn frames(obj: &Bound<'_, PyAny>, name: &str, channels: usize) -> PyResult<(Vec<
     let shape = array.getattr("shape")?.to_string();
     let array: Bound<'_, PyArray2<f64>> = array
         .cast_into::<PyArray2<f64>>()
-        .map_err(|_| PyValueError::new_err(format!("{name} must be 2-D (T, C), got shape {shape}")))?;
+        .map_err(|_| InvalidRecord::new_err(format!("{name} must be 2-D (T, C), got shape {shape}")))?;
     let view: PyReadonlyArray2<'_, f64> = array.readonly();
     let [rows, cols] = [view.shape()[0], view.shape()[1]];
     if cols != channels {
-        return Err(PyValueError::new_err(format!("{name} must have shape (T, {channels}), got {shape}")));
+        return Err(LengthMismatch::new_err(format!("{name} must have shape (T, {channels}), got {shape}")));
     }
-    Ok((view.as_slice().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?.to_vec(), rows))
+    Ok((view.as_slice().map_err(|e| InvalidRecord::new_err(format!("{name}: {e}")))?.to_vec(), rows))
 }
 
 #[pymethods]
@@ -93,14 +94,7 @@ impl PyBank {
         config: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let channels = channel_count(channels)?;
-        if !(PaperConfig::MIN_WINDOW as i64..=PaperConfig::MAX_WINDOW as i64).contains(&window) {
-            return Err(PyValueError::new_err(format!(
-                "invalid window = {window}: the window holds {} to {} samples",
-                PaperConfig::MIN_WINDOW,
-                PaperConfig::MAX_WINDOW
-            )));
-        }
-        let cfg = paper_config(config, window as usize)?;
+        let cfg = paper_config(config, window)?;
         let id = PaperIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
         let inner = Bank::new(channels, AnyIdentifier::Paper(id), dt).map_err(value_error)?;
         Ok(PyBank { inner })
@@ -143,7 +137,7 @@ impl PyBank {
         let (u, rows) = frames(u, "u", channels)?;
         let (x, x_rows) = frames(x, "x", channels)?;
         if x_rows != rows {
-            return Err(PyValueError::new_err(format!("x has {x_rows} frames, u has {rows}")));
+            return Err(LengthMismatch::new_err(format!("x has {x_rows} frames, u has {rows}")));
         }
         let inner = &mut self.inner;
         let out = py

@@ -7,7 +7,7 @@ use pyo3::types::{PyDict, PyType};
 
 use super::effects::PyEffectSet;
 use super::params::PyParams;
-use super::{samples, value_error};
+use super::{samples, value_error, CorruptSnapshot};
 use crate::compensate::{
     AnyInverse, Clip, Compensator, CompensatorConfig, ExtendedInverseState, InverseStatus, PidGains, VoltageLimits,
 };
@@ -26,7 +26,7 @@ fn clip_from_name(name: &str) -> PyResult<Clip> {
         "none" => Ok(Clip::None),
         "low" => Ok(Clip::Low),
         "high" => Ok(Clip::High),
-        other => Err(pyo3::exceptions::PyValueError::new_err(format!("invalid clip {other:?} in the pickled state"))),
+        other => Err(CorruptSnapshot::new_err(format!("invalid clip {other:?} in the pickled state"))),
     }
 }
 

@@ -9,7 +9,7 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::value_error;
+use super::{value_error, InvalidConfig};
 use crate::identify::{Decomposition, HorizonConfig, PaperConfig, RpemConfig};
 
 /// One option of a configuration, borrowed from the struct.
@@ -97,7 +97,7 @@ pub(crate) fn read_slots(obj: &Bound<'_, PyAny>, slots: Vec<(&'static str, Slot<
             Slot::Count(n) => {
                 let k: i64 = v.extract().map_err(|_| type_error(name, "an integer"))?;
                 *n = usize::try_from(k)
-                    .map_err(|_| PyValueError::new_err(format!("invalid {name} = {k}: must be >= 0")))?;
+                    .map_err(|_| InvalidConfig::new_err(format!("invalid {name} = {k}: must be >= 0")))?;
             }
             Slot::Scales(s) => {
                 let vs: Vec<f64> = v.extract().map_err(|_| type_error(name, "a sequence of 7 numbers"))?;
@@ -113,7 +113,7 @@ pub(crate) fn read_slots(obj: &Bound<'_, PyAny>, slots: Vec<(&'static str, Slot<
                     "model" => Decomposition::Model,
                     "line" => Decomposition::Line,
                     other => {
-                        return Err(PyValueError::new_err(format!(
+                        return Err(InvalidConfig::new_err(format!(
                             "invalid decomposition = {other:?}: expected \"model\" or \"line\""
                         )))
                     }
@@ -146,6 +146,17 @@ pub(crate) fn slots_dict<'py>(py: Python<'py>, slots: Vec<(&'static str, Slot<'_
     Ok(d)
 }
 
+/// The slots as the frozen Python config object of class `class` (`"HorizonConfig"`,
+/// `"RpemConfig"` or `"PaperConfig"` of `boucwen.config`).
+pub(crate) fn config_object<'py>(
+    py: Python<'py>,
+    class: &str,
+    slots: Vec<(&'static str, Slot<'_>)>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let options = slots_dict(py, slots)?;
+    py.import("boucwen.config")?.getattr(class)?.call((), Some(&options))
+}
+
 /// The rpem configuration held by a Python config object (`None`: `default`).
 pub(crate) fn rpem_config(obj: Option<&Bound<'_, PyAny>>, default: RpemConfig) -> PyResult<RpemConfig> {
     let mut cfg = default;
@@ -166,8 +177,17 @@ pub(crate) fn horizon_config(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Horizon
     Ok(cfg)
 }
 
-/// The paper configuration held by a Python config object, with window `window`.
-pub(crate) fn paper_config(obj: Option<&Bound<'_, PyAny>>, window: usize) -> PyResult<PaperConfig> {
+/// The paper configuration held by a Python config object, with window `window`
+/// \[samples\] (`InvalidConfig` outside `PaperConfig::MIN_WINDOW..=MAX_WINDOW`).
+pub(crate) fn paper_config(obj: Option<&Bound<'_, PyAny>>, window: i64) -> PyResult<PaperConfig> {
+    let range = PaperConfig::MIN_WINDOW..=PaperConfig::MAX_WINDOW;
+    let window = usize::try_from(window).ok().filter(|w| range.contains(w)).ok_or_else(|| {
+        InvalidConfig::new_err(format!(
+            "invalid window = {window}: the window holds {} to {} samples",
+            PaperConfig::MIN_WINDOW,
+            PaperConfig::MAX_WINDOW
+        ))
+    })?;
     let mut cfg = PaperConfig::with_window(window);
     if let Some(obj) = obj {
         read_slots(obj, paper_slots(&mut cfg))?;
@@ -197,7 +217,7 @@ pub(crate) fn _validate_config(method: &str, config: &Bound<'_, PyAny>) -> PyRes
         "rpem" => rpem_config(Some(config), RpemConfig::default()).map(|_| ()),
         "horizon" => horizon_config(Some(config)).map(|_| ()),
         // min_points is checked against the window when the identifier is built.
-        "paper" => paper_config(Some(config), PaperConfig::MAX_WINDOW).map(|_| ()),
+        "paper" => paper_config(Some(config), PaperConfig::MAX_WINDOW as i64).map(|_| ()),
         other => Err(PyValueError::new_err(format!(
             "invalid method = {other:?}: expected \"horizon\", \"rpem\" or \"paper\""
         ))),

@@ -1,12 +1,12 @@
 //! `boucwen.EffectSet`, `boucwen.simulate_extended` and its Jacobian: conversions only.
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use super::params::PyParams;
-use super::{samples, value_error};
+use super::{samples, value_error, InvalidParams};
 use crate::effects::jacobian::Jacobian;
 use crate::effects::{
     Creep, Delay, Drift, EffectSet, Electrostriction, GainDrift, InputLag, Pickup, Resonance, Resonance2, Saturation,
@@ -44,7 +44,8 @@ pub struct PyEffectSet {
 }
 
 fn get_f64(d: &Bound<'_, PyDict>, effect: &str, key: &str) -> PyResult<f64> {
-    let item = d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("{effect}: missing parameter {key:?}")))?;
+    let item =
+        d.get_item(key)?.ok_or_else(|| InvalidParams::new_err(format!("{effect}: missing parameter {key:?}")))?;
     if item.is_instance_of::<pyo3::types::PyBool>() {
         return Err(PyTypeError::new_err(format!("{effect}.{key} must be a number, got a bool")));
     }
@@ -63,7 +64,7 @@ fn as_dict<'py>(obj: &Bound<'py, PyAny>, effect: &str, keys: &[&str]) -> PyResul
     for key in d.keys() {
         let key: String = key.str()?.to_string();
         if !keys.contains(&key.as_str()) {
-            return Err(PyValueError::new_err(format!("{effect}: unknown parameter {key:?}; expected {keys:?}")));
+            return Err(InvalidParams::new_err(format!("{effect}: unknown parameter {key:?}; expected {keys:?}")));
         }
     }
     Ok(d.clone())
@@ -73,7 +74,8 @@ fn as_dict<'py>(obj: &Bound<'py, PyAny>, effect: &str, keys: &[&str]) -> PyResul
 type Given<'py> = [Option<Bound<'py, PyAny>>; 10];
 
 fn float_list(d: &Bound<'_, PyDict>, effect: &str, key: &str) -> PyResult<Vec<f64>> {
-    let item = d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("{effect}: missing parameter {key:?}")))?;
+    let item =
+        d.get_item(key)?.ok_or_else(|| InvalidParams::new_err(format!("{effect}: missing parameter {key:?}")))?;
     samples(&item, &format!("{effect}.{key}"))
 }
 
@@ -118,7 +120,7 @@ fn parse(given: &Given<'_>) -> PyResult<EffectSet> {
     if let Some(o) = delay {
         let d = as_dict(o, "delay", &["samples"])?;
         let item =
-            d.get_item("samples")?.ok_or_else(|| PyValueError::new_err("delay: missing parameter \"samples\""))?;
+            d.get_item("samples")?.ok_or_else(|| InvalidParams::new_err("delay: missing parameter \"samples\""))?;
         if item.is_instance_of::<pyo3::types::PyBool>() {
             return Err(PyTypeError::new_err("delay.samples must be an integer, got a bool"));
         }
@@ -126,7 +128,7 @@ fn parse(given: &Given<'_>) -> PyResult<EffectSet> {
             .extract()
             .map_err(|_| PyTypeError::new_err(format!("delay.samples must be an integer, got {}", type_name(&item))))?;
         if v < 0 {
-            return Err(PyValueError::new_err(format!("invalid parameter delay.samples = {v}: must be >= 0")));
+            return Err(InvalidParams::new_err(format!("invalid parameter delay.samples = {v}: must be >= 0")));
         }
         set.delay = Some(Delay { samples: v as usize });
     }
@@ -265,7 +267,7 @@ impl PyEffectSet {
         for key in d.keys() {
             let key: String = key.str()?.to_string();
             if !EffectSet::NAMES.contains(&key.as_str()) {
-                return Err(PyValueError::new_err(format!(
+                return Err(InvalidParams::new_err(format!(
                     "unknown effect {key:?}; expected one of {:?}",
                     EffectSet::NAMES
                 )));

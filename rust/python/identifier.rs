@@ -5,14 +5,14 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 
-use super::config::{horizon_config, horizon_slots, paper_config, paper_slots, rpem_config, rpem_slots, slots_dict};
+use super::config::{config_object, horizon_config, horizon_slots, paper_config, paper_slots, rpem_config, rpem_slots};
 use super::effects::PyEffectSet;
 use super::params::PyParams;
-use super::{samples, value_error};
+use super::{samples, value_error, InvalidConfig};
 use crate::effects::EffectSet;
 use crate::identify::{
-    AnyIdentifier, AnyStatus, BackgroundHorizon, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier,
-    RefineMode, RpemConfig, RpemIdentifier,
+    AnyIdentifier, AnyStatus, BackgroundHorizon, HorizonIdentifier, OnlineIdentifier, PaperIdentifier, RefineMode,
+    RpemConfig, RpemIdentifier,
 };
 
 /// Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
@@ -20,7 +20,7 @@ use crate::identify::{
 /// `push(u, x)` takes a voltage u \[V\] and a measured displacement x \[µm\] and
 /// returns the model's displacement \[µm\] for that sample, predicted with the
 /// estimates from *before* the sample and with the model's own simulated h; then
-/// it updates the estimates. A non-finite sample raises ValueError and leaves
+/// it updates the estimates. A non-finite sample raises InvalidRecord and leaves
 /// the identifier exactly as it was.
 ///
 /// Constructors, one per method:
@@ -126,7 +126,7 @@ fn refine_arg(refine: &str) -> PyResult<Refine> {
         "sync" => Ok(Refine::Mode(RefineMode::Sync)),
         "cooperative" => Ok(Refine::Mode(RefineMode::Cooperative)),
         "background" => Ok(Refine::Background),
-        other => Err(PyValueError::new_err(format!(
+        other => Err(InvalidConfig::new_err(format!(
             "invalid refine = {other:?}: expected \"sync\", \"cooperative\" or \"background\""
         ))),
     }
@@ -256,14 +256,7 @@ impl PyIdentifier {
     ) -> PyResult<Self> {
         check_config_class(config, "PaperConfig")?;
         let window = count_arg(window, "window")?;
-        if !(PaperConfig::MIN_WINDOW as i64..=PaperConfig::MAX_WINDOW as i64).contains(&window) {
-            return Err(PyValueError::new_err(format!(
-                "invalid window = {window}: the window holds {} to {} samples",
-                PaperConfig::MIN_WINDOW,
-                PaperConfig::MAX_WINDOW
-            )));
-        }
-        let cfg = paper_config(config, window as usize)?;
+        let cfg = paper_config(config, window)?;
         let id = PaperIdentifier::new(dt, init.inner, h0, cfg).map_err(value_error)?;
         Ok(PyIdentifier { inner: Inner::Any(AnyIdentifier::Paper(id)) })
     }
@@ -299,7 +292,7 @@ impl PyIdentifier {
 
     /// `push` over arrays, with the GIL released; returns the predictions \[µm\],
     /// identical to a loop of `push`. If any value is NaN or infinite the whole call
-    /// raises ValueError before any sample is used (the state is unchanged).
+    /// raises InvalidRecord before any sample is used (the state is unchanged).
     fn push_many<'py>(
         &mut self,
         py: Python<'py>,
@@ -347,7 +340,7 @@ impl PyIdentifier {
     /// The model's open-loop displacement x̂ \[µm\] for the future voltages `u` \[V\]:
     /// the current estimates and model state (with the effects identified along)
     /// simulated on from the last sample pushed, the interval from it to `u[0]`
-    /// included. Nothing changes in the identifier. ValueError on a non-finite `u`.
+    /// included. Nothing changes in the identifier. InvalidRecord on a non-finite `u`.
     fn forecast<'py>(&self, py: Python<'py>, u: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = samples(u, "u")?;
         let mut out = vec![0.0; u.len()];
@@ -361,16 +354,22 @@ impl PyIdentifier {
         self.inner.method()
     }
 
-    /// The configuration in use, as a dict of its options (the fields of the
-    /// method's `HorizonConfig`, `RpemConfig` or `PaperConfig`: `RpemConfig(**ident.config)`
-    /// rebuilds it; the paper's window is `window`).
+    /// The configuration in use, as the method's frozen config object: a
+    /// `HorizonConfig`, `RpemConfig` or `PaperConfig` equal to the one given (the
+    /// method's defaults when none was; the paper's window is `window`).
     #[getter]
-    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         match &self.inner {
-            Inner::Any(AnyIdentifier::Rpem(id)) => slots_dict(py, rpem_slots(&mut id.config().clone())),
-            Inner::Any(AnyIdentifier::Paper(id)) => slots_dict(py, paper_slots(&mut id.config().clone())),
-            Inner::Any(AnyIdentifier::Horizon(id)) => slots_dict(py, horizon_slots(&mut id.config().clone())),
-            Inner::Background(id) => slots_dict(py, horizon_slots(&mut id.config().clone())),
+            Inner::Any(AnyIdentifier::Rpem(id)) => {
+                config_object(py, "RpemConfig", rpem_slots(&mut id.config().clone()))
+            }
+            Inner::Any(AnyIdentifier::Paper(id)) => {
+                config_object(py, "PaperConfig", paper_slots(&mut id.config().clone()))
+            }
+            Inner::Any(AnyIdentifier::Horizon(id)) => {
+                config_object(py, "HorizonConfig", horizon_slots(&mut id.config().clone()))
+            }
+            Inner::Background(id) => config_object(py, "HorizonConfig", horizon_slots(&mut id.config().clone())),
         }
     }
 
@@ -451,7 +450,7 @@ impl PyIdentifier {
         Ok((restore, args))
     }
 
-    /// Rebuilds an identifier from the bytes written by `__reduce__` (ValueError if
+    /// Rebuilds an identifier from the bytes written by `__reduce__` (CorruptSnapshot if
     /// corrupt); `refine="background"` restarts a horizon identifier's worker.
     #[classmethod]
     #[pyo3(signature = (data, refine = None))]

@@ -5,20 +5,16 @@ mod bank;
 mod compensate;
 mod config;
 mod effects;
+mod errors;
 mod identifier;
 mod model;
 mod params;
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 
-use crate::Error;
-
-/// Maps a crate error to `ValueError` with the error's one-line message.
-pub(crate) fn value_error(err: Error) -> PyErr {
-    PyValueError::new_err(err.to_string())
-}
+pub(crate) use errors::{value_error, CorruptSnapshot, InvalidConfig, InvalidParams, InvalidRecord};
 
 /// Converts any array-like to a contiguous 1-D float64 copy, with a precise error.
 pub(crate) fn samples(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> {
@@ -43,24 +39,25 @@ pub(crate) fn samples(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f64>> 
     let array = numpy.call_method1("ascontiguousarray", (array, "float64"))?;
     let array: Bound<'_, PyArray1<f64>> = array.cast_into::<PyArray1<f64>>().map_err(|_| {
         let shape = obj.getattr("shape").map(|s| s.to_string()).unwrap_or_else(|_| "?".into());
-        PyValueError::new_err(format!("{name} must be 1-D, got shape {shape}"))
+        InvalidRecord::new_err(format!("{name} must be 1-D, got shape {shape}"))
     })?;
     let view: PyReadonlyArray1<'_, f64> = array.readonly();
     let _ = view.len();
-    Ok(view.as_slice().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?.to_vec())
+    Ok(view.as_slice().map_err(|e| InvalidRecord::new_err(format!("{name}: {e}")))?.to_vec())
 }
 
-/// Checks that a float argument is finite.
+/// Checks that a float option is finite (`InvalidConfig` if not).
 pub(crate) fn finite(value: f64, name: &str) -> PyResult<f64> {
     if value.is_finite() {
         Ok(value)
     } else {
-        Err(PyValueError::new_err(format!("{name} = {value} must be finite")))
+        Err(InvalidConfig::new_err(format!("{name} = {value} must be finite")))
     }
 }
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    errors::register(m)?;
     m.add_class::<params::PyParams>()?;
     m.add_class::<model::PyModel>()?;
     m.add_class::<identifier::PyIdentifier>()?;

@@ -1,11 +1,11 @@
 //! `boucwen.Params`: frozen, comparable, picklable, round-tripping `repr`.
 
 use numpy::PyArray1;
-use pyo3::exceptions::{PyKeyError, PyValueError};
+use pyo3::exceptions::PyKeyError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use super::{samples, value_error};
+use super::{samples, value_error, InvalidParams};
 use crate::Params;
 
 /// Parameters of the asymmetric Bouc–Wen model (Zhu, Bian & Rui 2014, eqs. 3 and 5):
@@ -90,7 +90,7 @@ impl PyParams {
     fn from_array(values: &Bound<'_, PyAny>) -> PyResult<Self> {
         let v = samples(values, "values")?;
         let arr: [f64; 7] = v.try_into().map_err(|v: Vec<f64>| {
-            PyValueError::new_err(format!("expected 7 values {:?}, got {}", Params::NAMES, v.len()))
+            InvalidParams::new_err(format!("expected 7 values {:?}, got {}", Params::NAMES, v.len()))
         })?;
         Params::from_array(arr).map(|inner| PyParams { inner }).map_err(value_error)
     }
@@ -112,12 +112,12 @@ impl PyParams {
             let item = d.get_item(name)?.ok_or_else(|| PyKeyError::new_err(format!("missing parameter {name}")))?;
             *slot = item
                 .extract::<f64>()
-                .map_err(|_| PyValueError::new_err(format!("parameter {name} must be a number")))?;
+                .map_err(|_| InvalidParams::new_err(format!("parameter {name} must be a number")))?;
         }
         for key in d.keys() {
             let key: String = key.str()?.to_string();
             if !Params::NAMES.contains(&key.as_str()) {
-                return Err(PyValueError::new_err(format!("unknown parameter {key}; expected {:?}", Params::NAMES)));
+                return Err(InvalidParams::new_err(format!("unknown parameter {key}; expected {:?}", Params::NAMES)));
             }
         }
         Params::from_array(v).map(|inner| PyParams { inner }).map_err(value_error)

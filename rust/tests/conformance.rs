@@ -379,29 +379,44 @@ fn c_abi_push_does_not_allocate() {
     unsafe {
         let mut p = BwParams { kv: 0.0, x0: 0.0, a: 0.0, beta: 0.0, gamma: 0.0, n: 0.0, delta: 0.0 };
         assert_eq!(bw_params_paper_1hz(&mut p), BwStatus::BW_OK);
-        let mut id: *mut BwRpem = std::ptr::null_mut();
-        assert_eq!(bw_rpem_new(DT, &p, 0.0, std::ptr::null(), &mut id), BwStatus::BW_OK);
+        let mut rpem: *mut BwIdentifier = std::ptr::null_mut();
+        assert_eq!(bw_identifier_new_rpem(DT, &p, 0.0, std::ptr::null(), &mut rpem), BwStatus::BW_OK);
+        let mut paper_cfg = std::mem::zeroed::<BwPaperConfig>();
+        assert_eq!(bw_paper_config_default(200, &mut paper_cfg), BwStatus::BW_OK);
+        let mut paper: *mut BwIdentifier = std::ptr::null_mut();
+        assert_eq!(bw_identifier_new_paper(DT, &p, 0.0, &paper_cfg, &mut paper), BwStatus::BW_OK);
         let mut model: *mut BwModel = std::ptr::null_mut();
         assert_eq!(bw_model_new(&p, DT, 0.0, &mut model), BwStatus::BW_OK);
-        let mut horizon: *mut BwHorizon = std::ptr::null_mut();
-        assert_eq!(bw_horizon_new(DT, &p, 0.0, 0.3 / DT, std::ptr::null(), &mut horizon), BwStatus::BW_OK);
+        let mut horizon: *mut BwIdentifier = std::ptr::null_mut();
+        assert_eq!(bw_identifier_new_horizon(DT, &p, 0.0, 0.3 / DT, std::ptr::null(), &mut horizon), BwStatus::BW_OK);
+        let mut cooperative: *mut BwIdentifier = std::ptr::null_mut();
+        assert_eq!(
+            bw_identifier_new_horizon(DT, &p, 0.0, 0.3 / DT, std::ptr::null(), &mut cooperative),
+            BwStatus::BW_OK
+        );
+        assert_eq!(bw_identifier_set_refine(cooperative, BwRefineMode::BW_REFINE_COOPERATIVE), BwStatus::BW_OK);
         let mut inverse: *mut BwInverse = std::ptr::null_mut();
         let inf = f64::INFINITY;
         assert_eq!(bw_inverse_new(&p, DT, 0.0, -inf, inf, &mut inverse), BwStatus::BW_OK);
         let mut y = 0.0;
+        let mut ran = 0usize;
         let (n, ()) = allocations_during(|| {
             for k in 0..5_000 {
-                assert_eq!(bw_rpem_push(id, u[k], x[k], &mut y), BwStatus::BW_OK);
+                for id in [rpem, paper, horizon, cooperative] {
+                    assert_eq!(bw_identifier_push(id, u[k], x[k], &mut y), BwStatus::BW_OK);
+                }
+                assert_eq!(bw_identifier_refine(cooperative, 32, &mut ran), BwStatus::BW_OK);
                 assert_eq!(bw_model_step(model, u[k], &mut y), BwStatus::BW_OK);
-                assert_eq!(bw_horizon_push(horizon, u[k], x[k], &mut y), BwStatus::BW_OK);
                 assert_eq!(bw_inverse_step(inverse, x[k], &mut y), BwStatus::BW_OK);
             }
-            assert_eq!(bw_horizon_push(horizon, f64::NAN, 0.0, &mut y), BwStatus::BW_NON_FINITE_SAMPLE);
+            assert_eq!(bw_identifier_push(horizon, f64::NAN, 0.0, &mut y), BwStatus::BW_NON_FINITE_SAMPLE);
+            assert_eq!(bw_identifier_refine(rpem, 32, &mut ran), BwStatus::BW_WRONG_METHOD);
         });
         assert_eq!(n, 0, "C-ABI pushes allocated {n} times");
-        bw_rpem_free(id);
+        for id in [rpem, paper, horizon, cooperative] {
+            bw_identifier_free(id);
+        }
         bw_model_free(model);
-        bw_horizon_free(horizon);
         bw_inverse_free(inverse);
     }
 }

@@ -41,7 +41,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar, TypeVar, cast
 
-from .._core import EffectSet, Params, simulate_extended
+from .._core import EffectSet, InvalidParams, Params, simulate_extended
 from ..checks import FloatArray
 from ..lsq import finite_or_none
 from ..record import Record
@@ -181,16 +181,16 @@ class Effect(ABC):
 
     @classmethod
     def from_dict(cls: type[E], params: Mapping[str, Any]) -> E:
-        """Inverse of :meth:`to_dict`; ValueError for a missing or unknown parameter."""
+        """Inverse of :meth:`to_dict`; :class:`boucwen.InvalidParams` for a missing or unknown parameter."""
         keys = [f.name for f in fields(cls)]
         if not isinstance(params, Mapping):
             raise TypeError(f"{cls.name} must be a dict with keys {keys}, got {type(params).__name__}")
         for key in params:
             if key not in keys:
-                raise ValueError(f"{cls.name}: unknown parameter {key!r}; expected {keys}")
+                raise InvalidParams(f"{cls.name}: unknown parameter {key!r}; expected {keys}")
         for key in keys:
             if key not in params:
-                raise ValueError(f"{cls.name}: missing parameter {key!r}")
+                raise InvalidParams(f"{cls.name}: missing parameter {key!r}")
         return cls(**params)
 
     def unknowns(self) -> tuple[str, ...]:

@@ -7,7 +7,7 @@ import json
 from collections.abc import Mapping
 from typing import Any
 
-from .._core import EffectSet
+from .._core import EffectSet, InvalidParams
 from .base import Effect, params_of, set_of
 from .creep import Creep
 from .delay import Delay
@@ -42,11 +42,11 @@ _BY_NAME: dict[str, type[Effect]] = {cls.name: cls for cls in EFFECTS}
 
 
 def effect_class(name: str) -> type[Effect]:
-    """The class of the effect ``name``; ValueError if there is none."""
+    """The class of the effect ``name``; :class:`boucwen.InvalidParams` if there is none."""
     try:
         return _BY_NAME[name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown effect {name!r}; expected one of {list(VOCABULARY)}") from None
+        raise InvalidParams(f"unknown effect {name!r}; expected one of {list(VOCABULARY)}") from None
 
 
 def effect_set(*effects: Effect) -> EffectSet:
@@ -58,7 +58,7 @@ def effect_set(*effects: Effect) -> EffectSet:
             names = ", ".join(cls.__name__ for cls in EFFECTS)
             raise TypeError(f"effect_set takes effects ({names}), got {type(effect).__name__}")
         if effect.name in params:
-            raise ValueError(f"effect {effect.name!r} given more than once")
+            raise InvalidParams(f"effect {effect.name!r} given more than once")
         params[effect.name] = effect.to_dict()
     return set_of(params)
 
@@ -80,15 +80,15 @@ def to_json(effects: EffectSet) -> str:
 
 
 def from_json(text: str) -> EffectSet:
-    """Inverse of :func:`to_json`; ValueError naming the effect or parameter at fault."""
+    """Inverse of :func:`to_json`; :class:`boucwen.InvalidParams` naming the effect or parameter at fault."""
     try:
         params = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"effects: not valid JSON ({exc})") from None
+        raise InvalidParams(f"effects: not valid JSON ({exc})") from None
     if not isinstance(params, dict):
         shape = "{effect name: {parameter: value}}"
-        raise ValueError(f"effects: expected a JSON object {shape}, got {type(params).__name__}")
+        raise InvalidParams(f"effects: expected a JSON object {shape}, got {type(params).__name__}")
     try:
         return effect_set(*_typed(params))
     except TypeError as exc:
-        raise ValueError(str(exc)) from None
+        raise InvalidParams(str(exc)) from None
