@@ -67,6 +67,7 @@ from .._core import EffectSet, Identifier, Params, simulate, simulate_extended
 from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 from ..io import jsonable
+from ..pacing import COOPERATIVE_INTERVALS, REFINE_MODES, feed_for
 
 if TYPE_CHECKING:
     from .._core import _IdentifierMethod
@@ -87,6 +88,7 @@ __all__ = [
     "default_online_method",
     "default_window",
     "fixed_parameter_prediction",
+    "refine_variants",
     "run",
     "steady_state_slice",
     "table1_from_predictions",
@@ -147,12 +149,15 @@ class OnlineMethod:
         method: the ``method`` argument of :class:`boucwen.Identifier`.
         options: extra keyword arguments of :class:`boucwen.Identifier`.
         description: one line for the printed tables.
+        refine: where the recommended identifier's window pass runs ("sync",
+            "cooperative", "background"; see :mod:`boucwen.pacing` for how each is fed).
     """
 
     label: str
     method: _IdentifierMethod
     options: Mapping[str, Any] = field(default_factory=dict)
     description: str = ""
+    refine: str = "sync"
 
 
 #: Every online method the experiment compares, in print order. Methods the
@@ -176,9 +181,25 @@ def _make_identifier(m: OnlineMethod, dt: float, window: int, init: Params, h0: 
     if m.method == "rpem":
         return Identifier.rpem(dt, init, h0, config=RpemConfig(**dict(m.options)))
     config = HorizonConfig(**dict(m.options))
-    if m.label == "horizon":
-        return Identifier(dt, init, h0, config=config)
+    if m.label.startswith("horizon") and m.label != "horizon_base":
+        return Identifier(dt, init, h0, config=config, refine=m.refine)
     return Identifier.horizon(dt, init, h0, config=config)
+
+
+def refine_variants(modes: Sequence[str]) -> list[OnlineMethod]:
+    """The library default ("horizon") with its window pass run in each mode of `modes`
+    other than "sync" (which is the ``horizon`` row itself): labels ``horizon_cooperative``
+    (``refine(COOPERATIVE_INTERVALS)`` after every push) and ``horizon_background`` (the
+    record replayed at its own sample rate, the pass on a worker thread)."""
+    what = {
+        "cooperative": f"refine({COOPERATIVE_INTERVALS}) after every push",
+        "background": "worker thread, the record replayed at its own sample rate",
+    }
+    return [
+        OnlineMethod(f"horizon_{mode}", "horizon", {}, f"library default, window pass {mode}: {what[mode]}", mode)
+        for mode in REFINE_MODES
+        if mode in modes and mode != "sync"
+    ]
 
 
 def available_online_methods(
@@ -284,9 +305,29 @@ def _run_online(
     ident = _make_identifier(m, dt, window, init, h0)
     freezes: list[tuple[int, Params, EffectSet | None]] = []
     trace = np.empty_like(x)
+    feed = feed_for(m.refine, dt)
+    started = time.perf_counter()
     score, per_period, one_step = evaluation.period_ahead(
-        ident, u, x, dt, segments, on_period=lambda _f, k0, p, _h: freezes.append((k0, p, ident.effects)), trace=trace
+        ident,
+        u,
+        x,
+        dt,
+        segments,
+        on_period=lambda _f, k0, p, _h: freezes.append((k0, p, ident.effects)),
+        trace=trace,
+        feed=feed,
     )
+    status = ident.status
+    replay = {
+        "refine": m.refine,
+        "paced": bool(feed is not None and feed.paced),
+        "refine_intervals_per_push": feed.refine_intervals if feed is not None else 0,
+        "late_samples": feed.late_samples if feed is not None else 0,
+        "max_late_s": feed.max_late_s if feed is not None else 0.0,
+        "wall_s": time.perf_counter() - started,
+        "updates": status.get("updates"),
+        "behind_samples_at_end": status.get("behind_samples"),
+    }
     estimates = {}
     effects: dict[str, EffectSet | None] = {}
     for i, (f, _, hi) in enumerate(segments):
@@ -301,6 +342,7 @@ def _run_online(
         "one_step": one_step,
         "trace": trace,
         "estimates": estimates,
+        "replay": replay,
     }
 
 
@@ -433,6 +475,7 @@ def run(
     settings: plant.BenchSettings | None = None,
     figures: bool = True,
     log: Callable[[str], None] | None = print,
+    refine: Sequence[str] = ("sync",),
 ) -> dict[str, Any]:
     """Runs the experiment and writes ``results.json``, ``predictions.npz`` and the figures.
 
@@ -446,6 +489,10 @@ def run(
         settings: the bench (default :class:`boucwen.plant.BenchSettings`).
         figures: write the PNG figures.
         log: where progress and tables go (``None``: silent).
+        refine: modes of the library default's window pass to run besides "sync" (the
+            ``horizon`` row): "cooperative", "background" (:func:`refine_variants`);
+            Table 1 of every mode is printed side by side with the sync one and kept
+            in ``results["refine_modes"]``.
 
     Returns:
         The content of ``results.json`` as a dict.
@@ -491,6 +538,8 @@ def run(
     x_trad = np.asarray(x_trad)
 
     methods = available_online_methods(dt, window, trad.params)
+    if any(m.label == "horizon" for m in methods):
+        methods += refine_variants(refine)
     labels = [m.label for m in methods]
     default = default_online_method(labels)
     one_step: dict[str, np.ndarray] = {}
@@ -501,10 +550,13 @@ def run(
     table2: dict[str, dict[str, dict[str, float]]] = {}
     per_period: dict[str, dict[str, list[float]]] = {}
     effects_at_end: dict[str, Mapping[str, EffectSet | None]] = {}
+    replays: dict[str, dict[str, Any]] = {}
     for m in methods:
         step(f"online method {m.label!r}" + (f" (window {window} samples)" if m.method == "paper" else ""))
         r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments)
         key = f"online_{m.label}"
+        if m.label == "horizon" or m.refine != "sync":
+            replays[m.refine] = {**r["replay"], "table1": r["period_ahead"]}
         one_step[key], traces[key] = r["one_step"], r["trace"]
         table1[key], table2[key], per_period[key] = r["period_ahead"], r["estimates"], r["per_period"]
         effects_at_end[key] = r["effects"]
@@ -586,6 +638,7 @@ def run(
         "traditional_fit": trad.to_dict(),
         "window_sweep": sweep,
         "best_fixed_per_frequency": best_fixed,
+        "refine_modes": replays,
     }
 
     results = jsonable(results)
@@ -614,9 +667,40 @@ def run(
         {m.label: m.description for m in methods},
         adapt,
     )
+    if len(replays) > 1:
+        for line in format_refine_modes(replays, freqs):
+            say(line)
     say(f"online = online_{default}; steady state = {STEADY_STATE}")
     step(f"wrote {out / 'results.json'}, {out / 'predictions.npz'} and the figures")
     return results
+
+
+def format_refine_modes(replays: Mapping[str, Mapping[str, Any]], freqs: Sequence[str]) -> list[str]:
+    """Table 1 of the library default in each mode of its window pass, side by side with
+    the synchronous one: max error [µm] per frequency and its ratio to sync, with how
+    the record was fed (paced or not, refine schedule, late samples)."""
+    sync = replays["sync"]["table1"]
+    heads = [f"{f} Hz" for f in freqs]
+    lines = [
+        "",
+        "Table 1 by window-pass mode (library default): period-ahead max error [µm]; ratio to sync",
+        f"{'mode':<13}" + "".join(f"{h:>9}" for h in heads) + "".join(f"{'/' + h:>10}" for h in heads) + "  fed",
+    ]
+    for mode, r in replays.items():
+        t1 = r["table1"]
+        if r["paced"]:
+            fed = f"paced 1/dt, {r['late_samples']} late (max {1e3 * r['max_late_s']:.2f} ms)"
+        elif r["refine_intervals_per_push"]:
+            fed = f"refine({r['refine_intervals_per_push']}) after every push"
+        else:
+            fed = "push_many"
+        lines.append(
+            f"{mode:<13}"
+            + "".join(f"{t1[f]:>9.3f}" for f in freqs)
+            + "".join(f"{t1[f] / sync[f]:>10.3f}" for f in freqs)
+            + f"  {fed}; {r['updates']} updates, behind {r['behind_samples_at_end']} samples at the end"
+        )
+    return lines
 
 
 def _figures(
