@@ -191,6 +191,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         seed=args.seed,
         figures=not args.no_figures,
         refine=refine_modes(args.refine),
+        real_time=args.realtime,
     )
     return EXIT_OK
 
@@ -222,6 +223,11 @@ def _add_reproduce(sub: _Subparsers) -> None:
         help="where the default method's window pass runs: sync, cooperative, background (the record "
         "replayed at its own sample rate), a comma-separated list or all; the modes' Table 1 side by side "
         "(default sync)",
+    )
+    p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="run the paced replay and its worker under SCHED_FIFO (needs the privilege)",
     )
     p.set_defaults(handler=_cmd_reproduce)
 

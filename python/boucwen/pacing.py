@@ -25,15 +25,28 @@ Units: dt and lateness in seconds, u [V], x [µm].
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._core import Identifier
 
-__all__ = ["COOPERATIVE_INTERVALS", "REFINE_MODES", "PacedFeed", "feed_for", "refine_modes"]
+__all__ = [
+    "COOPERATIVE_INTERVALS",
+    "REFINE_MODES",
+    "PacedFeed",
+    "RefineMode",
+    "feed_for",
+    "realtime",
+    "refine_mode",
+    "refine_modes",
+]
 
 
 @dataclass
@@ -104,8 +117,10 @@ class PacedFeed:
         return out
 
 
+#: A mode of the window pass (the ``refine`` argument of :class:`boucwen.Identifier`).
+RefineMode = Literal["sync", "cooperative", "background"]
 #: Where the recommended identifier's window pass runs (``refine`` of :class:`boucwen.Identifier`).
-REFINE_MODES: tuple[str, ...] = ("sync", "cooperative", "background")
+REFINE_MODES: tuple[RefineMode, ...] = ("sync", "cooperative", "background")
 #: The cooperative schedule of the experiments: ``refine(COOPERATIVE_INTERVALS)`` after every
 #: push. At 10 kHz that is about 32 × 0.25 µs = 8 µs of each 100 µs interval, twice the
 #: window pass's share in a synchronous push (16 intervals), so that the pass keeps up
@@ -113,7 +128,14 @@ REFINE_MODES: tuple[str, ...] = ("sync", "cooperative", "background")
 COOPERATIVE_INTERVALS = 32
 
 
-def refine_modes(arg: str) -> tuple[str, ...]:
+def refine_mode(name: str) -> RefineMode:
+    """`name` as a :data:`RefineMode`; ValueError if it is none."""
+    if name not in REFINE_MODES:
+        raise ValueError(f"invalid refine = {name!r}: expected one of {REFINE_MODES}")
+    return name
+
+
+def refine_modes(arg: str) -> tuple[RefineMode, ...]:
     """The modes named by a command-line value: ``"all"`` or a comma-separated subset of
     :data:`REFINE_MODES`, in that order. ValueError on an unknown name."""
     names = [s.strip() for s in arg.split(",") if s.strip()]
@@ -137,3 +159,22 @@ def feed_for(refine: str, dt: float) -> PacedFeed | None:
     if refine == "background":
         return PacedFeed(dt)
     raise ValueError(f"invalid refine = {refine!r}: expected one of {REFINE_MODES}")
+
+
+@contextmanager
+def realtime(priority: int = 10) -> Iterator[bool]:
+    """The calling thread, and the threads it starts meanwhile (a background identifier's
+    worker), under the real-time policy SCHED_FIFO at `priority` while inside, as a
+    control loop and its refinement would run: on a host shared with other work the
+    paced replay and the worker then each get a core. Yields whether the policy was
+    granted (it needs the privilege; elsewhere nothing changes). Linux only."""
+    try:
+        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError):
+        yield False
+        return
+    try:
+        yield True
+    finally:
+        os.sched_setscheduler(0, policy, param)

@@ -39,6 +39,7 @@ import math
 import sys
 import time
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
@@ -49,7 +50,7 @@ from .. import evaluation, plant
 from .._core import Identifier, Params
 from ..fit import fit
 from ..io import jsonable
-from ..pacing import REFINE_MODES, feed_for, refine_modes
+from ..pacing import REFINE_MODES, RefineMode, feed_for, realtime, refine_mode, refine_modes
 
 __all__ = [
     "METHODS",
@@ -156,9 +157,9 @@ def measure_seed(seed: int, index: int) -> int:
     return int(seed) if index < 0 else 1000 * int(seed) + 1 + int(index)
 
 
-def _refine_of(method: str) -> str:
+def _refine_of(method: str) -> RefineMode:
     """Where the window pass of `method` runs ("sync" for every method but :data:`REFINE_METHODS`)."""
-    return method.removeprefix("horizon_") if method in REFINE_METHODS else "sync"
+    return refine_mode(method.removeprefix("horizon_")) if method in REFINE_METHODS else "sync"
 
 
 def _make(method: str, dt: float, init: Params, h0: float) -> Identifier:
@@ -184,6 +185,7 @@ def run_plant(
     methods: Sequence[str] = METHODS,
     durations: Sequence[tuple[float, float]] = plant.PAPER_SEGMENTS,
     fit_options: dict[str, Any] | None = None,
+    real_time: bool = False,
 ) -> dict[str, Any]:
     """One plant: the record, the traditional fit, every method, the oracle and the ratios.
 
@@ -194,6 +196,8 @@ def run_plant(
         durations: the input's (frequency [Hz], duration [s]) pairs; the first is the
             traditional fit's data.
         fit_options: extra keyword arguments of :func:`boucwen.fit` (traditional and oracle).
+        real_time: run each paced replay (and its worker) under SCHED_FIFO
+            (:func:`boucwen.pacing.realtime`, where granted).
 
     Returns:
         ``{"seed", "traditional", "oracle", "traditional_params", "methods": {name:
@@ -217,11 +221,15 @@ def run_plant(
         "methods": {},
     }
     for m in methods:
-        ident = _make(m, dt, trad.params, trad.h0)
         feed = feed_for(_refine_of(m), dt)
-        score, per_period, _ = evaluation.period_ahead(ident, u, x, dt, segments, feed=feed)
+        with realtime() if real_time and feed is not None and feed.paced else nullcontext(False) as granted:
+            ident = _make(m, dt, trad.params, trad.h0)
+            score, per_period, _ = evaluation.period_ahead(ident, u, x, dt, segments, feed=feed)
+            final = ident.params.to_dict()
+            del ident  # a worker stops here, inside
         if feed is not None:
             out.setdefault("replay", {})[m] = {
+                "real_time": granted,
                 "paced": feed.paced,
                 "refine_intervals_per_push": feed.refine_intervals,
                 "late_samples": feed.late_samples,
@@ -233,7 +241,7 @@ def run_plant(
             "after_first": after_first,
             "ratio_oracle": _ratios(score, oracle),
             "ratio_traditional": _ratios(score, traditional),
-            "params": ident.params.to_dict(),
+            "params": final,
         }
     return out
 
@@ -290,6 +298,7 @@ def run(
     fit_options: dict[str, Any] | None = None,
     out_dir: str | Path | None = None,
     progress: Callable[[str], None] | None = None,
+    real_time: bool = False,
 ) -> dict[str, Any]:
     """Runs the family (and, with `bench`, the default bench first, reported apart).
 
@@ -303,6 +312,7 @@ def run(
         fit_options: extra keyword arguments of :func:`boucwen.fit`.
         out_dir: when given, ``results.json`` and ``ratios.png`` are written there.
         progress: called with one line per plant.
+        real_time: paced replays under SCHED_FIFO (see :func:`run_plant`).
 
     Returns:
         A JSON-ready dict: ``seed``, ``count``, ``methods``, ``durations``, ``bench``
@@ -324,7 +334,12 @@ def run(
     for index, settings in jobs:
         t0 = time.perf_counter()
         res = run_plant(
-            settings, measure_seed(seed, index), methods=methods, durations=durations, fit_options=fit_options
+            settings,
+            measure_seed(seed, index),
+            methods=methods,
+            durations=durations,
+            fit_options=fit_options,
+            real_time=real_time,
         )
         res["index"] = index
         res["settings"] = settings.to_dict()
@@ -468,7 +483,9 @@ def format_refine_modes(results: dict[str, Any]) -> list[str]:
     if len(modes) < 2 or "horizon" not in modes:
         return []
     freqs = list(summary["horizon"])
-    late = {m: sum(p.get("replay", {}).get(m, {}).get("late_samples", 0) for p in results["plants"]) for m in modes[1:]}
+    replays = [p.get("replay", {}) for p in results["plants"]]
+    late = {m: sum(r.get(m, {}).get("late_samples", 0) for r in replays) for m in modes[1:]}
+    paced = {m: any(r.get(m, {}).get("paced", False) for r in replays) for m in modes[1:]}
     lines = [
         "library default by window-pass mode: family median ratio to the oracle per frequency; / sync",
         f"{'mode':<13}" + "".join(f"{f + ' Hz':>9}" for f in freqs) + "".join(f"{'/' + f + ' Hz':>10}" for f in freqs),
@@ -476,7 +493,9 @@ def format_refine_modes(results: dict[str, Any]) -> list[str]:
     for m in modes:
         med = [summary[m][f]["ratio_oracle"]["median"] for f in freqs]
         sync = [summary["horizon"][f]["ratio_oracle"]["median"] for f in freqs]
-        note = f"  ({late[m]} samples late over the family)" if m in late else ""
+        note = ""
+        if m in late:
+            note = f"  (paced: {late[m]} samples late over the family)" if paced[m] else "  (not paced)"
         lines.append(
             f"{_refine_of(m):<13}"
             + "".join(f"{v:>9.3f}" for v in med)
@@ -503,6 +522,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="also run the default method ('horizon', sync) with its window pass cooperative and/or on a "
         "background worker (the record replayed at its own sample rate): a comma-separated list or all",
     )
+    ap.add_argument(
+        "--realtime",
+        action="store_true",
+        help="run each paced replay and its worker under SCHED_FIFO (needs the privilege)",
+    )
     args = ap.parse_args(argv)
     extra = [f"horizon_{m}" for m in refine_modes(args.refine) if m != "sync"]
 
@@ -516,6 +540,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         bench=not args.no_bench,
         out_dir=args.out,
         progress=progress,
+        real_time=args.realtime,
     )
     print(format_table(results))
     return 0

@@ -56,6 +56,7 @@ import json
 import os
 import time
 from collections.abc import Mapping, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
@@ -67,7 +68,7 @@ from .._core import EffectSet, Identifier, Params, simulate, simulate_extended
 from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 from ..io import jsonable
-from ..pacing import COOPERATIVE_INTERVALS, REFINE_MODES, feed_for
+from ..pacing import COOPERATIVE_INTERVALS, REFINE_MODES, RefineMode, feed_for, realtime
 
 if TYPE_CHECKING:
     from .._core import _IdentifierMethod
@@ -157,7 +158,7 @@ class OnlineMethod:
     method: _IdentifierMethod
     options: Mapping[str, Any] = field(default_factory=dict)
     description: str = ""
-    refine: str = "sync"
+    refine: RefineMode = "sync"
 
 
 #: Every online method the experiment compares, in print order. Methods the
@@ -295,31 +296,36 @@ def _run_online(
     init: Params,
     h0: float,
     segments: Sequence[tuple[float, int, int]],
+    real_time: bool = False,
 ) -> dict[str, Any]:
-    """Runs one online method over the record and scores it (see :mod:`boucwen.evaluation`).
+    """Runs one online method over the record and scores it (see :mod:`boucwen.evaluation`);
+    with `real_time`, a paced replay (and its worker) runs under SCHED_FIFO where granted
+    (:func:`boucwen.pacing.realtime`).
 
     Returns a dict with ``period_ahead`` (score per frequency [µm]), ``per_period``
     (every period's max error), ``one_step`` and ``trace`` (the one-step and the
     period-ahead predictions [µm]) and ``estimates`` (the parameters at the end of each
     frequency, Table 2)."""
-    ident = _make_identifier(m, dt, window, init, h0)
     freezes: list[tuple[int, Params, EffectSet | None]] = []
     trace = np.empty_like(x)
     feed = feed_for(m.refine, dt)
     started = time.perf_counter()
-    score, per_period, one_step = evaluation.period_ahead(
-        ident,
-        u,
-        x,
-        dt,
-        segments,
-        on_period=lambda _f, k0, p, _h: freezes.append((k0, p, ident.effects)),
-        trace=trace,
-        feed=feed,
-    )
+    with realtime() if real_time and feed is not None and feed.paced else nullcontext(False) as granted:
+        ident = _make_identifier(m, dt, window, init, h0)
+        score, per_period, one_step = evaluation.period_ahead(
+            ident,
+            u,
+            x,
+            dt,
+            segments,
+            on_period=lambda _f, k0, p, _h: freezes.append((k0, p, ident.effects)),
+            trace=trace,
+            feed=feed,
+        )
     status = ident.status
     replay = {
         "refine": m.refine,
+        "real_time": granted,
         "paced": bool(feed is not None and feed.paced),
         "refine_intervals_per_push": feed.refine_intervals if feed is not None else 0,
         "late_samples": feed.late_samples if feed is not None else 0,
@@ -476,6 +482,7 @@ def run(
     figures: bool = True,
     log: Callable[[str], None] | None = print,
     refine: Sequence[str] = ("sync",),
+    real_time: bool = False,
 ) -> dict[str, Any]:
     """Runs the experiment and writes ``results.json``, ``predictions.npz`` and the figures.
 
@@ -493,6 +500,9 @@ def run(
             ``horizon`` row): "cooperative", "background" (:func:`refine_variants`);
             Table 1 of every mode is printed side by side with the sync one and kept
             in ``results["refine_modes"]``.
+        real_time: run the paced replay and its worker under SCHED_FIFO (where granted,
+            :func:`boucwen.pacing.realtime`): on a busy host, the extra core the
+            background mode is meant to have.
 
     Returns:
         The content of ``results.json`` as a dict.
@@ -553,7 +563,7 @@ def run(
     replays: dict[str, dict[str, Any]] = {}
     for m in methods:
         step(f"online method {m.label!r}" + (f" (window {window} samples)" if m.method == "paper" else ""))
-        r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments)
+        r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments, real_time)
         key = f"online_{m.label}"
         if m.label == "horizon" or m.refine != "sync":
             replays[m.refine] = {**r["replay"], "table1": r["period_ahead"]}
@@ -689,7 +699,8 @@ def format_refine_modes(replays: Mapping[str, Mapping[str, Any]], freqs: Sequenc
     for mode, r in replays.items():
         t1 = r["table1"]
         if r["paced"]:
-            fed = f"paced 1/dt, {r['late_samples']} late (max {1e3 * r['max_late_s']:.2f} ms)"
+            policy = ", SCHED_FIFO" if r["real_time"] else ""
+            fed = f"paced 1/dt{policy}, {r['late_samples']} late (max {1e3 * r['max_late_s']:.2f} ms)"
         elif r["refine_intervals_per_push"]:
             fed = f"refine({r['refine_intervals_per_push']}) after every push"
         else:

@@ -287,7 +287,8 @@ def _compensator(
         kp=g.get("kp", 0.0),
         ki=g.get("ki", 0.0),
         feedforward=feedforward,
-        **({"identifier": "horizon", "refine": "cooperative"} if recommended else {}),
+        identifier="horizon" if recommended else "rpem",
+        refine="cooperative" if recommended else "sync",
     )
 
 
