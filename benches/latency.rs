@@ -45,6 +45,7 @@
 use std::hint::black_box;
 use std::time::Instant;
 
+use boucwen::compensate::{Compensator, CompensatorConfig};
 use boucwen::identify::{
     BackgroundHorizon, HorizonConfig, HorizonIdentifier, OnlineIdentifier, PaperConfig, PaperIdentifier, RefineMode,
     RpemConfig, RpemIdentifier,
@@ -168,6 +169,13 @@ impl Timer {
         }
         (self.sorted_ns(first), self.sorted_ns(least))
     }
+}
+
+/// One call of the adaptive compensator for sample k: x_d = `desired[k]`, the
+/// measurement of the previous sample `x[k − 1]`.
+fn comp_step<I: OnlineIdentifier>(c: &mut Compensator<I>, desired: &[f64], x: &[f64], k: usize) {
+    let x_meas = if k == 0 { None } else { Some(black_box(x[k - 1])) };
+    black_box(c.step(black_box(desired[k]), x_meas).expect("finite"));
 }
 
 /// Replays of every identifier row (see [`Timer::replayed`]).
@@ -476,6 +484,32 @@ fn main() {
     row("`horizon` push, `recommended`, background (worker on core 0)".into(), times, "p50 ≤ 150, p99.9 ≤ 500");
     let times = pushes(&timer, &u, &x, || RpemIdentifier::new(DT, p, 0.0, RpemConfig::default()).expect("valid"));
     row("`rpem` push".into(), times, "p50 ≤ 200, p99.9 ≤ 1000");
+    // The adaptive compensator, one call per sample: x_d = the model's own displacement,
+    // the measurement of the previous sample from the record (the cost of a push and an
+    // inversion; not a closed loop).
+    let limits = VoltageLimits::new(Some(-30.0), Some(120.0)).expect("valid");
+    let times = timer.replayed(
+        len,
+        || {
+            let id = RpemIdentifier::new(DT, p, 0.0, RpemConfig::for_tracking()).expect("valid");
+            Compensator::new(id, DT, limits, CompensatorConfig::default()).expect("valid")
+        },
+        |c, k| comp_step(c, &desired, &x, k),
+    );
+    row("`Compensator::step`, rpem".into(), times, "");
+    let times = timer.replayed_between(
+        len,
+        || Compensator::new(cooperative(), DT, limits, CompensatorConfig::default()).expect("valid"),
+        |c, k| comp_step(c, &desired, &x, k),
+        |c, _| {
+            black_box(c.refine(2 * spp));
+        },
+    );
+    row(
+        format!("`Compensator::step`, recommended, lag inverted, cooperative (`refine({})` untimed)", 2 * spp),
+        times,
+        "",
+    );
     for window in [100usize, 1_000, 10_000, 100_000] {
         let times = pushes(&timer, &u, &x, || {
             PaperIdentifier::new(DT, p, 0.0, PaperConfig::with_window(window)).expect("valid")

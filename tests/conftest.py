@@ -17,6 +17,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from hypothesis import settings
 
 import boucwen
@@ -78,3 +79,17 @@ def make_identifier(
         config = boucwen.RpemConfig(**options) if options else None
         return boucwen.Identifier.rpem(dt, init, h0, config=config, effects=effects)
     raise ValueError(f"invalid method = {method!r}: expected 'horizon', 'paper' or 'rpem'")
+
+
+def split_record(dt: float, seed: int) -> tuple[Any, Any]:
+    """The paper's input for 0.05 s of each frequency at interval `dt` [s] and the paper's
+    model's displacement [µm] with 2 nm of seeded noise: a record for the split identifier's
+    tests (``refine``)."""
+    u = boucwen.paper_input(dt, 0.05)
+    x, _ = boucwen.simulate(boucwen.Params.paper_1hz(), u, dt)
+    return u, x + 0.002 * np.random.default_rng(seed).standard_normal(u.size)
+
+
+def split_start() -> boucwen.Params:
+    """Starting values off the paper's, so that the estimates move."""
+    return boucwen.Params.paper_1hz().replace(kv=0.15, beta=0.03)

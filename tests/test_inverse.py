@@ -298,3 +298,66 @@ def test_compensator_adapts_to_a_plant_it_was_not_given():
     fixed, adaptive = last_period_error(False), last_period_error(True)
     assert fixed > 0.3
     assert adaptive < 0.05 * fixed
+
+
+def _track_lagged_plant(comp: Compensator, periods: int, refine: int = 0) -> float:
+    """A 100 Hz sine through `comp` on the paper's model behind a 650 Hz amplifier lag,
+    with `comp.refine(refine)` after every step; the last period's max error [µm]."""
+    truth = Params(0.17, 0.3, -0.06, 0.024, -0.019, 1.52, 0.0075)
+    model = boucwen.Model(truth, DT)
+    # The lag's exact step for a command linear between samples (boucwen.effects.InputLag).
+    tau = 1.0 / (2.0 * math.pi * 650.0)
+    decay = math.exp(-DT / tau)
+    spread = tau / DT * (1.0 - decay)
+    x_d = 10 - 8 * np.cos(2 * np.pi * 100 * np.arange(100 * periods) * DT)
+    x_meas, err, u_prev, ua = None, [], None, 0.0
+    for target in x_d:
+        u = comp.step(float(target), x_meas)
+        ua = u if u_prev is None else decay * ua + (spread - decay) * u_prev + (1.0 - spread) * u
+        u_prev = u
+        x_meas = model.step(ua)
+        err.append(abs(x_meas - target))
+        comp.refine(refine)
+    return max(err[-100:])
+
+
+def test_compensator_on_the_recommended_identifier_inverts_its_lag_on_the_split():
+    start = Params.paper_1hz()
+    coop = Compensator(start, DT, u_min=-30.0, u_max=120.0, identifier="horizon", refine="cooperative")
+    assert (coop.identifier, coop.refine_mode) == ("horizon", "cooperative")
+    assert coop.effects is not None and coop.effects.names == ["input_lag"]
+    rpem = Compensator(start, DT, u_min=-30.0, u_max=120.0)
+    assert (rpem.identifier, rpem.refine_mode, rpem.effects) == ("rpem", None, None)
+    starved = _track_lagged_plant(copy.copy(coop), 30)
+    refined = _track_lagged_plant(coop, 30, refine=64)
+    fc = coop.effects.to_dict()["input_lag"]["fc_hz"]
+    assert abs(fc / 650.0 - 1.0) < 0.2, fc
+    assert refined < 0.2 * starved and refined < 0.1, (refined, starved)
+    assert coop.refine(0) == 0 and rpem.refine(10) == 0
+    # Sync: the pass runs in every step, refine does nothing, the result is as good.
+    sync = Compensator(start, DT, u_min=-30.0, u_max=120.0, identifier="horizon")
+    assert sync.refine_mode == "sync"
+    assert _track_lagged_plant(sync, 30, refine=64) < 0.1
+
+
+def test_compensator_on_a_background_identifier_copies_with_its_own_worker():
+    comp = Compensator(Params.paper_1hz(), DT, identifier="horizon", refine="background")
+    assert comp.refine_mode == "background"
+    _track_lagged_plant(comp, 3)
+    twin = copy.deepcopy(comp)
+    assert twin.refine_mode == "background" and twin.params == comp.params and twin.h == comp.h
+    assert twin.status["samples"] == comp.status["samples"] == 300
+    assert math.isfinite(twin.step(5.0, 4.9))
+
+
+def test_compensator_identifier_choice_is_checked():
+    p = Params.paper_1hz()
+    with pytest.raises(ValueError, match="identifier"):
+        Compensator(p, DT, identifier="paper")
+    with pytest.raises(ValueError, match="rpem"):
+        Compensator(p, DT, refine="cooperative")
+    with pytest.raises(ValueError, match="refine"):
+        Compensator(p, DT, identifier="horizon", refine="later")
+    comp = Compensator(p, DT, identifier="horizon", refine="cooperative")
+    with pytest.raises(ValueError, match="max_intervals"):
+        comp.refine(-1)

@@ -86,3 +86,29 @@ def test_two_plants_on_a_short_schedule(tmp_path):
     table = pf.format_table(res)
     for m in pf.METHODS:
         assert sum(line.split()[:1] == [m] for line in table.splitlines()) == len(FREQS)
+
+
+def test_the_default_method_in_each_refine_mode_side_by_side():
+    methods = ("horizon", *pf.REFINE_METHODS)
+    res = pf.run(
+        1, seed=3, methods=methods, bench=False, durations=SHORT, fit_options={"n_candidates": 8, "n_starts": 1}
+    )
+    (p,) = res["plants"]
+    assert set(p["methods"]) == set(methods)
+    replay = p["replay"]
+    assert not replay["horizon_cooperative"]["paced"] and replay["horizon_cooperative"]["refine_intervals_per_push"] > 0
+    assert replay["horizon_background"]["paced"] and replay["horizon_background"]["late_samples"] >= 0
+    lines = pf.format_refine_modes(res)
+    assert [line.split()[0] for line in lines[2:]] == ["sync", "cooperative", "background"]
+    sync = res["summary"]["horizon"]["10"]["ratio_oracle"]["median"]
+    assert lines[2].split()[2] == f"{sync:.3f}" and lines[2].split()[5] == "1.000"
+    # Cooperative with a schedule in intervals is deterministic: a second plant run agrees.
+    again = pf.run_plant(
+        pf.generate(1, 3)[0],
+        pf.measure_seed(3, 0),
+        methods=("horizon_cooperative",),
+        durations=SHORT,
+        fit_options={"n_candidates": 8, "n_starts": 1},
+    )
+    assert again["methods"]["horizon_cooperative"]["score"] == p["methods"]["horizon_cooperative"]["score"]
+    assert pf.format_refine_modes({**res, "summary": {"horizon": res["summary"]["horizon"]}}) == []

@@ -9,21 +9,18 @@ import time
 import numpy as np
 import pytest
 
-import boucwen
-from boucwen import Identifier, Params
+from boucwen import Identifier
+from conftest import split_record, split_start
 
 DT = 1e-4
 
 
 @pytest.fixture(scope="module")
 def record():
-    u = boucwen.paper_input(DT, 0.05)
-    x, _ = boucwen.simulate(Params.paper_1hz(), u, DT)
-    return u, x + 0.002 * np.random.default_rng(5).standard_normal(u.size)
+    return split_record(DT, 5)
 
 
-def _start() -> Params:
-    return Params.paper_1hz().replace(kv=0.15, beta=0.03)
+_start = split_start
 
 
 def test_sync_is_the_default_and_refine_does_nothing(record):

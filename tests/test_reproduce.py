@@ -154,3 +154,21 @@ def test_method_choice():
 def test_bad_window(tmp_path):
     with pytest.raises(ValueError):
         rp.run(tmp_path, quick=True, window=3, figures=False, log=None)
+
+
+def test_refine_modes_side_by_side(tmp_path):
+    lines = []
+    res = rp.run(tmp_path, quick=True, figures=False, log=lines.append, refine=("sync", "cooperative", "background"))
+    modes = res["refine_modes"]
+    assert list(modes) == ["sync", "cooperative", "background"]
+    assert modes["sync"]["table1"] == res["table1"]["online_horizon"]
+    for mode in ("cooperative", "background"):
+        assert modes[mode]["table1"] == res["table1"][f"online_horizon_{mode}"]
+        assert all(0.0 < v < 10.0 for v in modes[mode]["table1"].values())
+    assert modes["background"]["paced"] and not modes["cooperative"]["paced"]
+    # The paced replay takes the record's own time at least.
+    samples = sum(round(d / plant.DEFAULT_DT) for _, d in rp.QUICK_SEGMENTS)
+    assert modes["background"]["wall_s"] >= (samples - 1) * plant.DEFAULT_DT
+    head = next(i for i, line in enumerate(lines) if line.startswith("Table 1 by window-pass mode"))
+    assert [line.split()[0] for line in lines[head + 2 : head + 5]] == ["sync", "cooperative", "background"]
+    assert rp.refine_variants(["sync"]) == []

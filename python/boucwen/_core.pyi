@@ -794,15 +794,21 @@ class Compensator:
     Each call takes the desired displacement x_d [µm] of this sample and the
     measurement x_meas [µm] of the previous output (None on the first call, or when
     none arrived) and returns the voltage u [V] to apply now. With a measurement, the
-    online identifier ("rpem", default configuration, started from ``params`` and
-    ``h0``) takes (u_prev, x_meas) and the inverse takes its estimates and h
-    (``adapt=True``); the feedback v = kp·e + ki·∫e dt + kd·ė [µm] acts on e = x_d,prev
-    − x_meas (kp [-], ki [1/s], kd [s]; the derivative through a first-order filter
-    at ``derivative_filter_hz`` [Hz]; |∫| ≤ ``integral_limit_um`` [µm]; no
+    online identifier (``identifier``, started from ``params`` and ``h0``) takes
+    (u_prev, x_meas) and the inverse takes its estimates and h (``adapt=True``); the
+    feedback v = kp·e + ki·∫e dt + kd·ė [µm] acts on e = x_d,prev − x_meas (kp [-],
+    ki [1/s], kd [s]; the derivative through a first-order filter at
+    ``derivative_filter_hz`` [Hz]; |∫| ≤ ``integral_limit_um`` [µm]; no
     integration toward a limit that bound). Then u = inverse(x_d + v), within
     [``u_min``, ``u_max``] [V]; ``feedforward=False`` gives u = inverse(v).
     Estimates under which x(u) would not rise on both branches are not used (see
     ``status``). A non-finite value raises ``ValueError`` and changes nothing.
+
+    ``identifier``: "rpem" (default, tuned for tracking) or "horizon" (the recommended
+    identifier, ``Identifier(dt, params, h0)``: its input lag is identified too and the
+    inverse runs through it). ``refine`` (horizon only): where its window pass runs,
+    "sync", "cooperative" (call ``refine(max_intervals)`` when the loop has time) or
+    "background" (a worker thread), as for :class:`Identifier`.
     """
 
     def __new__(
@@ -820,9 +826,23 @@ class Compensator:
         derivative_filter_hz: float = 1000.0,
         integral_limit_um: float | None = None,
         feedforward: bool = True,
+        identifier: Literal["rpem", "horizon"] = "rpem",
+        refine: _RefineMode = "sync",
     ) -> Compensator: ...
     def step(self, x_d: float, x_meas: float | None = None) -> float:
         """Takes x_d [µm] and the previous output's measurement [µm] (or None); returns u [V]."""
+    def refine(self, max_intervals: int) -> int:
+        """Cooperative mode: runs the identifier's window pass at most ``max_intervals``
+        integration intervals; returns the intervals run (0 in other modes and for rpem)."""
+    @property
+    def identifier(self) -> Literal["rpem", "horizon"]:
+        """The online identifier."""
+    @property
+    def refine_mode(self) -> _RefineMode | None:
+        """Where the horizon identifier's window pass runs; None for rpem."""
+    @property
+    def effects(self) -> EffectSet | None:
+        """The effects the inverse runs through (the identified input lag); None for the base inverse."""
     @property
     def params(self) -> Params:
         """The parameters the inverse uses now (the current estimates when adapting)."""

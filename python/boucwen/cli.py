@@ -182,8 +182,17 @@ def _add_fit(sub: _Subparsers) -> None:
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from .experiments.reproduce import run
+    from .pacing import refine_modes
 
-    run(args.out, quick=args.quick, window=args.window, seed=args.seed, figures=not args.no_figures)
+    run(
+        args.out,
+        quick=args.quick,
+        window=args.window,
+        seed=args.seed,
+        figures=not args.no_figures,
+        refine=refine_modes(args.refine),
+        real_time=args.realtime,
+    )
     return EXIT_OK
 
 
@@ -207,6 +216,19 @@ def _add_reproduce(sub: _Subparsers) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="seed of noise and fit (default 0)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.add_argument(
+        "--refine",
+        default="sync",
+        metavar="MODES",
+        help="where the default method's window pass runs: sync, cooperative, background (the record "
+        "replayed at its own sample rate), a comma-separated list or all; the modes' Table 1 side by side "
+        "(default sync)",
+    )
+    p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="run the paced replay and its worker under SCHED_FIFO (needs the privilege)",
+    )
     p.set_defaults(handler=_cmd_reproduce)
 
 

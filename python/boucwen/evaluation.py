@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from ._core import Identifier, Params, simulate
 from .fit import fit
+from .pacing import PacedFeed
 
 Segments = Sequence[tuple[float, int, int]]
 """(frequency [Hz], first sample, stop sample) per constant-frequency part of a record."""
@@ -59,6 +60,7 @@ def period_ahead(
     segments: Segments,
     on_period: Callable[[float, int, Params, float], None] | None = None,
     trace: FloatArray | None = None,
+    feed: PacedFeed | None = None,
 ) -> tuple[dict[str, float], dict[str, list[float]], FloatArray]:
     """Runs `ident` over the record and scores its model period-ahead.
 
@@ -76,12 +78,16 @@ def period_ahead(
         on_period: called as ``on_period(f_hz, k0, params, h)`` at every freeze.
         trace: if given (same length as x), filled with the period-ahead predictions:
             on every period, the frozen model's open-loop simulation [µm].
+        feed: how the samples are pushed (:class:`boucwen.pacing.PacedFeed`: at the
+            record's own sample rate, with a cooperative refine schedule); default
+            ``ident.push_many``, as fast as it goes.
 
     Returns:
         ``(score, per_period, one_step)``: the max error [µm] of each frequency's
         last full period; the max error of every period, in order, per frequency;
         and the identifier's one-step-ahead predictions [µm].
     """
+    push_many = ident.push_many if feed is None else (lambda a, b: feed.push_many(ident, a, b))
     one_step = np.empty_like(x)
     per_period: dict[str, list[float]] = {}
     score: dict[str, float] = {}
@@ -93,7 +99,7 @@ def period_ahead(
         for k0 in starts:
             k1 = min(hi, k0 + p)
             if k0 > done:
-                one_step[done:k0] = ident.push_many(u[done:k0], x[done:k0])
+                one_step[done:k0] = push_many(u[done:k0], x[done:k0])
                 done = k0
             if on_period is not None:
                 on_period(f, k0, ident.params, ident.h)
@@ -101,7 +107,7 @@ def period_ahead(
             if trace is not None:
                 trace[k0:k1] = x_sim
             errors.append(float(np.max(np.abs(x[k0:k1] - x_sim))))
-        one_step[done:hi] = ident.push_many(u[done:hi], x[done:hi])
+        one_step[done:hi] = push_many(u[done:hi], x[done:hi])
         done = hi
         per_period[key(f)] = errors
         full = [e for k0, e in zip(starts, errors) if k0 + p <= hi]

@@ -48,7 +48,9 @@
 use super::inverse::Solution;
 use super::inverse::{first_sample_voltage, solve, tolerance, Clip, IntervalEquation, InverseStatus, VoltageLimits};
 use crate::effects::electrostriction::quadratic_root;
-use crate::effects::{first_order_coefficient, first_order_step, stack_output, EffectSet, Electrostriction};
+use crate::effects::{
+    first_order_coefficient, first_order_step, stack_output, Effect, EffectSet, Electrostriction, InputLag,
+};
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::model::integrator::{abs_pow, advance_h_carried, Drive};
 use crate::params::Params;
@@ -319,6 +321,43 @@ impl ExtendedInverse {
         Ok(())
     }
 
+    /// Replaces the input lag's corner frequency (an online estimate); the state is kept.
+    /// An inverse built without a lag has none to replace (`InvalidConfig`), and a bad
+    /// `lag` is rejected; either leaves the inverse as it was.
+    pub fn set_input_lag(&mut self, lag: InputLag) -> Result<()> {
+        lag.validate()?;
+        if self.lag.is_none() {
+            return Err(Error::InvalidConfig {
+                name: "input_lag",
+                value: lag.fc_hz,
+                reason: "this inverse was built without an input lag",
+            });
+        }
+        self.lag = Some(AffineStep::new(lag.tau_s(), self.dt));
+        self.effects.input_lag = Some(lag);
+        Ok(())
+    }
+
+    /// Moves the model's state to that of a model that followed the same commands (an
+    /// online identifier's): h \[µm\] and the voltage on the stack `ua` \[V\] after a sample
+    /// at command `u` \[V\]. The creep states and the sample count are kept. Non-finite
+    /// values are rejected and the state kept. No allocation.
+    pub fn follow(&mut self, h: f64, u: f64, ua: f64) -> Result<()> {
+        finite_sample("h", h)?;
+        finite_sample("u", u)?;
+        finite_sample("ua", ua)?;
+        self.hn = abs_pow(h, self.params.n);
+        self.state.h = h;
+        self.state.u_prev = Some(u);
+        self.state.ua_prev = ua;
+        Ok(())
+    }
+
+    /// The voltage on the stack u_a after the last sample \[V\] (0 before the first).
+    pub fn stack_voltage(&self) -> f64 {
+        self.state.ua_prev
+    }
+
     /// Restores a status taken with [`ExtendedInverse::status`] (counters included).
     pub fn set_status(&mut self, status: InverseStatus) {
         self.status = status;
@@ -416,6 +455,37 @@ mod tests {
             delay: Some(Delay { samples: 2 }),
             ..EffectSet::none()
         }
+    }
+
+    #[test]
+    fn a_new_lag_estimate_and_a_followed_state_act_as_a_fresh_inverse_would() {
+        let (dt, p) = (1e-4, Params::paper_1hz());
+        let lag = |fc_hz| EffectSet { input_lag: Some(InputLag { fc_hz }), ..EffectSet::none() };
+        let mut moved = ExtendedInverse::new(p, lag(3000.0), dt, 0.0, VoltageLimits::NONE).unwrap();
+        moved.step(1.0).unwrap();
+        moved.set_input_lag(InputLag { fc_hz: 650.0 }).unwrap();
+        moved.follow(0.3, 12.0, 11.5).unwrap();
+        assert_eq!(moved.effects().input_lag, Some(InputLag { fc_hz: 650.0 }));
+        assert_eq!((moved.h(), moved.stack_voltage()), (0.3, 11.5));
+        let mut fresh = ExtendedInverse::new(p, lag(650.0), dt, 0.0, VoltageLimits::NONE).unwrap();
+        let samples = moved.state().samples;
+        fresh
+            .set_state(ExtendedInverseState { samples, u_prev: Some(12.0), ua_prev: 11.5, h: 0.3, creep: vec![] })
+            .unwrap();
+        for x_d in [2.0, 2.5, 3.5, 3.0] {
+            assert_eq!(moved.step(x_d).unwrap().to_bits(), fresh.step(x_d).unwrap().to_bits());
+        }
+        // Bad values change nothing; an inverse without a lag has none to replace.
+        let before = moved.clone();
+        assert!(moved.follow(f64::NAN, 1.0, 1.0).is_err());
+        assert!(moved.follow(0.1, 1.0, f64::INFINITY).is_err());
+        assert!(moved.set_input_lag(InputLag { fc_hz: -1.0 }).is_err());
+        assert_eq!(moved, before);
+        let creep = EffectSet { input_lag: None, ..lag_creep_delay() };
+        let mut creep_only = ExtendedInverse::new(p, creep, dt, 0.0, VoltageLimits::NONE).unwrap();
+        assert!(creep_only.set_input_lag(InputLag { fc_hz: 650.0 }).is_err());
+        let mut base = super::super::AnyInverse::new(p, None, dt, 0.0, VoltageLimits::NONE).unwrap();
+        assert!(base.set_input_lag(InputLag { fc_hz: 650.0 }).is_err());
     }
 
     #[test]

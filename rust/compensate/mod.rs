@@ -28,7 +28,7 @@ pub use extended::{invert_extended, ExtendedInverse, ExtendedInverseState};
 pub use feedback::{Pid, PidGains, PidState};
 pub use inverse::{invert, invert_into, Clip, Inverse, InverseStatus, InvertSummary, VoltageLimits, MAX_EVALUATIONS};
 
-use crate::effects::EffectSet;
+use crate::effects::{EffectSet, InputLag};
 use crate::error::Result;
 use crate::model::ModelState;
 use crate::params::Params;
@@ -93,6 +93,38 @@ impl AnyInverse {
         match self {
             Self::Base(inv) => inv.set_params(params),
             Self::Extended(inv) => inv.set_params(params),
+        }
+    }
+
+    /// Replaces the input lag's corner frequency ([`ExtendedInverse::set_input_lag`]);
+    /// the base inverse has none (`InvalidConfig`).
+    pub fn set_input_lag(&mut self, lag: InputLag) -> Result<()> {
+        match self {
+            Self::Base(_) => Err(crate::Error::InvalidConfig {
+                name: "input_lag",
+                value: lag.fc_hz,
+                reason: "this inverse was built without an input lag",
+            }),
+            Self::Extended(inv) => inv.set_input_lag(lag),
+        }
+    }
+
+    /// Moves the model's state to h \[µm\] after a sample at command `u` \[V\], the
+    /// voltage on the stack at `ua` \[V\] (ignored by the base inverse, where it is u);
+    /// see [`ExtendedInverse::follow`]. No allocation.
+    pub fn follow(&mut self, h: f64, u: f64, ua: f64) -> Result<()> {
+        match self {
+            Self::Base(inv) => inv.set_state(ModelState { h, u_prev: Some(u) }),
+            Self::Extended(inv) => inv.follow(h, u, ua),
+        }
+    }
+
+    /// The voltage on the stack after the last sample \[V\] (the last command for the
+    /// base inverse; 0 before the first sample).
+    pub fn stack_voltage(&self) -> f64 {
+        match self {
+            Self::Base(inv) => inv.state().u_prev.unwrap_or(0.0),
+            Self::Extended(inv) => inv.stack_voltage(),
         }
     }
 

@@ -30,6 +30,7 @@ pub mod rpem;
 
 use alloc::vec::Vec;
 
+use crate::effects::InputLag;
 use crate::error::{finite_sample, Error, Result};
 use crate::format::{corrupt, Snapshot, KIND_HORIZON, KIND_PAPER, KIND_RPEM};
 use crate::params::Params;
@@ -85,6 +86,13 @@ pub trait OnlineIdentifier {
     /// identified with the parameters included. The state does not change. A
     /// non-finite `u` or a length mismatch is rejected before anything is written.
     fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()>;
+
+    /// The input lag identified with the parameters (at its current estimate) and the
+    /// model's voltage on the stack u_a \[V\] after the last sample; `None` where the
+    /// model has no lag (u_a = u). The adaptive compensator inverts through it.
+    fn input_lag(&self) -> Option<(InputLag, f64)> {
+        None
+    }
 
     /// Pushes every sample of `u`, `x`, writing the predictions (as `push`) into
     /// `out`. If any sample is non-finite, or the lengths differ, the whole call is
@@ -194,6 +202,13 @@ impl OnlineIdentifier for AnyIdentifier {
             AnyIdentifier::Paper(id) => AnyStatus::Paper(id.status()),
             AnyIdentifier::Rpem(id) => AnyStatus::Rpem(id.status()),
             AnyIdentifier::Horizon(id) => AnyStatus::Horizon(id.status()),
+        }
+    }
+    fn input_lag(&self) -> Option<(InputLag, f64)> {
+        match self {
+            AnyIdentifier::Paper(id) => id.input_lag(),
+            AnyIdentifier::Rpem(id) => id.input_lag(),
+            AnyIdentifier::Horizon(id) => id.input_lag(),
         }
     }
     fn reset(&mut self) {

@@ -6,12 +6,14 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyType};
 
 use super::effects::PyEffectSet;
+use super::identifier::{max_intervals_arg, refine_arg, Refine};
 use super::params::PyParams;
 use super::{samples, value_error, CorruptSnapshot};
 use crate::compensate::{
     AnyInverse, Clip, Compensator, CompensatorConfig, ExtendedInverseState, InverseStatus, PidGains, VoltageLimits,
 };
-use crate::identify::{RpemConfig, RpemIdentifier};
+use crate::identify::{BackgroundHorizon, HorizonConfig, HorizonIdentifier, RefineMode, RpemConfig, RpemIdentifier};
+use pyo3::exceptions::PyValueError;
 
 fn limits(u_min: Option<f64>, u_max: Option<f64>) -> PyResult<VoltageLimits> {
     VoltageLimits::new(u_min, u_max).map_err(value_error)
@@ -268,33 +270,69 @@ pub fn invert<'py>(
     Ok((PyArray1::from_vec(py, u), h))
 }
 
+/// The compensator around the identifier chosen (`identifier`, `refine`).
+#[allow(clippy::large_enum_variant)]
+enum Comp {
+    Rpem(Compensator<RpemIdentifier>),
+    Horizon(Compensator<HorizonIdentifier>),
+    Background(Compensator<BackgroundHorizon>),
+}
+
+/// Runs `$body` with `$c` bound to the compensator, whichever identifier it holds.
+macro_rules! with_comp {
+    ($inner:expr, $c:ident => $body:expr) => {
+        match $inner {
+            Comp::Rpem($c) => $body,
+            Comp::Horizon($c) => $body,
+            Comp::Background($c) => $body,
+        }
+    };
+}
+
+impl Comp {
+    fn try_clone(&self) -> PyResult<Self> {
+        Ok(match self {
+            Comp::Background(c) => Comp::Background(c.try_clone().map_err(value_error)?),
+            Comp::Rpem(c) => Comp::Rpem(c.clone()),
+            Comp::Horizon(c) => Comp::Horizon(c.clone()),
+        })
+    }
+}
+
 /// Adaptive hysteresis compensator for a control loop: `u = step(x_d, x_meas)`.
 ///
 /// Each call takes the desired displacement x_d \[µm\] of this sample and the
 /// measurement x_meas \[µm\] of the previous output (None on the first call or when
 /// none arrived) and returns the voltage u \[V\] to apply:
 ///
-/// 1. with a measurement, the online identifier ("rpem", default configuration)
-///    takes (u_prev, x_meas) and the inverse takes its new estimates and h
-///    (`adapt=True`); the feedback takes the error e = x_d,prev − x_meas \[µm\];
+/// 1. with a measurement, the online identifier takes (u_prev, x_meas) and the inverse
+///    takes its new estimates and h (`adapt=True`); the feedback takes the error
+///    e = x_d,prev − x_meas \[µm\];
 /// 2. u = inverse(x_d + v) with v = kp·e + ki·∫e dt + kd·ė \[µm\] (kp \[-\], ki \[1/s\],
 ///    kd \[s\], the derivative through a first-order filter at `derivative_filter_hz`
 ///    \[Hz\], |∫| ≤ `integral_limit_um` \[µm\], no integration toward a limit that bound);
 ///    `feedforward=False` gives u = inverse(v): feedback alone.
 ///
+/// `identifier`: "rpem" (the default: the output-error method tuned for tracking) or
+/// "horizon" (the recommended identifier, `Identifier(dt, params, h0)`: its input lag
+/// is identified too and the inverse runs through it, the extended inverse). `refine`
+/// (horizon only) says where its window pass runs, as for `Identifier`: "sync" (in
+/// every step), "cooperative" (`step` costs a model step and an inversion; call
+/// `refine(max_intervals)` when the loop has time) or "background" (a worker thread).
+///
 /// `params`, `h0`: the start of the estimates and of h; `u_min`, `u_max`: voltage
 /// limits \[V\]. A non-finite value raises ValueError and changes nothing.
 #[pyclass(name = "Compensator", module = "boucwen")]
-#[derive(Clone)]
 pub struct PyCompensator {
-    inner: Compensator<RpemIdentifier>,
+    inner: Comp,
 }
 
 #[pymethods]
 impl PyCompensator {
     #[new]
     #[pyo3(signature = (params, dt, *, h0 = 0.0, u_min = None, u_max = None, adapt = true, kp = 0.0, ki = 0.0,
-        kd = 0.0, derivative_filter_hz = 1000.0, integral_limit_um = None, feedforward = true))]
+        kd = 0.0, derivative_filter_hz = 1000.0, integral_limit_um = None, feedforward = true,
+        identifier = "rpem", refine = "sync"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         params: &PyParams,
@@ -309,6 +347,8 @@ impl PyCompensator {
         derivative_filter_hz: f64,
         integral_limit_um: Option<f64>,
         feedforward: bool,
+        identifier: &str,
+        refine: &str,
     ) -> PyResult<Self> {
         let gains = PidGains {
             kp,
@@ -317,9 +357,38 @@ impl PyCompensator {
             derivative_filter_hz,
             integral_limit_um: integral_limit_um.unwrap_or(f64::INFINITY),
         };
-        let id = RpemIdentifier::new(dt, params.inner, h0, RpemConfig::for_tracking()).map_err(value_error)?;
         let config = CompensatorConfig { adapt, feedforward, gains };
-        let inner = Compensator::new(id, dt, limits(u_min, u_max)?, config).map_err(value_error)?;
+        let lim = limits(u_min, u_max)?;
+        let refine = refine_arg(refine)?;
+        let inner = match identifier {
+            "rpem" => {
+                if !matches!(refine, Refine::Mode(RefineMode::Sync)) {
+                    return Err(PyValueError::new_err(
+                        "invalid refine for identifier=\"rpem\": only \"sync\" (the split is the horizon method's)",
+                    ));
+                }
+                let id = RpemIdentifier::new(dt, params.inner, h0, RpemConfig::for_tracking()).map_err(value_error)?;
+                Comp::Rpem(Compensator::new(id, dt, lim, config).map_err(value_error)?)
+            }
+            "horizon" => {
+                let id = HorizonIdentifier::recommended(dt, params.inner, h0, HorizonConfig::default())
+                    .map_err(value_error)?;
+                match refine {
+                    Refine::Mode(mode) => {
+                        Comp::Horizon(Compensator::new(id.with_mode(mode), dt, lim, config).map_err(value_error)?)
+                    }
+                    Refine::Background => {
+                        let id = BackgroundHorizon::spawn(id).map_err(value_error)?;
+                        Comp::Background(Compensator::new(id, dt, lim, config).map_err(value_error)?)
+                    }
+                }
+            }
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "invalid identifier = {other:?}: expected \"rpem\" or \"horizon\""
+                )))
+            }
+        };
         Ok(PyCompensator { inner })
     }
 
@@ -327,38 +396,76 @@ impl PyCompensator {
     /// returns the voltage u \[V\] to apply now.
     #[pyo3(signature = (x_d, x_meas = None))]
     fn step(&mut self, x_d: f64, x_meas: Option<f64>) -> PyResult<f64> {
-        self.inner.step(x_d, x_meas).map_err(value_error)
+        with_comp!(&mut self.inner, c => c.step(x_d, x_meas)).map_err(value_error)
+    }
+
+    /// Cooperative mode: runs the identifier's window pass at most `max_intervals`
+    /// integration intervals, with the GIL released; the next step inverts the update
+    /// it adopts. Returns the intervals run (0 in the other modes and for "rpem").
+    fn refine(&mut self, py: Python<'_>, max_intervals: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let n = max_intervals_arg(max_intervals)?;
+        match &mut self.inner {
+            Comp::Horizon(c) => Ok(py.detach(move || c.refine(n))),
+            _ => Ok(0),
+        }
+    }
+
+    /// The online identifier: "rpem" or "horizon".
+    #[getter]
+    fn identifier(&self) -> &'static str {
+        match self.inner {
+            Comp::Rpem(_) => "rpem",
+            Comp::Horizon(_) | Comp::Background(_) => "horizon",
+        }
+    }
+
+    /// Where the horizon identifier's window pass runs ("sync", "cooperative",
+    /// "background"); None for "rpem".
+    #[getter]
+    fn refine_mode(&self) -> Option<&'static str> {
+        match &self.inner {
+            Comp::Rpem(_) => None,
+            Comp::Horizon(c) => Some(c.identifier().mode().name()),
+            Comp::Background(_) => Some("background"),
+        }
+    }
+
+    /// The effects the inverse runs through (the identified input lag at its current
+    /// estimate, fc \[Hz\]); None for the base inverse.
+    #[getter]
+    fn effects(&self) -> Option<PyEffectSet> {
+        with_comp!(&self.inner, c => c.inverse().effects().map(|e| PyEffectSet { inner: e.clone() }))
     }
 
     /// The parameters the inverse uses now (the current estimates when adapting).
     #[getter]
     fn params(&self) -> PyParams {
-        PyParams { inner: self.inner.params() }
+        PyParams { inner: with_comp!(&self.inner, c => c.params()) }
     }
 
     /// The inverse model's h \[µm\] after the last sample.
     #[getter]
     fn h(&self) -> f64 {
-        self.inner.h()
+        with_comp!(&self.inner, c => c.h())
     }
 
     /// Sampling interval \[s\].
     #[getter]
     fn dt(&self) -> f64 {
-        self.inner.inverse().dt()
+        with_comp!(&self.inner, c => c.inverse().dt())
     }
 
     /// Whether the estimates are updated online.
     #[getter]
     fn adapt(&self) -> bool {
-        self.inner.config().adapt
+        with_comp!(&self.inner, c => c.config().adapt)
     }
 
     /// The feedback gains: {"kp": \[-\], "ki": \[1/s\], "kd": \[s\], "derivative_filter_hz":
     /// \[Hz\], "integral_limit_um": \[µm\] or None, "feedforward": bool}.
     #[getter]
     fn gains<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.inner.config();
+        let c = *with_comp!(&self.inner, c => c.config());
         let d = PyDict::new(py);
         d.set_item("kp", c.gains.kp)?;
         d.set_item("ki", c.gains.ki)?;
@@ -379,7 +486,7 @@ impl PyCompensator {
     /// "held_samples".
     #[getter]
     fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let s = self.inner.status();
+        let s = with_comp!(&self.inner, c => c.status());
         let d = inverse_status_dict(py, &s.inverse)?;
         d.set_item("samples", s.samples)?;
         d.set_item("prediction_um", s.prediction_um)?;
@@ -392,23 +499,26 @@ impl PyCompensator {
         Ok(d)
     }
 
-    fn __copy__(&self) -> Self {
-        self.clone()
+    /// A copy (a background identifier's copy gets its own worker).
+    fn __copy__(&self) -> PyResult<Self> {
+        Ok(PyCompensator { inner: self.inner.try_clone()? })
     }
 
-    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
-        self.clone()
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
+        self.__copy__()
     }
 
     fn __repr__(&self) -> String {
-        let c = self.inner.config();
+        let c = *with_comp!(&self.inner, c => c.config());
+        let samples = with_comp!(&self.inner, c => c.status().samples);
         format!(
-            "Compensator(adapt={}, kp={:?}, ki={:?}, kd={:?}, samples={})",
+            "Compensator(identifier={:?}, adapt={}, kp={:?}, ki={:?}, kd={:?}, samples={})",
+            self.identifier(),
             if c.adapt { "True" } else { "False" },
             c.gains.kp,
             c.gains.ki,
             c.gains.kd,
-            self.inner.status().samples
+            samples
         )
     }
 }

@@ -116,12 +116,12 @@ impl Inner {
 }
 
 /// Where the horizon method's window pass runs, from its Python name.
-enum Refine {
+pub(super) enum Refine {
     Mode(RefineMode),
     Background,
 }
 
-fn refine_arg(refine: &str) -> PyResult<Refine> {
+pub(super) fn refine_arg(refine: &str) -> PyResult<Refine> {
     match refine {
         "sync" => Ok(Refine::Mode(RefineMode::Sync)),
         "cooperative" => Ok(Refine::Mode(RefineMode::Cooperative)),
@@ -152,6 +152,15 @@ fn count_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
             ))
         }
     })
+}
+
+/// The `max_intervals` argument of `refine`: an integer >= 0 (ValueError below 0).
+pub(super) fn max_intervals_arg(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let n = count_arg(obj, "max_intervals")?;
+    if n < 0 {
+        return Err(PyValueError::new_err(format!("invalid max_intervals = {n}: must be >= 0")));
+    }
+    Ok(usize::try_from(n).unwrap_or(usize::MAX))
 }
 
 /// A config object must be of the method's class (or duck-type it).
@@ -272,11 +281,7 @@ impl PyIdentifier {
     /// nothing to do until more samples come). In the other modes and methods the
     /// pass runs elsewhere (in push, or on the worker) and this returns 0.
     fn refine(&mut self, py: Python<'_>, max_intervals: &Bound<'_, PyAny>) -> PyResult<usize> {
-        let n = count_arg(max_intervals, "max_intervals")?;
-        if n < 0 {
-            return Err(PyValueError::new_err(format!("invalid max_intervals = {n}: must be >= 0")));
-        }
-        let n = usize::try_from(n).unwrap_or(usize::MAX);
+        let n = max_intervals_arg(max_intervals)?;
         match &mut self.inner {
             Inner::Any(AnyIdentifier::Horizon(id)) => Ok(py.detach(move || id.refine(n))),
             _ => Ok(0),

@@ -690,6 +690,16 @@ fn background_push_is_unchanged_by_a_starved_worker_and_adopts_without_a_tear() 
     // A snapshot is that of a cooperative identifier and restores with a worker.
     let coop = HorizonIdentifier::from_bytes(&bg.to_bytes()).expect("valid");
     assert_eq!(coop.mode(), RefineMode::Cooperative);
+    // Nothing lost: the worker's identifier took every sample pushed (the starved
+    // stretch was shorter than the ring), and its window is the one the usual rule
+    // keeps (that of a sync identifier fed the same samples).
+    let mut sync = HorizonIdentifier::recommended(DT, start(), 0.0, cfg).expect("valid");
+    for k in 0..u.len() {
+        sync.push(u[k], x[k]).expect("finite");
+    }
+    let (c, s) = (coop.status(), sync.status());
+    assert_eq!(c.samples, u.len() as u64);
+    assert_eq!((c.window_samples, c.window_travel_v), (s.window_samples, s.window_travel_v));
     assert_eq!(coop.params(), bg.params());
     assert_eq!(coop.h().to_bits(), bg.h().to_bits());
     let again = BackgroundHorizon::from_bytes(&bg.to_bytes()).expect("valid");

@@ -39,6 +39,7 @@ import math
 import sys
 import time
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
@@ -49,12 +50,15 @@ from .. import evaluation, plant
 from .._core import Identifier, Params
 from ..fit import fit
 from ..io import jsonable
+from ..pacing import REFINE_MODES, RefineMode, feed_for, realtime, refine_mode, refine_modes
 
 __all__ = [
     "METHODS",
     "PAPER_WINDOW",
     "RATIO_MEDIAN_TARGET",
     "RATIO_WORST_TARGET",
+    "REFINE_METHODS",
+    "format_refine_modes",
     "generate",
     "main",
     "measure_seed",
@@ -65,6 +69,9 @@ __all__ = [
 
 #: The online methods compared, in print order.
 METHODS: tuple[str, ...] = ("horizon", "horizon_base", "rpem", "paper")
+#: The library default with its window pass cooperative or on a worker thread
+#: (``--refine``; see :mod:`boucwen.pacing` for how each is fed); "horizon" is the sync one.
+REFINE_METHODS: tuple[str, ...] = tuple(f"horizon_{m}" for m in REFINE_MODES if m != "sync")
 #: Window N of the paper method [samples]: one period of 200 Hz at 10 kHz (as in ``reproduce``).
 PAPER_WINDOW = 50
 #: Per-plant target at 10, 100 and 200 Hz, and the family's median target: ratio to the oracle.
@@ -150,16 +157,21 @@ def measure_seed(seed: int, index: int) -> int:
     return int(seed) if index < 0 else 1000 * int(seed) + 1 + int(index)
 
 
+def _refine_of(method: str) -> RefineMode:
+    """Where the window pass of `method` runs ("sync" for every method but :data:`REFINE_METHODS`)."""
+    return refine_mode(method.removeprefix("horizon_")) if method in REFINE_METHODS else "sync"
+
+
 def _make(method: str, dt: float, init: Params, h0: float) -> Identifier:
-    if method == "horizon":
-        return Identifier(dt, init, h0)
+    if method == "horizon" or method in REFINE_METHODS:
+        return Identifier(dt, init, h0, refine=_refine_of(method))
     if method == "horizon_base":
         return Identifier.horizon(dt, init, h0)
     if method == "rpem":
         return Identifier.rpem(dt, init, h0)
     if method == "paper":
         return Identifier.paper(dt, PAPER_WINDOW, init, h0)
-    raise ValueError(f"invalid method = {method!r}: expected one of {', '.join(METHODS)}")
+    raise ValueError(f"invalid method = {method!r}: expected one of {', '.join(METHODS + REFINE_METHODS)}")
 
 
 def _ratios(a: dict[str, float], b: dict[str, float]) -> dict[str, float]:
@@ -173,6 +185,7 @@ def run_plant(
     methods: Sequence[str] = METHODS,
     durations: Sequence[tuple[float, float]] = plant.PAPER_SEGMENTS,
     fit_options: dict[str, Any] | None = None,
+    real_time: bool = False,
 ) -> dict[str, Any]:
     """One plant: the record, the traditional fit, every method, the oracle and the ratios.
 
@@ -183,6 +196,8 @@ def run_plant(
         durations: the input's (frequency [Hz], duration [s]) pairs; the first is the
             traditional fit's data.
         fit_options: extra keyword arguments of :func:`boucwen.fit` (traditional and oracle).
+        real_time: run each paced replay (and its worker) under SCHED_FIFO
+            (:func:`boucwen.pacing.realtime`, where granted).
 
     Returns:
         ``{"seed", "traditional", "oracle", "traditional_params", "methods": {name:
@@ -206,15 +221,27 @@ def run_plant(
         "methods": {},
     }
     for m in methods:
-        ident = _make(m, dt, trad.params, trad.h0)
-        score, per_period, _ = evaluation.period_ahead(ident, u, x, dt, segments)
+        feed = feed_for(_refine_of(m), dt)
+        with realtime() if real_time and feed is not None and feed.paced else nullcontext(False) as granted:
+            ident = _make(m, dt, trad.params, trad.h0)
+            score, per_period, _ = evaluation.period_ahead(ident, u, x, dt, segments, feed=feed)
+            final = ident.params.to_dict()
+            del ident  # a worker stops here, inside
+        if feed is not None:
+            out.setdefault("replay", {})[m] = {
+                "real_time": granted,
+                "paced": feed.paced,
+                "refine_intervals_per_push": feed.refine_intervals,
+                "late_samples": feed.late_samples,
+                "max_late_s": feed.max_late_s,
+            }
         after_first = {f: max(errs[1:]) if len(errs) > 1 else errs[-1] for f, errs in per_period.items()}
         out["methods"][m] = {
             "score": score,
             "after_first": after_first,
             "ratio_oracle": _ratios(score, oracle),
             "ratio_traditional": _ratios(score, traditional),
-            "params": ident.params.to_dict(),
+            "params": final,
         }
     return out
 
@@ -271,6 +298,7 @@ def run(
     fit_options: dict[str, Any] | None = None,
     out_dir: str | Path | None = None,
     progress: Callable[[str], None] | None = None,
+    real_time: bool = False,
 ) -> dict[str, Any]:
     """Runs the family (and, with `bench`, the default bench first, reported apart).
 
@@ -284,6 +312,7 @@ def run(
         fit_options: extra keyword arguments of :func:`boucwen.fit`.
         out_dir: when given, ``results.json`` and ``ratios.png`` are written there.
         progress: called with one line per plant.
+        real_time: paced replays under SCHED_FIFO (see :func:`run_plant`).
 
     Returns:
         A JSON-ready dict: ``seed``, ``count``, ``methods``, ``durations``, ``bench``
@@ -292,8 +321,8 @@ def run(
         ``wall_s``.
     """
     for m in methods:
-        if m not in METHODS:
-            raise ValueError(f"invalid method = {m!r}: expected one of {', '.join(METHODS)}")
+        if m not in METHODS + REFINE_METHODS:
+            raise ValueError(f"invalid method = {m!r}: expected one of {', '.join(METHODS + REFINE_METHODS)}")
     say = progress or (lambda _msg: None)
     started = time.perf_counter()
     family = generate(count, seed)
@@ -305,7 +334,12 @@ def run(
     for index, settings in jobs:
         t0 = time.perf_counter()
         res = run_plant(
-            settings, measure_seed(seed, index), methods=methods, durations=durations, fit_options=fit_options
+            settings,
+            measure_seed(seed, index),
+            methods=methods,
+            durations=durations,
+            fit_options=fit_options,
+            real_time=real_time,
         )
         res["index"] = index
         res["settings"] = settings.to_dict()
@@ -435,8 +469,40 @@ def format_table(results: dict[str, Any]) -> str:
                 + "  /trad "
                 + " ".join(f"{r['ratio_traditional'][f]:.2f}" for f in freqs)
             )
+    lines.extend(format_refine_modes(results))
     lines.append(f"wall time {results['wall_s']:.0f} s")
     return "\n".join(lines)
+
+
+def format_refine_modes(results: dict[str, Any]) -> list[str]:
+    """The library default's family medians (ratio to the oracle) with its window pass in
+    each mode run, side by side with sync ("horizon"), and each mode's median / sync's
+    median; empty unless a mode other than sync was run."""
+    summary = results["summary"]
+    modes = [m for m in ("horizon", *REFINE_METHODS) if m in summary]
+    if len(modes) < 2 or "horizon" not in modes:
+        return []
+    freqs = list(summary["horizon"])
+    replays = [p.get("replay", {}) for p in results["plants"]]
+    late = {m: sum(r.get(m, {}).get("late_samples", 0) for r in replays) for m in modes[1:]}
+    paced = {m: any(r.get(m, {}).get("paced", False) for r in replays) for m in modes[1:]}
+    lines = [
+        "library default by window-pass mode: family median ratio to the oracle per frequency; / sync",
+        f"{'mode':<13}" + "".join(f"{f + ' Hz':>9}" for f in freqs) + "".join(f"{'/' + f + ' Hz':>10}" for f in freqs),
+    ]
+    for m in modes:
+        med = [summary[m][f]["ratio_oracle"]["median"] for f in freqs]
+        sync = [summary["horizon"][f]["ratio_oracle"]["median"] for f in freqs]
+        note = ""
+        if m in late:
+            note = f"  (paced: {late[m]} samples late over the family)" if paced[m] else "  (not paced)"
+        lines.append(
+            f"{_refine_of(m):<13}"
+            + "".join(f"{v:>9.3f}" for v in med)
+            + "".join(f"{v / s:>10.3f}" for v, s in zip(med, sync))
+            + note
+        )
+    return lines
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -449,7 +515,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="directory for results.json and ratios.png")
     ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated online methods")
     ap.add_argument("--no-bench", action="store_true", help="skip the default bench")
+    ap.add_argument(
+        "--refine",
+        default="sync",
+        metavar="MODES",
+        help="also run the default method ('horizon', sync) with its window pass cooperative and/or on a "
+        "background worker (the record replayed at its own sample rate): a comma-separated list or all",
+    )
+    ap.add_argument(
+        "--realtime",
+        action="store_true",
+        help="run each paced replay and its worker under SCHED_FIFO (needs the privilege)",
+    )
     args = ap.parse_args(argv)
+    extra = [f"horizon_{m}" for m in refine_modes(args.refine) if m != "sync"]
 
     def progress(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
@@ -457,10 +536,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     results = run(
         args.count,
         args.seed,
-        tuple(m for m in args.methods.split(",") if m),
+        tuple(m for m in args.methods.split(",") if m) + tuple(extra),
         bench=not args.no_bench,
         out_dir=args.out,
         progress=progress,
+        real_time=args.realtime,
     )
     print(format_table(results))
     return 0

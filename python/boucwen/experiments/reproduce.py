@@ -56,6 +56,7 @@ import json
 import os
 import time
 from collections.abc import Mapping, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
@@ -67,6 +68,7 @@ from .._core import EffectSet, Identifier, Params, simulate, simulate_extended
 from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 from ..io import jsonable
+from ..pacing import COOPERATIVE_INTERVALS, REFINE_MODES, RefineMode, feed_for, realtime
 
 if TYPE_CHECKING:
     from .._core import _IdentifierMethod
@@ -87,6 +89,7 @@ __all__ = [
     "default_online_method",
     "default_window",
     "fixed_parameter_prediction",
+    "refine_variants",
     "run",
     "steady_state_slice",
     "table1_from_predictions",
@@ -147,12 +150,15 @@ class OnlineMethod:
         method: the ``method`` argument of :class:`boucwen.Identifier`.
         options: extra keyword arguments of :class:`boucwen.Identifier`.
         description: one line for the printed tables.
+        refine: where the recommended identifier's window pass runs ("sync",
+            "cooperative", "background"; see :mod:`boucwen.pacing` for how each is fed).
     """
 
     label: str
     method: _IdentifierMethod
     options: Mapping[str, Any] = field(default_factory=dict)
     description: str = ""
+    refine: RefineMode = "sync"
 
 
 #: Every online method the experiment compares, in print order. Methods the
@@ -176,9 +182,25 @@ def _make_identifier(m: OnlineMethod, dt: float, window: int, init: Params, h0: 
     if m.method == "rpem":
         return Identifier.rpem(dt, init, h0, config=RpemConfig(**dict(m.options)))
     config = HorizonConfig(**dict(m.options))
-    if m.label == "horizon":
-        return Identifier(dt, init, h0, config=config)
+    if m.label.startswith("horizon") and m.label != "horizon_base":
+        return Identifier(dt, init, h0, config=config, refine=m.refine)
     return Identifier.horizon(dt, init, h0, config=config)
+
+
+def refine_variants(modes: Sequence[str]) -> list[OnlineMethod]:
+    """The library default ("horizon") with its window pass run in each mode of `modes`
+    other than "sync" (which is the ``horizon`` row itself): labels ``horizon_cooperative``
+    (``refine(COOPERATIVE_INTERVALS)`` after every push) and ``horizon_background`` (the
+    record replayed at its own sample rate, the pass on a worker thread)."""
+    what = {
+        "cooperative": f"refine({COOPERATIVE_INTERVALS}) after every push",
+        "background": "worker thread, the record replayed at its own sample rate",
+    }
+    return [
+        OnlineMethod(f"horizon_{mode}", "horizon", {}, f"library default, window pass {mode}: {what[mode]}", mode)
+        for mode in REFINE_MODES
+        if mode in modes and mode != "sync"
+    ]
 
 
 def available_online_methods(
@@ -274,19 +296,44 @@ def _run_online(
     init: Params,
     h0: float,
     segments: Sequence[tuple[float, int, int]],
+    real_time: bool = False,
 ) -> dict[str, Any]:
-    """Runs one online method over the record and scores it (see :mod:`boucwen.evaluation`).
+    """Runs one online method over the record and scores it (see :mod:`boucwen.evaluation`);
+    with `real_time`, a paced replay (and its worker) runs under SCHED_FIFO where granted
+    (:func:`boucwen.pacing.realtime`).
 
     Returns a dict with ``period_ahead`` (score per frequency [µm]), ``per_period``
     (every period's max error), ``one_step`` and ``trace`` (the one-step and the
     period-ahead predictions [µm]) and ``estimates`` (the parameters at the end of each
     frequency, Table 2)."""
-    ident = _make_identifier(m, dt, window, init, h0)
     freezes: list[tuple[int, Params, EffectSet | None]] = []
     trace = np.empty_like(x)
-    score, per_period, one_step = evaluation.period_ahead(
-        ident, u, x, dt, segments, on_period=lambda _f, k0, p, _h: freezes.append((k0, p, ident.effects)), trace=trace
-    )
+    feed = feed_for(m.refine, dt)
+    started = time.perf_counter()
+    with realtime() if real_time and feed is not None and feed.paced else nullcontext(False) as granted:
+        ident = _make_identifier(m, dt, window, init, h0)
+        score, per_period, one_step = evaluation.period_ahead(
+            ident,
+            u,
+            x,
+            dt,
+            segments,
+            on_period=lambda _f, k0, p, _h: freezes.append((k0, p, ident.effects)),
+            trace=trace,
+            feed=feed,
+        )
+    status = ident.status
+    replay = {
+        "refine": m.refine,
+        "real_time": granted,
+        "paced": bool(feed is not None and feed.paced),
+        "refine_intervals_per_push": feed.refine_intervals if feed is not None else 0,
+        "late_samples": feed.late_samples if feed is not None else 0,
+        "max_late_s": feed.max_late_s if feed is not None else 0.0,
+        "wall_s": time.perf_counter() - started,
+        "updates": status.get("updates"),
+        "behind_samples_at_end": status.get("behind_samples"),
+    }
     estimates = {}
     effects: dict[str, EffectSet | None] = {}
     for i, (f, _, hi) in enumerate(segments):
@@ -301,6 +348,7 @@ def _run_online(
         "one_step": one_step,
         "trace": trace,
         "estimates": estimates,
+        "replay": replay,
     }
 
 
@@ -433,6 +481,8 @@ def run(
     settings: plant.BenchSettings | None = None,
     figures: bool = True,
     log: Callable[[str], None] | None = print,
+    refine: Sequence[str] = ("sync",),
+    real_time: bool = False,
 ) -> dict[str, Any]:
     """Runs the experiment and writes ``results.json``, ``predictions.npz`` and the figures.
 
@@ -446,6 +496,13 @@ def run(
         settings: the bench (default :class:`boucwen.plant.BenchSettings`).
         figures: write the PNG figures.
         log: where progress and tables go (``None``: silent).
+        refine: modes of the library default's window pass to run besides "sync" (the
+            ``horizon`` row): "cooperative", "background" (:func:`refine_variants`);
+            Table 1 of every mode is printed side by side with the sync one and kept
+            in ``results["refine_modes"]``.
+        real_time: run the paced replay and its worker under SCHED_FIFO (where granted,
+            :func:`boucwen.pacing.realtime`): on a busy host, the extra core the
+            background mode is meant to have.
 
     Returns:
         The content of ``results.json`` as a dict.
@@ -491,6 +548,8 @@ def run(
     x_trad = np.asarray(x_trad)
 
     methods = available_online_methods(dt, window, trad.params)
+    if any(m.label == "horizon" for m in methods):
+        methods += refine_variants(refine)
     labels = [m.label for m in methods]
     default = default_online_method(labels)
     one_step: dict[str, np.ndarray] = {}
@@ -501,10 +560,13 @@ def run(
     table2: dict[str, dict[str, dict[str, float]]] = {}
     per_period: dict[str, dict[str, list[float]]] = {}
     effects_at_end: dict[str, Mapping[str, EffectSet | None]] = {}
+    replays: dict[str, dict[str, Any]] = {}
     for m in methods:
         step(f"online method {m.label!r}" + (f" (window {window} samples)" if m.method == "paper" else ""))
-        r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments)
+        r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments, real_time)
         key = f"online_{m.label}"
+        if m.label == "horizon" or m.refine != "sync":
+            replays[m.refine] = {**r["replay"], "table1": r["period_ahead"]}
         one_step[key], traces[key] = r["one_step"], r["trace"]
         table1[key], table2[key], per_period[key] = r["period_ahead"], r["estimates"], r["per_period"]
         effects_at_end[key] = r["effects"]
@@ -586,6 +648,7 @@ def run(
         "traditional_fit": trad.to_dict(),
         "window_sweep": sweep,
         "best_fixed_per_frequency": best_fixed,
+        "refine_modes": replays,
     }
 
     results = jsonable(results)
@@ -614,9 +677,41 @@ def run(
         {m.label: m.description for m in methods},
         adapt,
     )
+    if len(replays) > 1:
+        for line in format_refine_modes(replays, freqs):
+            say(line)
     say(f"online = online_{default}; steady state = {STEADY_STATE}")
     step(f"wrote {out / 'results.json'}, {out / 'predictions.npz'} and the figures")
     return results
+
+
+def format_refine_modes(replays: Mapping[str, Mapping[str, Any]], freqs: Sequence[str]) -> list[str]:
+    """Table 1 of the library default in each mode of its window pass, side by side with
+    the synchronous one: max error [µm] per frequency and its ratio to sync, with how
+    the record was fed (paced or not, refine schedule, late samples)."""
+    sync = replays["sync"]["table1"]
+    heads = [f"{f} Hz" for f in freqs]
+    lines = [
+        "",
+        "Table 1 by window-pass mode (library default): period-ahead max error [µm]; ratio to sync",
+        f"{'mode':<13}" + "".join(f"{h:>9}" for h in heads) + "".join(f"{'/' + h:>10}" for h in heads) + "  fed",
+    ]
+    for mode, r in replays.items():
+        t1 = r["table1"]
+        if r["paced"]:
+            policy = ", SCHED_FIFO" if r["real_time"] else ""
+            fed = f"paced 1/dt{policy}, {r['late_samples']} late (max {1e3 * r['max_late_s']:.2f} ms)"
+        elif r["refine_intervals_per_push"]:
+            fed = f"refine({r['refine_intervals_per_push']}) after every push"
+        else:
+            fed = "push_many"
+        lines.append(
+            f"{mode:<13}"
+            + "".join(f"{t1[f]:>9.3f}" for f in freqs)
+            + "".join(f"{t1[f] / sync[f]:>10.3f}" for f in freqs)
+            + f"  {fed}; {r['updates']} updates, behind {r['behind_samples_at_end']} samples at the end"
+        )
+    return lines
 
 
 def _figures(

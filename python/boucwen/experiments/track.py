@@ -21,6 +21,10 @@ Steps of :func:`run`:
    - ``inverse_fixed``: the inverse of the traditional parameters, held fixed;
    - ``inverse_adaptive``: the inverse of the online estimates ("rpem", default
      configuration, started from the traditional parameters);
+   - ``horizon_adaptive``: the same with the recommended identifier ("horizon", its
+     input lag identified and inverted through the extended inverse) on the split:
+     ``step`` pushes at model-step cost, the window pass runs cooperatively,
+     ``refine(COOPERATIVE_INTERVALS)`` after every step (:mod:`boucwen.pacing`);
    - ``pi``: PI feedback alone, x_cmd = v, through the linear model's line, with
      kp = 0.2, ki = 3000 /s (:data:`PI_GAINS`);
    - ``pi_adaptive``: PI + adaptive inverse with kp = 0, ki = 200 /s
@@ -36,7 +40,9 @@ Steps of :func:`run`:
 5. **Metrics** (:func:`tracking_metrics`): max and RMS of |x − x_d| [µm and % of the
    reference's range], x the vibrometer reading, after one period of adaptation
    (the first period of a sine or triangle, the first hold of the staircase, the
-   first 0.1 s of the random motion).
+   first 0.1 s of the random motion); and the compensator's cost per sample [ns]:
+   the mean wall time of ``step`` and of ``refine`` over the run, each timed around
+   the Python call (so the call's own overhead, some 100 ns, is included).
 6. Both benches: the default one with its floor vibration switched off, then on
    (:data:`BENCHES`); the targets (:func:`check_targets`) are checked on the bench
    each names; the literature anchors (:data:`ANCHORS`) are printed beside.
@@ -64,6 +70,7 @@ import numpy as np
 from .. import plant
 from .._core import Compensator, Params
 from ..fit import FitResult, fit
+from ..pacing import COOPERATIVE_INTERVALS
 
 __all__ = [
     "ANCHORS",
@@ -249,17 +256,27 @@ class Method:
         name: key in the results.
         label: for tables and figures.
         make: builds a fresh compensator from an identification and dt [s].
+        refine_intervals: ``compensator.refine(refine_intervals)`` after every step
+            (the cooperative schedule of a split identifier; 0: none).
     """
 
     name: str
     label: str
     make: Callable[[Identification, float], Compensator] = field(repr=False)
+    refine_intervals: int = 0
 
 
 def _compensator(
-    params: Params, dt: float, *, adapt: bool, gains: Mapping[str, float] | None = None, feedforward: bool = True
+    params: Params,
+    dt: float,
+    *,
+    adapt: bool,
+    gains: Mapping[str, float] | None = None,
+    feedforward: bool = True,
+    recommended: bool = False,
 ) -> Compensator:
-    """A compensator within :data:`U_LIMITS_V` with PI gains ``{"kp": [-], "ki": [1/s]}`` (none by default)."""
+    """A compensator within :data:`U_LIMITS_V` with PI gains ``{"kp": [-], "ki": [1/s]}`` (none by
+    default); ``recommended``: around the recommended identifier, its window pass cooperative."""
     g = gains or {}
     return Compensator(
         params,
@@ -270,6 +287,8 @@ def _compensator(
         kp=g.get("kp", 0.0),
         ki=g.get("ki", 0.0),
         feedforward=feedforward,
+        identifier="horizon" if recommended else "rpem",
+        refine="cooperative" if recommended else "sync",
     )
 
 
@@ -287,6 +306,12 @@ METHODS: tuple[Method, ...] = (
         lambda ident, dt: _compensator(ident.traditional.params, dt, adapt=True),
     ),
     Method(
+        "horizon_adaptive",
+        "adaptive inverse, recommended identifier (lag inverted, cooperative)",
+        lambda ident, dt: _compensator(ident.traditional.params, dt, adapt=True, recommended=True),
+        COOPERATIVE_INTERVALS,
+    ),
+    Method(
         "pi",
         "PI feedback alone",
         lambda ident, dt: _compensator(ident.line, dt, adapt=False, gains=PI_GAINS, feedforward=False),
@@ -302,21 +327,44 @@ METHODS: tuple[Method, ...] = (
 # --------------------------------------------------------------------------- loop and metrics
 
 
-def closed_loop(compensator: Compensator, bench: plant.Bench, x_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Runs the loop u_k = compensator.step(x_d,k, x_k−1), x_k = bench.step(u_k).
+def closed_loop(
+    compensator: Compensator,
+    bench: plant.Bench,
+    x_d: np.ndarray,
+    refine_intervals: int = 0,
+    cost_ns: dict[str, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Runs the loop u_k = compensator.step(x_d,k, x_k−1), x_k = bench.step(u_k), with
+    ``compensator.refine(refine_intervals)`` after every step when > 0.
+
+    Args:
+        cost_ns: if given, filled with the mean wall time per sample [ns] of ``step``
+            ("step") and of ``refine`` ("refine"), each timed around the Python call.
 
     Returns:
         ``(u, x)``: the voltages [V] and the vibrometer readings [µm].
     """
-    step, apply = compensator.step, bench.step
+    step, apply, refine = compensator.step, bench.step, compensator.refine
+    clock = time.perf_counter_ns
     u_out: list[float] = []
     x_out: list[float] = []
     x_meas: float | None = None
+    step_ns = refine_ns = 0
     for target in x_d.tolist():
+        t0 = clock()
         u = step(target, x_meas)
+        t1 = clock()
+        if refine_intervals:
+            refine(refine_intervals)
+            refine_ns += clock() - t1
+        step_ns += t1 - t0
         x_meas = apply(u)
         u_out.append(u)
         x_out.append(x_meas)
+    if cost_ns is not None:
+        n = max(1, len(u_out))
+        cost_ns["step"] = step_ns / n
+        cost_ns["refine"] = refine_ns / n
     return np.asarray(u_out), np.asarray(x_out)
 
 
@@ -490,10 +538,13 @@ def _run_bench(
         for method in methods:
             comp = method.make(ident, dt)
             bench = plant.Bench(dt, settings, seed=_noise_seed(seed, bench_index, r_index))
-            u, x = closed_loop(comp, bench, ref.x_d)
+            cost: dict[str, float] = {}
+            u, x = closed_loop(comp, bench, ref.x_d, method.refine_intervals, cost)
             status = comp.status
             out[ref.name][method.name] = {
                 **tracking_metrics(x, ref.x_d, ref.adaptation),
+                "step_ns": cost["step"],
+                "refine_ns": cost["refine"],
                 "clipped_samples": int(status["clipped_samples"]),
                 "held_samples": int(status["held_samples"]),
                 "u_range_v": [float(u.min()), float(u.max())],
@@ -523,6 +574,20 @@ def _format_table(
             v = table[ref.name][m.name]
             cells.append(f"{v['max_um']:.3f} / {v['rms_um']:.3f} ({v['max_pct']:.2f} %)")
         lines.append(f"| {ref.label} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _format_costs(
+    refs: Sequence[Reference], methods: Sequence[Method], table: Mapping[str, Mapping[str, Mapping[str, float]]]
+) -> list[str]:
+    """The adaptive compensators' cost per sample [ns], step + refine, mean over the references."""
+    lines = ["compensator cost per sample [ns] (Python call included), mean over the references: step + refine"]
+    for m in methods:
+        if not m.name.endswith("adaptive"):
+            continue
+        step = float(np.mean([table[r.name][m.name]["step_ns"] for r in refs]))
+        refine = float(np.mean([table[r.name][m.name]["refine_ns"] for r in refs]))
+        lines.append(f"   {m.label}: {step:.0f} + {refine:.0f} ns")
     return lines
 
 
@@ -576,6 +641,7 @@ def run(
                 r.name: {"label": r.label, "samples": int(r.x_d.size), "adaptation_samples": r.adaptation} for r in refs
             },
             "methods": {m.name: m.label for m in METHODS},
+            "refine_intervals": {m.name: m.refine_intervals for m in METHODS if m.refine_intervals},
         },
         "benches": {},
         "anchors": list(ANCHORS),
@@ -595,6 +661,8 @@ def run(
         }
         say(f"== {bench_name}: max / RMS error [um] (max in % of range), after one period of adaptation")
         for line in _format_table(refs, METHODS, tables[bench_name]):
+            say(line)
+        for line in _format_costs(refs, METHODS, tables[bench_name]):
             say(line)
         if figures and bench_name == FIGURE_BENCH:
             from ..plots import plot_tracking

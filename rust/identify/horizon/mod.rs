@@ -951,6 +951,10 @@ impl OnlineIdentifier for HorizonIdentifier {
         self.h
     }
 
+    fn input_lag(&self) -> Option<(InputLag, f64)> {
+        self.ln_fc.map(|l| (InputLag { fc_hz: math::exp(l) }, self.ua))
+    }
+
     fn status(&self) -> HorizonStatus {
         self.status
     }

@@ -492,6 +492,10 @@ impl OnlineIdentifier for RpemIdentifier {
         self.chain.h
     }
 
+    fn input_lag(&self) -> Option<(InputLag, f64)> {
+        self.shape.lag.then_some((InputLag { fc_hz: self.est.fc_hz }, self.chain.ua))
+    }
+
     fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()> {
         super::check_forecast(u, out)?;
         // The chain with its effects, stepped on a copy (the derivatives it carries
