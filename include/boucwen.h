@@ -45,15 +45,6 @@ typedef enum {
   BW_METHOD_PAPER = 2,
 } BwMethod;
 
-// Where a horizon identifier's window pass runs (see `RefineMode` in the Rust docs).
-typedef enum {
-  // In every push (the default; the predictions of earlier releases bit for bit).
-  BW_REFINE_SYNC = 0,
-  // In `bw_identifier_refine`, called when the loop has time; push only predicts and
-  // stores. Deterministic for a given schedule of calls.
-  BW_REFINE_COOPERATIVE = 1,
-} BwRefineMode;
-
 // Opaque bank of channels (identifier, model and inverse each).
 typedef struct BwBank BwBank;
 
@@ -213,7 +204,10 @@ extern "C" {
 #endif // __cplusplus
 
 // A static, NUL-terminated description of a status code.
-const char *bw_status_message(BwStatus status);
+//
+// Takes the code as an integer (a `BwStatus`, or any other value: "unknown status
+// code"), so that no value a C caller passes is undefined behaviour.
+const char *bw_status_message(uint32_t status);
 
 // The paper's Table 2 values at 1 Hz.
 BwStatus bw_params_paper_1hz(BwParams *out);
@@ -340,8 +334,10 @@ BwStatus bw_identifier_snapshot(const BwIdentifier *id, uint8_t *buf, size_t cap
 
 // Horizon only (`BW_WRONG_METHOD` otherwise): switches where the window pass runs (at
 // any sample; see `HorizonIdentifier::set_mode` in the Rust docs). A new identifier
-// runs it in every push (`BW_REFINE_SYNC`).
-BwStatus bw_identifier_set_refine(BwIdentifier *id, BwRefineMode mode);
+// runs it in every push (`BW_REFINE_SYNC`). `mode` is a `BwRefineMode` value taken as
+// an integer: any other value is `BW_INVALID_CONFIG` (nothing changed), never
+// undefined behaviour.
+BwStatus bw_identifier_set_refine(BwIdentifier *id, uint32_t mode);
 
 // Horizon only (`BW_WRONG_METHOD` otherwise), cooperative mode: runs the window pass
 // at most `max_intervals` integration intervals on the samples pushed so far and

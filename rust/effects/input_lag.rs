@@ -115,7 +115,7 @@ mod tests {
         let mut u: Vec<f64> =
             (0..800).map(|k| 2.0 + 1.5 * (2.0 * core::f64::consts::PI * k as f64 * dt).sin()).collect();
         let last = *u.last().unwrap();
-        u.extend(core::iter::repeat(last).take(hold));
+        u.extend(core::iter::repeat_n(last, hold));
         u
     }
 

@@ -76,6 +76,27 @@ pub enum BwStatus {
     BW_WRONG_METHOD = 9,
 }
 
+impl BwStatus {
+    /// Every status, in code order.
+    const ALL: [BwStatus; 10] = [
+        BwStatus::BW_OK,
+        BwStatus::BW_INVALID_PARAMETER,
+        BwStatus::BW_INVALID_CONFIG,
+        BwStatus::BW_NON_FINITE_SAMPLE,
+        BwStatus::BW_CORRUPT_SNAPSHOT,
+        BwStatus::BW_LENGTH_MISMATCH,
+        BwStatus::BW_NULL_POINTER,
+        BwStatus::BW_BUFFER_TOO_SMALL,
+        BwStatus::BW_PANIC,
+        BwStatus::BW_WRONG_METHOD,
+    ];
+
+    /// The status of integer code `code`, if it is one.
+    fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| *s as u32 == code)
+    }
+}
+
 impl From<Error> for BwStatus {
     fn from(e: Error) -> Self {
         match e {
@@ -628,8 +649,14 @@ unsafe fn bytes<'a>(ptr: *const u8, len: usize) -> Result<&'a [u8], BwStatus> {
 }
 
 /// A static, NUL-terminated description of a status code.
+///
+/// Takes the code as an integer (a `BwStatus`, or any other value: "unknown status
+/// code"), so that no value a C caller passes is undefined behaviour.
 #[no_mangle]
-pub extern "C" fn bw_status_message(status: BwStatus) -> *const c_char {
+pub extern "C" fn bw_status_message(status: u32) -> *const c_char {
+    let Some(status) = BwStatus::from_code(status) else {
+        return c"unknown status code".as_ptr();
+    };
     let text: &'static [u8] = match status {
         BwStatus::BW_OK => b"ok\0",
         BwStatus::BW_INVALID_PARAMETER => b"invalid model parameter (non-finite, or n <= 0)\0",
@@ -947,13 +974,16 @@ unsafe fn horizon<'a>(id: *mut BwIdentifier) -> Result<&'a mut HorizonIdentifier
 
 /// Horizon only (`BW_WRONG_METHOD` otherwise): switches where the window pass runs (at
 /// any sample; see `HorizonIdentifier::set_mode` in the Rust docs). A new identifier
-/// runs it in every push (`BW_REFINE_SYNC`).
+/// runs it in every push (`BW_REFINE_SYNC`). `mode` is a `BwRefineMode` value taken as
+/// an integer: any other value is `BW_INVALID_CONFIG` (nothing changed), never
+/// undefined behaviour.
 #[no_mangle]
-pub unsafe extern "C" fn bw_identifier_set_refine(id: *mut BwIdentifier, mode: BwRefineMode) -> BwStatus {
+pub unsafe extern "C" fn bw_identifier_set_refine(id: *mut BwIdentifier, mode: u32) -> BwStatus {
     guard(|| {
         let mode = match mode {
-            BwRefineMode::BW_REFINE_SYNC => RefineMode::Sync,
-            BwRefineMode::BW_REFINE_COOPERATIVE => RefineMode::Cooperative,
+            m if m == BwRefineMode::BW_REFINE_SYNC as u32 => RefineMode::Sync,
+            m if m == BwRefineMode::BW_REFINE_COOPERATIVE as u32 => RefineMode::Cooperative,
+            _ => return Err(BwStatus::BW_INVALID_CONFIG),
         };
         horizon(id)?.set_mode(mode);
         Ok(())
@@ -1209,10 +1239,16 @@ mod tests {
             assert_eq!(bw_bank_new(2, 1e-4, core::ptr::null(), &mut bank), BwStatus::BW_NULL_POINTER);
             assert!(bank.is_null());
             bw_identifier_free(rpem);
-            let msg = std::ffi::CStr::from_ptr(bw_status_message(BwStatus::BW_NON_FINITE_SAMPLE));
+            let msg = std::ffi::CStr::from_ptr(bw_status_message(BwStatus::BW_NON_FINITE_SAMPLE as u32));
             assert!(msg.to_str().unwrap().contains("non-finite"));
-            let msg = std::ffi::CStr::from_ptr(bw_status_message(BwStatus::BW_WRONG_METHOD));
+            let msg = std::ffi::CStr::from_ptr(bw_status_message(BwStatus::BW_WRONG_METHOD as u32));
             assert!(msg.to_str().unwrap().contains("another method"));
+            // Any integer a C caller passes is answered, not undefined behaviour.
+            let msg = std::ffi::CStr::from_ptr(bw_status_message(77));
+            assert_eq!(msg.to_str().unwrap(), "unknown status code");
+            for status in BwStatus::ALL {
+                assert_eq!(BwStatus::from_code(status as u32), Some(status));
+            }
         }
     }
 
@@ -1279,7 +1315,11 @@ mod tests {
                 // The horizon method's own calls.
                 let mut ran = 7usize;
                 let refine = bw_identifier_refine(id, 16, &mut ran);
-                let set = bw_identifier_set_refine(id, BwRefineMode::BW_REFINE_COOPERATIVE);
+                if method == BwMethod::BW_METHOD_HORIZON {
+                    // A value outside BwRefineMode is refused, the mode kept.
+                    assert_eq!(bw_identifier_set_refine(id, 2), BwStatus::BW_INVALID_CONFIG);
+                }
+                let set = bw_identifier_set_refine(id, BwRefineMode::BW_REFINE_COOPERATIVE as u32);
                 if method == BwMethod::BW_METHOD_HORIZON {
                     assert_eq!((refine, set, ran), (BwStatus::BW_OK, BwStatus::BW_OK, 0));
                     let mut y = 0.0;

@@ -593,6 +593,7 @@ impl Drive {
 /// [`advance_h_carried`] does for |h|^n): a run of intervals on the same parameters
 /// (a pass over a window) then calls `powf` and `ln` only where h moves fast or near 0.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn advance_seeded_carrying<const M: usize, const FIRST: usize, const INPUT: usize>(
     p: &Params,
     h: Dual<M>,

@@ -394,7 +394,7 @@ fn c_abi_push_does_not_allocate() {
             bw_identifier_new_horizon(DT, &p, 0.0, 0.3 / DT, std::ptr::null(), &mut cooperative),
             BwStatus::BW_OK
         );
-        assert_eq!(bw_identifier_set_refine(cooperative, BwRefineMode::BW_REFINE_COOPERATIVE), BwStatus::BW_OK);
+        assert_eq!(bw_identifier_set_refine(cooperative, BwRefineMode::BW_REFINE_COOPERATIVE as u32), BwStatus::BW_OK);
         let mut inverse: *mut BwInverse = std::ptr::null_mut();
         let inf = f64::INFINITY;
         assert_eq!(bw_inverse_new(&p, DT, 0.0, -inf, inf, &mut inverse), BwStatus::BW_OK);

@@ -32,6 +32,7 @@ pub fn advance_h_with_gradient<const M: usize>(
 
 /// [`advance_h_with_gradient`] with the number of RK4 sub-steps optionally forced.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub(super) fn advance_with_substeps<const M: usize>(
     p: &Params,
     h: f64,
