@@ -309,8 +309,9 @@ def paper_input(
     pairs = [(float(f), float(d)) for f, d in (given.items() if isinstance(given, Mapping) else given)]
     u = np.asarray(_core.paper_input(dt, segments=pairs), dtype=np.float64)
     t = np.arange(u.size, dtype=np.float64) * dt
-    # A segment's first sample is the first at or after its start (to 1e-12 s, as the core).
-    starts = np.cumsum([0.0] + [d for _, d in pairs])
+    # A segment's first sample is the first at or after its start (to 1e-12 s), the start
+    # the sum of the durations before it rounded once, as the core takes them.
+    starts = np.array([math.fsum(d for _, d in pairs[:i]) for i in range(len(pairs) + 1)])
     bounds = np.searchsorted(t, starts - 1e-12).tolist()
     bounds[-1] = u.size
     return t, u, [(f, int(bounds[i]), int(bounds[i + 1])) for i, (f, _) in enumerate(pairs)]

@@ -200,20 +200,22 @@ pub fn paper_segments(tail_s: f64) -> [(f64, f64); 4] {
 
 /// u = 50 + 50·sin(2πf·(t − t_i) − π/2) \[V\] at t = k·dt \[s\], k = 0 … round(T/dt) − 1
 /// (T the total duration), where segment i of `segments` ((f \[Hz\], duration \[s\])
-/// pairs, in order) starts at t_i, the sum of the durations before it. A segment of a
-/// whole number of periods ends on a minimum (u = 0), where the next one starts, so
-/// u is continuous; the caller checks that (the sample of a segment's start is taken
-/// within 1e-12 s).
+/// pairs, in order) starts at t_i, the sum of the durations before it (rounded once). A
+/// segment of a whole number of periods ends on a minimum (u = 0), where the next one
+/// starts, so u is continuous; the caller checks that (the sample of a segment's start
+/// is taken within 1e-12 s).
 pub fn sine_segments(dt: f64, segments: &[(f64, f64)]) -> Vec<f64> {
-    let starts: Vec<f64> = segments
-        .iter()
-        .scan(0.0, |t, &(_, d)| {
-            let start = *t;
-            *t += d;
-            Some(start)
-        })
-        .collect();
-    let total: f64 = segments.iter().map(|&(_, d)| d).sum();
+    // The starts and the total as compensated (Neumaier) sums: the double nearest the
+    // exact sum of the durations, so that 3 + 0.3 + 0.03 s is the double of 3.33 s.
+    let mut starts = Vec::with_capacity(segments.len());
+    let (mut sum, mut carry) = (0.0_f64, 0.0_f64);
+    for &(_, d) in segments {
+        starts.push(sum + carry);
+        let next = sum + d;
+        carry += if sum.abs() >= d.abs() { (sum - next) + d } else { (d - next) + sum };
+        sum = next;
+    }
+    let total = sum + carry;
     let count = math::round(total / dt) as usize;
     (0..count)
         .map(|k| {
