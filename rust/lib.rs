@@ -45,7 +45,7 @@ mod python;
 
 pub use bank::{Bank, ModelBank};
 pub use compensate::{invert, Compensator, ExtendedInverse, Inverse, VoltageLimits};
-pub use effects::{simulate_extended, EffectSet, ExtendedModel};
+pub use effects::{simulate_extended, simulate_extended_from, EffectSet, ExtendedModel, ExtendedState};
 pub use error::{Error, Result};
 pub use format::Snapshot;
 pub use model::{simulate, simulate_into, Model, ModelState};

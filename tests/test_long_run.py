@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import boucwen
-from boucwen import evaluation, plant, reference
+from boucwen import evaluation, plant
 from boucwen.experiments import long_run as lr
 
 DT = plant.DEFAULT_DT
@@ -37,36 +37,6 @@ def test_scores_from_a_recorded_run_are_those_of_period_ahead():
         for f, errors, s in ours:
             assert per_period[evaluation.key(f)] == errors
             assert score[evaluation.key(f)] == s
-
-
-def test_implicit_replay_is_the_integrators_rule():
-    """The vectorised replay against the NumPy reference integrator's own sub-step rule,
-    on intervals from mild to very stiff (both outcomes occur)."""
-    rng = np.random.default_rng(11)
-    count = 4000
-    u = np.concatenate([[50.0], 50.0 + 50.0 * np.sin(np.cumsum(rng.uniform(-0.5, 0.5, count)))])
-    u[rng.integers(1, count, 200)] = u[rng.integers(1, count, 200) - 1]  # some holds
-    beta = 10.0 ** rng.uniform(-3, 3, count)
-    gamma = beta * rng.uniform(-0.99, 0.99, count)
-    n = rng.uniform(0.3, 4.0, count)
-    params = np.column_stack(
-        [np.full(count, 0.19), np.zeros(count), rng.uniform(-0.2, 0.2, count), beta, gamma, n, np.full(count, 0.01)]
-    )
-    h = rng.normal(0.0, 2.0, count)
-    h[::50] = 0.0
-    ours = lr.implicit_intervals(params, h, u, 1e-4)
-    theirs = []
-    for k in range(count):
-        p = reference.RefParams(*params[k])
-        du = u[k + 1] - u[k]
-        if du == 0.0:
-            theirs.append(False)
-            continue
-        udot = du / 1e-4
-        k1 = reference.hysteresis_rate(p, h[k], u[k], udot)
-        theirs.append(reference._substeps(p, h[k], reference._abs_pow(h[k], p.n), k1, 1e-4, udot) is None)
-    np.testing.assert_array_equal(ours, np.array(theirs))
-    assert 0.05 < ours.mean() < 0.95
 
 
 def test_random_input_is_band_limited_within_0_to_100_v():

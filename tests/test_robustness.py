@@ -4,8 +4,8 @@
   that names the culprit; the CLI exits 2 with one line on stderr;
 - a rejected sample (push) or call (push_many) leaves an identifier exactly as it was;
 - poor excitation: constant input, then excitation again, for each online method;
-- properties (hypothesis): finite bounded h, no NaN out of the identifiers, Rust and
-  the NumPy reference agree;
+- properties (hypothesis): finite bounded h, no NaN out of the identifiers, the Rust
+  and the NumPy reference identifier agree;
 - fuzz: random values of every kind thrown at the API only ever raise
   ValueError/TypeError (never pyo3's PanicException, never a crash).
 """
@@ -337,16 +337,6 @@ def test_simulate_gives_finite_bounded_h(p: Params, u: list, dt: float, h0: floa
     x, h = simulate(p, u, dt, h0=h0)
     assert np.all(np.isfinite(x)) and math.isfinite(h) and abs(h) <= 1e4
     assert np.all(np.abs(x - p.kv * np.asarray(u) - p.x0) <= 1e4 * (1 + 1e-12))
-
-
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(p=bounded_params(), u=st.lists(st.floats(-100, 100), min_size=2, max_size=200))
-def test_simulate_agrees_with_the_numpy_reference(p: Params, u: list) -> None:
-    reference = pytest.importorskip("boucwen.reference")
-    x, h = simulate(p, u, 1e-3)
-    xr, hr = reference.simulate(p, u, 1e-3)
-    np.testing.assert_allclose(x, xr, rtol=0, atol=1e-9 * (1 + np.max(np.abs(xr))))
-    assert h == pytest.approx(hr, rel=0, abs=1e-9 * (1 + np.max(np.abs(xr))))
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -1,4 +1,4 @@
-"""boucwen.simulate and boucwen.Model against the NumPy reference and a fine-step solution."""
+"""boucwen.simulate and boucwen.Model against the plain RK4 reference."""
 
 import math
 import pickle
@@ -11,21 +11,18 @@ from hypothesis.extra import numpy as hnp
 
 import boucwen
 from boucwen import Model, Params, reference
+from conftest import reference_pair
 
 DT = 1e-4  # 10 kHz
 PAPER = Params.paper_1hz()
 
-# The Rust integrator and reference.simulate apply the same rule with the same
-# floating-point operations in the same order, so they agree to the last bit
-# unless the two callers' pow() round differently (one ulp, ~1e-16 relative).
-# Such an ulp can at most change when a Newton iteration stops (its test is
-# 1e-12 relative), hence the tolerance below: rounding, not modelling, error.
-SAME_RULE_TOL = 1e-9
-
-
-def _close(a, b, tol):
-    a, b = np.asarray(a), np.asarray(b)
-    return np.max(np.abs(a - b) / (1.0 + np.abs(b)), initial=0.0) <= tol
+# The core holds |h| within this bound [µm] (rust/model/integrator.rs, H_LIMIT_UM).
+H_LIMIT_UM = 1.0e4
+# The core's accuracy on the paper's record [µm] (docs/design.md, "Integration").
+ACCURACY_UM = 1e-4
+# A stiff interval whose two backward-Euler half steps agree with its whole step to
+# this [µm] keeps them (rust/model/integrator.rs, IMPLICIT_TOLERANCE_UM).
+IMPLICIT_TOLERANCE_UM = 1e-4
 
 
 @pytest.fixture(scope="module")
@@ -36,28 +33,26 @@ def paper_u():
 # -- accuracy -----------------------------------------------------------------
 
 
-def test_paper_input_at_10khz_within_1e4_um_of_a_1000x_finer_solution(paper_u):
-    """Issue requirement: ≤ 1e-4 µm from RK4 with 1000× finer steps (1e-7 s), with the
-    paper's 1 Hz parameters and the paper's input at 10 kHz, 20× below the 2 nm
-    resolution of the vibrometer."""
+def test_paper_input_at_10khz_within_1e4_um_of_the_exact_solution(paper_u):
+    """Issue requirement: ≤ 1e-4 µm from the exact solution with the paper's 1 Hz
+    parameters and the paper's input at 10 kHz, 20× below the 2 nm resolution of the
+    vibrometer. The exact solution is bracketed by the plain RK4 reference: where halving
+    its step at least halves its error (checked below from three step sizes), the error
+    of the finer one is at most the difference between the two, so
+    |x − exact| ≤ |x − ref(2m)| + |ref(m) − ref(2m)|."""
     x, h_final = boucwen.simulate(PAPER, paper_u, DT)
-    x_fine, h_fine = reference.simulate_fine(PAPER, paper_u, DT, substeps=1000)
-    worst = float(np.max(np.abs(x - x_fine)))
-    print(f"max |x - x_fine| = {worst:.3e} um over {paper_u.size} samples")
-    assert worst <= 1e-4
-    assert abs(h_final - h_fine) <= 1e-4
-    # The fine solution is not trivially close: one plain RK4 step per sample is
-    # several times worse (paper.md reports ~5e-4 µm), so the test can tell.
-    x_one_step, _ = reference.simulate_fine(PAPER, paper_u, DT, substeps=1)
-    assert np.max(np.abs(x_one_step - x_fine)) > 2 * worst
-
-
-def test_agrees_with_the_reference_on_the_paper_input(paper_u):
-    x, h = boucwen.simulate(PAPER, paper_u, DT)
-    x_ref, h_ref = reference.simulate(PAPER, paper_u, DT)
-    # Same rule, same operations: observed difference 0; allowed: rounding.
-    assert np.max(np.abs(x - x_ref)) <= 1e-12
-    assert abs(h - h_ref) <= 1e-12
+    ref, h_ref, ref_error = reference_pair(PAPER, paper_u, DT, 64)
+    coarse, _ = reference.simulate(PAPER, paper_u, DT, substeps=32)
+    # The step is in the converging range: the previous halving changed x by more than twice as much.
+    assert np.max(np.abs(coarse - reference.simulate(PAPER, paper_u, DT, substeps=64)[0])) >= 2 * ref_error
+    worst = float(np.max(np.abs(x - ref)))
+    print(f"max |x - ref| = {worst:.3e} um, reference's own error <= {ref_error:.1e} um")
+    assert worst + ref_error <= ACCURACY_UM
+    assert abs(h_final - h_ref) + ref_error <= ACCURACY_UM
+    # The bound is not loose enough to pass anything: one plain RK4 step per sample is
+    # several times worse, so the test can tell.
+    x_one_step, _ = reference.simulate(PAPER, paper_u, DT, substeps=1)
+    assert np.max(np.abs(x_one_step - ref)) > 2 * (worst + ref_error)
 
 
 # -- streaming ----------------------------------------------------------------
@@ -121,13 +116,13 @@ dt_st = st.sampled_from([1e-5, 1e-4, 1e-3, 1e-2])
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(p=params_st, u=inputs_st, dt=dt_st, h0=st.floats(-5.0, 5.0))
-def test_any_valid_parameters_give_finite_bounded_output_equal_to_the_reference(p, u, dt, h0):
+def test_any_valid_parameters_give_finite_bounded_output(p, u, dt, h0):
+    """Any parameters, stiff or running away: finite, bounded output (accuracy is checked
+    against the reference where the solution is smooth and bounded, below)."""
     x, h = boucwen.simulate(p, u, dt, h0=h0)
     assert np.all(np.isfinite(x)) and math.isfinite(h)
-    assert abs(h) <= reference.H_LIMIT_UM
-    x_ref, h_ref = reference.simulate(p, u, dt, h0=h0)
-    assert _close(x, x_ref, SAME_RULE_TOL), np.max(np.abs(x - x_ref))
-    assert _close(h, h_ref, SAME_RULE_TOL)
+    assert abs(h) <= H_LIMIT_UM
+    assert x[-1] == p.kv * u[-1] + p.x0 + h
 
 
 def _classic(A, sum_bg, diff_bg, n):
@@ -182,9 +177,9 @@ def test_one_large_step_from_h_zero_stays_near_the_fine_solution(case):
     p, bound = _classic(case["A"], case["sum_bg"], case["diff_bg"], case["n"])
     u = np.array([0.0, case["du"]])
     _, h = boucwen.simulate(p, u, DT)
-    _, h_fine = reference.simulate_fine(p, u, DT, substeps=2000, sequential=True)
-    assert abs(h_fine) <= bound * (1 + 1e-9)
-    assert abs(h - h_fine) <= 1e-3, (h, h_fine)
+    _, h_fine, fine_error = reference_pair(p, u, DT, 1000, sequential=True)
+    assert abs(h_fine) <= bound * (1 + 1e-9) + fine_error
+    assert abs(h - h_fine) <= 1e-3 + fine_error, (h, h_fine)
 
 
 def test_h_stands_still_while_u_holds_and_zero_h_gives_exactly_zero_rate():
@@ -203,36 +198,32 @@ STIFF = PAPER.replace(A=-0.0525, beta=0.00256, gamma=-0.00256, n=4.0, delta=22.1
 
 
 @pytest.mark.parametrize(("start", "h0"), [(0, 8.4), (0, -8.4), (-6000, -8.4)])
-def test_stiff_intervals_kept_as_two_half_steps_are_within_the_tolerance(paper_u, start, h0, monkeypatch):
-    """Where the two backward-Euler half steps agree with the whole step they are kept:
-    those intervals end within IMPLICIT_TOLERANCE_UM of a 2000-sub-step solution, and the
-    Rust core takes the same decisions as the reference."""
+def test_stiff_intervals_away_from_turns_are_within_the_implicit_tolerance(paper_u, start, h0):
+    """Every interval of a stiff record, from the core's h at its start, ends within
+    IMPLICIT_TOLERANCE_UM of the exact solution from the same start (bracketed by the
+    reference as above), except the first interval after a turn of u: there
+    δ·u·sgn(u̇) jumps, h leaves its slow manifold and relaxes by tens of µm within the
+    interval, which the core's backward-Euler fallback follows to about 1 % of the
+    move (printed, not bounded here)."""
     seg = paper_u[start:][:6000]
     x, _ = boucwen.simulate(STIFF, seg, DT, h0=h0)
-    x_ref, _ = reference.simulate(STIFF, seg, DT, h0=h0)
-    assert _close(x, x_ref, SAME_RULE_TOL)
     h = x - STIFF.kv * seg - STIFF.x0
     p = reference.RefParams.from_any(STIFF)
-    kept = []
-    for k in range(seg.size - 1):
-        new = reference.advance_h(p, h[k], seg[k], seg[k + 1], DT)
-        with monkeypatch.context() as m:
-            m.setattr(reference, "TRIAL_ABOVE_SUBSTEPS", 10**9)
-            without_trial = reference.advance_h(p, h[k], seg[k], seg[k + 1], DT)
-        if new != without_trial:
-            kept.append((k, new))
-    assert len(kept) >= 100, len(kept)
-    worst = 0.0
-    for k, new in kept:
-        _, fine = reference.simulate_fine(STIFF, seg[k : k + 2], DT, h0=h[k], substeps=2000, sequential=True)
-        worst = max(worst, abs(new - fine))
-    assert worst <= reference.IMPLICIT_TOLERANCE_UM, worst
+    coarse = reference.advance_intervals(p, h[:-1], seg[:-1], seg[1:], DT, 500)
+    fine = reference.advance_intervals(p, h[:-1], seg[:-1], seg[1:], DT, 1000)
+    ref_error = float(np.max(np.abs(coarse - fine)))
+    error = np.abs(h[1:] - fine)
+    du = np.diff(seg)
+    after_turn = np.zeros(du.size, bool)
+    after_turn[1:] = np.sign(du[1:]) * np.sign(du[:-1]) < 0
+    print(f"after turns: {int(after_turn.sum())} intervals, worst {error[after_turn].max():.3g} um")
+    assert error[~after_turn].max() + ref_error <= IMPLICIT_TOLERANCE_UM, error[~after_turn].max()
 
 
 def test_runaway_parameters_stay_finite(paper_u):
     p = PAPER.replace(beta=-0.5, gamma=-0.5, n=3.0)
     x, h = boucwen.simulate(p, paper_u[:5000], DT)
-    assert np.all(np.isfinite(x)) and abs(h) <= reference.H_LIMIT_UM
+    assert np.all(np.isfinite(x)) and abs(h) <= H_LIMIT_UM
 
 
 # -- bad input ------------------------------------------------------------------

@@ -25,14 +25,14 @@ part is one new section (and one line in ``__all__``):
 - online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
   ``_RpemStatus``, ``_HorizonStatus`` (type-only names, absent at run time), ``Identifier``
 - effects: ``_CreepParams`` … ``_EffectParams`` (type-only: the dicts ``EffectSet``
-  takes and gives), ``EffectSet``, ``simulate_extended``,
+  takes and gives), ``EffectSet``, ``ExtendedState``, ``simulate_extended``,
   ``simulate_extended_with_jacobian``
 - channels: ``Bank``
 - compensation: ``_Clip``, ``_InverseStatus``, ``_CompensatorStatus``,
   ``_CompensatorGains`` (type-only), ``Inverse``, ``invert``, ``Compensator``
 """
 
-from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypedDict, final
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypedDict, final, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,6 +46,7 @@ __all__ = [
     "Compensator",
     "CorruptSnapshot",
     "EffectSet",
+    "ExtendedState",
     "Identifier",
     "InvalidConfig",
     "InvalidParams",
@@ -176,11 +177,16 @@ def simulate(
     ``ValueError`` before anything is computed. Releases the GIL.
     """
 
-def paper_input(dt: float, tail_s: float = 0.05) -> NDArray[np.float64]:
+def paper_input(
+    dt: float, tail_s: float = 0.05, *, segments: list[tuple[float, float]] | None = None
+) -> NDArray[np.float64]:
     """The paper's input u = 50 + 50·sin(2πft − π/2) [V] sampled every ``dt`` [s].
 
     f = 1 Hz for t < 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for
-    ``tail_s`` [s]; each switch falls on a minimum (u = 0).
+    ``tail_s`` [s]; each switch falls on a minimum (u = 0). ``segments``:
+    (frequency [Hz], duration [s]) pairs in place of the paper's four (``tail_s`` is
+    then not used), each a whole number of periods (``ValueError`` otherwise). The
+    record has round(T/dt) samples, T the total duration, at t = k·dt from 0.
     """
 
 @final
@@ -590,12 +596,97 @@ class EffectSet:
     def __len__(self) -> int: ...
     def __contains__(self, key: object, /) -> bool: ...
 
+@final
+class ExtendedState:
+    """The state of the extended chain between two samples: what
+    ``simulate_extended(..., state=s)`` continues from and returns.
+
+    ``ExtendedState(h0=0.0)`` is the state before any sample, h = ``h0`` [µm]; the state
+    after a piece of record comes from :func:`simulate_extended`. Immutable, comparable,
+    picklable. It holds one value per creep element and the delay line, so it fits the
+    effects that made it (others raise ``ValueError``).
+    """
+
+    def __new__(cls, h0: float = 0.0) -> ExtendedState: ...
+    @property
+    def samples(self) -> int:
+        """Samples taken so far; the next one is at t = samples·dt [s]."""
+    @property
+    def u_prev(self) -> float | None:
+        """Commanded voltage of the last sample [V] (None: no sample yet)."""
+    @property
+    def ua(self) -> float:
+        """Voltage on the stack after the last sample [V] (the input lag's output)."""
+    @property
+    def h(self) -> float:
+        """Hysteresis state h [µm]."""
+    @property
+    def creep(self) -> list[float]:
+        """The creep elements c_i [µm], in the order of the creep's time constants."""
+    @property
+    def y(self) -> float:
+        """The stack's displacement at the last sample [µm]."""
+    @property
+    def resonance(self) -> tuple[float, float]:
+        """The first mode's (z [µm], ż [µm/s])."""
+    @property
+    def resonance2(self) -> tuple[float, float]:
+        """The second mode's (z [µm], ż [µm/s])."""
+    @property
+    def delay(self) -> list[float]:
+        """The delay line's d + 1 values [µm], oldest first (empty before the first sample)."""
+    def __eq__(self, value: object, /) -> bool: ...
+    def __ne__(self, value: object, /) -> bool: ...
+    def __reduce__(
+        self,
+    ) -> tuple[
+        object,
+        tuple[
+            int,
+            float | None,
+            float,
+            float,
+            tuple[float, float] | None,
+            list[float],
+            float,
+            tuple[float, float],
+            tuple[float, float],
+            list[float],
+        ],
+    ]: ...
+    @classmethod
+    def _restore(
+        cls,
+        samples: int,
+        u_prev: float | None,
+        ua: float,
+        h: float,
+        h_pow_n: tuple[float, float] | None,
+        creep: list[float],
+        y: float,
+        resonance: tuple[float, float],
+        resonance2: tuple[float, float],
+        delay: list[float],
+    ) -> ExtendedState:
+        """Rebuilds a state from the values written by ``__reduce__`` (``ValueError`` if invalid)."""
+
+@overload
 def simulate_extended(
-    params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float = 0.0
-) -> NDArray[np.float64]:
+    params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float = 0.0, *, state: None = None
+) -> NDArray[np.float64]: ...
+@overload
+def simulate_extended(
+    params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float = 0.0, *, state: ExtendedState
+) -> tuple[NDArray[np.float64], ExtendedState]:
     """x [µm] of the base model with effects: u → input_lag → (Bouc–Wen with gain_drift
     and electrostriction, + creep) → resonance → resonance2 → + drift → delay → + pickup
-    → saturation. GIL released."""
+    → saturation; u [V] piecewise linear between samples ``dt`` [s] apart, h0 [µm].
+
+    With ``state`` (an :class:`ExtendedState`; ``ExtendedState(h0)`` starts a record)
+    the chain continues from it (``h0`` must then be left at 0: the state holds h) and
+    the call returns ``(x, final_state)``, as ``scipy.signal.lfilter`` does with
+    ``zi``: a record simulated in pieces, each from the state the previous one
+    returned, is the record simulated in one call, bit for bit. GIL released."""
 
 def simulate_extended_with_jacobian(
     params: Params, effects: EffectSet | None, u: ArrayLike, dt: float, h0: float

@@ -14,9 +14,11 @@ interval ``dt`` [s]::
     u ──► 16-bit A/D ──► measured u
 
 * **Amplifier**: first-order low-pass ``τ·du_a/dt = u − u_a`` with
-  ``τ = 1/(2π·fc)``. The command is a straight line between samples; the lag is
-  solved exactly for such an input on a grid ``oversample`` times finer than the
-  sampling, and the Bouc–Wen core and the creep are run on the same fine grid.
+  ``τ = 1/(2π·fc)``. The command is a straight line between samples; the stack's
+  physics (lag, Bouc–Wen core, creep, electrostriction) is the core's effect chain,
+  :func:`boucwen.simulate_extended` with :meth:`BenchSettings.effects`, run on a grid
+  ``oversample`` times finer than the sampling (the lag's output bends within a
+  sample, and the core follows the bend) and read at the sample instants.
 * **Creep**: ``τ_i·dc_i/dt = g_i·u_a − c_i``, ``c = Σ c_i``, with log-spaced time
   constants (10 ms … 10 s). A 100 V step makes the stack creep on by about
   ``Σ g_i·100 V`` over the following ~30 s, a few percent of the stroke, roughly
@@ -67,7 +69,8 @@ the loop almost exactly (a quadratic stroke term, a Prandtl–Ishlinskii play
 component, stronger creep or a steady drift, each of a physical size, leave
 0.05–0.3 µm), so no physically sized stack effect alone reaches 0.47 µm.
 
-The Bouc–Wen core is integrated by :func:`boucwen.simulate`. The bench is a data
+The stack is simulated by the core (:func:`boucwen.simulate_extended`); the bench
+adds only what is not the stack's: floor vibration, vibrometer and A/D. It is a data
 source: its settings are known here only, the identification code sees nothing
 but the measured record.
 
@@ -86,7 +89,8 @@ from typing import Any
 
 import numpy as np
 
-from ._core import Params, simulate
+from . import _core
+from ._core import EffectSet, ExtendedState, Params, simulate_extended
 from .checks import FloatArray, as_float_vector, check_dt
 from .record import Record
 
@@ -176,7 +180,7 @@ class BenchSettings:
     adc_max_v: float = 100.0
     """Highest voltage the A/D reads [V] (code 2**adc_bits − 1)."""
     oversample: int = 4
-    """Fine-grid points per sample interval for the lag, creep and Bouc–Wen core [-]."""
+    """Fine-grid points per sample interval the stack's chain is run on [-]."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -247,6 +251,22 @@ class BenchSettings:
         """The Bouc–Wen core as a :class:`boucwen.Params`."""
         return Params(self.kv, self.x0, self.A, self.beta, self.gamma, self.n, self.delta)
 
+    def effects(self) -> EffectSet:
+        """The stack's effects in the core's vocabulary: the amplifier's ``input_lag``
+        (none for ``math.inf``), the ``creep`` elements (none if every gain is zero) and
+        the ``electrostriction`` (none for ε = 0)."""
+        fc, tau, gain, quadratic = (
+            self.amplifier_fc_hz,
+            self.creep_tau_s,
+            self.creep_gain_um_per_v,
+            self.stroke_quadratic_per_um,
+        )
+        return EffectSet(
+            input_lag=None if math.isinf(fc) else {"fc_hz": fc},
+            creep={"tau_s": list(tau), "gain_um_per_v": list(gain)} if any(gain) else None,
+            electrostriction={"epsilon_per_um": quadratic} if quadratic != 0.0 else None,
+        )
+
     @property
     def adc_lsb_v(self) -> float:
         """Voltage step of one A/D code [V] (0 if the A/D does not quantise)."""
@@ -264,15 +284,10 @@ def paper_input(
 ) -> tuple[FloatArray, FloatArray, list[tuple[float, int, int]]]:
     """The paper's test voltage u = 50 + 50·sin(2πf·t' − π/2) [V], f switching at minima.
 
-    ``t'`` is the time since the start of the current segment, so every segment
-    starts at u = 0 V, and because each lasts a whole number of periods u stays
-    continuous across the switches.
-
-    :func:`boucwen.paper_input` (the core's) gives the same samples for the paper's
-    1/10/100 Hz durations followed by 200 Hz; this one also takes any list of
-    segments (the experiment's reduced input among them), returns the times and
-    segment bounds, and holds the final sample, so it is kept separate; a test
-    checks that the two agree.
+    The samples are the core's :func:`boucwen.paper_input` for these segments; this
+    adds the times and each segment's bounds. ``t'`` is the time since the start of the
+    current segment, so every segment starts at u = 0 V, and because each lasts a whole
+    number of periods u stays continuous across the switches.
 
     Args:
         dt: sampling interval [s].
@@ -281,89 +296,45 @@ def paper_input(
             (1 Hz 3 s, 10 Hz 0.3 s, 100 Hz 0.03 s, 200 Hz 0.05 s).
 
     Returns:
-        ``(t, u, segments)``: times [s] from 0 to the total duration inclusive,
-        voltage [V], and ``(f_hz, start_index, stop_index)`` per segment (stop
-        exclusive; the last segment also holds the final sample).
+        ``(t, u, segments)``: times [s] k·dt from 0 (round(T/dt) samples, T the total
+        duration), voltage [V], and ``(f_hz, start_index, stop_index)`` per segment
+        (stop exclusive).
 
     Raises:
         ValueError: dt not > 0, a frequency or duration not > 0, or a duration that
             is not a whole number of periods.
     """
     dt = check_dt(dt)
-    pairs = list(
-        durations.items() if isinstance(durations, Mapping) else (PAPER_SEGMENTS if durations is None else durations)
-    )
-    if not pairs:
-        raise ValueError("durations must hold at least one (frequency, duration) pair")
-    starts = [0.0]
-    for f, d in pairs:
-        f, d = float(f), float(d)
-        if not (math.isfinite(f) and f > 0 and math.isfinite(d) and d > 0):
-            raise ValueError(f"frequency and duration must be finite and > 0, got ({f}, {d})")
-        periods = f * d
-        if abs(periods - round(periods)) > 1e-6 * max(1.0, periods) or round(periods) < 1:
-            raise ValueError(
-                f"{f:g} Hz for {d:g} s is {periods:.6g} periods, not a whole "
-                "number; the switch would not fall on a minimum"
-            )
-        starts.append(starts[-1] + d)
-    total = starts[-1]
-    count = math.floor(total / dt + 1e-9) + 1
-    t = np.arange(count, dtype=np.float64) * dt
-    u = np.empty(count, dtype=np.float64)
-    segments: list[tuple[float, int, int]] = []
-    for i, (f, _) in enumerate(pairs):
-        lo = math.ceil(starts[i] / dt - 1e-9)
-        hi = count if i == len(pairs) - 1 else math.ceil(starts[i + 1] / dt - 1e-9)
-        local = t[lo:hi] - starts[i]
-        u[lo:hi] = 50.0 - 50.0 * np.cos(2.0 * math.pi * float(f) * local)
-        segments.append((float(f), lo, hi))
-    return t, u, segments
+    given = PAPER_SEGMENTS if durations is None else durations
+    pairs = [(float(f), float(d)) for f, d in (given.items() if isinstance(given, Mapping) else given)]
+    u = np.asarray(_core.paper_input(dt, segments=pairs), dtype=np.float64)
+    t = np.arange(u.size, dtype=np.float64) * dt
+    # A segment's first sample is the first at or after its start (to 1e-12 s), the start
+    # the sum of the durations before it rounded once, as the core takes them.
+    starts = np.array([math.fsum(d for _, d in pairs[:i]) for i in range(len(pairs) + 1)])
+    bounds = np.searchsorted(t, starts - 1e-12).tolist()
+    bounds[-1] = u.size
+    return t, u, [(f, int(bounds[i]), int(bounds[i + 1])) for i, (f, _) in enumerate(pairs)]
 
 
 # --------------------------------------------------------------------------- bench
 
 
-def _lowpass(v: FloatArray, tau: float, step: float, y0: float) -> FloatArray:
-    """Exact response of τ·dy/dt = v − y to v linear between grid points [same unit as v]."""
-    a = math.exp(-step / tau)
-    b = tau / step * -math.expm1(-step / tau)
-    c1, c0 = 1.0 - b, b - a
-    vs = v.tolist()
-    out = [0.0] * len(vs)
-    y = y0
-    out[0] = y
-    prev = vs[0]
-    for k in range(1, len(vs)):
-        cur = vs[k]
-        y = a * y + c1 * cur + c0 * prev
-        out[k] = y
-        prev = cur
-    return np.asarray(out, dtype=np.float64)
+def _fine_grid(u: FloatArray, m: int) -> FloatArray:
+    """The straight line between samples at m points per interval: u[0], then for each
+    interval the m − 1 points inside it and its end sample [V]."""
+    if m == 1:
+        return u
+    frac = np.arange(1, m, dtype=np.float64) / m
+    inside = u[:-1, None] + (u[1:] - u[:-1])[:, None] * frac
+    return np.concatenate([u[:1], np.column_stack([inside, u[1:]]).ravel()])
 
 
-def _respond(u: FloatArray, dt: float, s: BenchSettings) -> dict[str, FloatArray]:
-    """Noise-free signals at the sample instants: u_applied [V], creep [µm], x [µm]."""
+def _respond(u: FloatArray, dt: float, s: BenchSettings) -> FloatArray:
+    """Noise-free displacement of the stack x [µm] at the sample instants: the core's
+    chain run on the fine grid, read at every ``oversample``-th point."""
     m = s.oversample
-    fine_dt = dt / m
-    if m > 1:
-        k = np.arange((u.size - 1) * m + 1, dtype=np.float64) / m
-        u_fine = np.interp(k, np.arange(u.size, dtype=np.float64), u)
-    else:
-        u_fine = u
-    if math.isinf(s.amplifier_fc_hz):
-        ua_fine = u_fine.copy()
-    else:
-        ua_fine = _lowpass(u_fine, 1.0 / (2.0 * math.pi * s.amplifier_fc_hz), fine_dt, u_fine[0])
-    creep_fine = np.zeros_like(ua_fine)
-    for tau, gain in zip(s.creep_tau_s, s.creep_gain_um_per_v):
-        if gain != 0.0:
-            creep_fine += gain * _lowpass(ua_fine, tau, fine_dt, ua_fine[0])
-    # The core without its offset: y = kv·u_a + h [µm], then the stroke map y + ε·y².
-    bw_fine, _ = simulate(s.params().replace(x0=0.0), ua_fine, fine_dt, 0.0)
-    y_fine = np.asarray(bw_fine, dtype=np.float64)
-    x_fine = s.x0 + y_fine + s.stroke_quadratic_per_um * y_fine * y_fine + creep_fine
-    return {"u_applied": ua_fine[::m].copy(), "creep": creep_fine[::m].copy(), "x": x_fine[::m].copy()}
+    return np.asarray(simulate_extended(s.params(), s.effects(), _fine_grid(u, m), dt / m), dtype=np.float64)[::m]
 
 
 def floor_vibration(t: Any, settings: BenchSettings = BenchSettings()) -> FloatArray:
@@ -374,6 +345,22 @@ def floor_vibration(t: Any, settings: BenchSettings = BenchSettings()) -> FloatA
         if a != 0.0:
             out += a * np.sin(2.0 * math.pi * f * times + phase)
     return out
+
+
+def _read_displacement(x: FloatArray, s: BenchSettings) -> FloatArray:
+    """What the vibrometer shows for the displacement x [µm] (vibration and noise
+    included): rounded to its resolution and held within its range [µm]."""
+    if s.resolution_um > 0:
+        x = s.resolution_um * np.round(x / s.resolution_um)
+    return np.asarray(np.clip(x, -s.range_um, s.range_um), dtype=np.float64)
+
+
+def _read_voltage(u: FloatArray, s: BenchSettings) -> FloatArray:
+    """The command as the A/D reads it [V]: rounded to its codes and clipped to its span."""
+    if not s.adc_bits:
+        return np.array(u, dtype=np.float64)
+    code = np.clip(np.round((u - s.adc_min_v) / s.adc_lsb_v), 0, 2**s.adc_bits - 1)
+    return np.asarray(s.adc_min_v + code * s.adc_lsb_v, dtype=np.float64)
 
 
 def _as_input(u: Any, dt: Any) -> tuple[FloatArray, float]:
@@ -390,7 +377,7 @@ def true_displacement(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = 
     Deterministic: the same input always gives the same output.
     """
     u, dt = _as_input(u, dt)
-    return _respond(u, dt, settings)["x"]
+    return _respond(u, dt, settings)
 
 
 def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings(), seed: int | None = 0) -> Record:
@@ -406,28 +393,18 @@ def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSetti
         A :class:`~boucwen.record.Record` named ``"bench"``: ``t`` [s], ``u`` = the command
         as read by the A/D [V], ``x`` = the vibrometer reading [µm]. ``meta`` holds
         the settings (``settings``), ``seed``, ``units`` and, for checking only, the
-        noise-free signals ``u_command`` [V], ``u_applied`` [V], ``creep`` [µm],
-        ``x_true`` [µm] (the stack's displacement, :func:`true_displacement`) and
+        noise-free signals ``u_command`` [V], ``x_true`` [µm] (the stack's displacement, :func:`true_displacement`) and
         ``vibration`` [µm] (:func:`floor_vibration`); ``x`` is their sum ``x_true +
         vibration`` plus noise, rounded to the resolution.
     """
     u, dt = _as_input(u, dt)
     s = settings
-    truth = _respond(u, dt, s)
+    x_true = _respond(u, dt, s)
     t = np.arange(u.size, dtype=np.float64) * dt
     vibration = floor_vibration(t, s)
     rng = np.random.default_rng(seed)
-    x = truth["x"] + vibration + s.noise_um * rng.standard_normal(u.size)
-    if s.resolution_um > 0:
-        x = s.resolution_um * np.round(x / s.resolution_um)
-    x = np.clip(x, -s.range_um, s.range_um)
-    if s.adc_bits:
-        top = 2**s.adc_bits - 1
-        lsb = s.adc_lsb_v
-        code = np.clip(np.round((u - s.adc_min_v) / lsb), 0, top)
-        u_read = s.adc_min_v + code * lsb
-    else:
-        u_read = u.copy()
+    x = _read_displacement(x_true + vibration + s.noise_um * rng.standard_normal(u.size), s)
+    u_read = _read_voltage(u, s)
     meta = {
         "source": "boucwen.plant simulated bench",
         "settings": s.to_dict(),
@@ -437,15 +414,11 @@ def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSetti
             "u": "V (command read by the A/D)",
             "x": "µm (vibrometer)",
             "u_command": "V",
-            "u_applied": "V",
-            "creep": "µm",
             "x_true": "µm",
             "vibration": "µm",
         },
         "u_command": u.copy(),
-        "u_applied": truth["u_applied"],
-        "creep": truth["creep"],
-        "x_true": truth["x"],
+        "x_true": x_true,
         "vibration": vibration,
     }
     return Record(t=t, u=u_read, x=x, dt=dt, name="bench", meta=meta)
@@ -454,24 +427,17 @@ def measure(u: Any, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSetti
 # --------------------------------------------------------------------------- stepping
 
 
-def _lowpass_coefficients(tau: float, step: float) -> tuple[float, float, float]:
-    """(a, c1, c0) of :func:`_lowpass`'s step y ← a·y + c1·v_k + c0·v_k−1."""
-    a = math.exp(-step / tau)
-    b = tau / step * -math.expm1(-step / tau)
-    return a, 1.0 - b, b - a
-
-
 class Bench:
     """The simulated bench one sample at a time: ``x = bench.step(u)``.
 
     The same physics and the same numbers as :func:`measure`: the command u [V] of a
-    sample is taken as a straight line from the previous one, runs through the
-    amplifier lag, the creep, the Bouc–Wen core and the stroke map on the same fine
-    grid, and the vibrometer reads the displacement at the sample instant with the
-    floor vibration, the noise (drawn from ``numpy.random.default_rng(seed)`` in the
-    order :func:`measure` draws it), its resolution and range. Stepping a record
-    therefore returns what :func:`measure` returns for it with the same seed, to
-    rounding (a test checks 1e-12 µm).
+    sample is taken as a straight line from the previous one on the same fine grid,
+    the core's chain (:func:`boucwen.simulate_extended`) continues over it from the
+    state the previous sample left (:class:`boucwen.ExtendedState`), and the
+    vibrometer reads the displacement at the sample instant with the floor vibration,
+    the noise (drawn from ``numpy.random.default_rng(seed)`` in the order
+    :func:`measure` draws it), its resolution and range. Stepping a record therefore
+    returns what :func:`measure` returns for it with the same seed, bit for bit.
 
     For a control loop: the command is applied first and its output read after, so
     ``step(u_k)`` returns x_k, which a controller sees at its next sample.
@@ -491,36 +457,15 @@ class Bench:
     def __init__(self, dt: float = DEFAULT_DT, settings: BenchSettings = BenchSettings(), seed: int | None = 0):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be finite and > 0 s, got {dt!r}")
-        from . import _core
-
         self.dt = float(dt)
         self.settings = settings
         self.seed = seed
-        s = settings
-        self._m = s.oversample
-        fine_dt = self.dt / s.oversample
-        self._lag = (
-            None
-            if math.isinf(s.amplifier_fc_hz)
-            else _lowpass_coefficients(1.0 / (2.0 * math.pi * s.amplifier_fc_hz), fine_dt)
-        )
-        self._creep = [
-            (gain, *_lowpass_coefficients(tau, fine_dt))
-            for tau, gain in zip(s.creep_tau_s, s.creep_gain_um_per_v)
-            if gain != 0.0
-        ]
-        self._vibration = [
-            (2.0 * math.pi * f, a, phase)
-            for f, a, phase in zip(s.vibration_hz, s.vibration_um, s.vibration_phase_rad)
-            if a != 0.0
-        ]
-        self._core = _core.Model(_core.Params(s.kv, 0.0, s.A, s.beta, s.gamma, s.n, s.delta), fine_dt, 0.0)
+        self._params = settings.params()
+        self._effects = settings.effects()
+        self._state = ExtendedState()
         self._rng = np.random.default_rng(seed)
         self._noise: list[float] = []
         self._noise_pos = 0
-        self._u_prev = 0.0
-        self._ua = 0.0
-        self._creep_states = [0.0] * len(self._creep)
         self.samples = 0
         self.t = 0.0
         self.u_read = math.nan
@@ -546,55 +491,17 @@ class Bench:
         if not math.isfinite(u):
             raise ValueError(f"u = {u} is not finite; the sample was rejected and the bench kept")
         s = self.settings
-        core = self._core.step
-        creep = self._creep
-        states = self._creep_states
-        if self.samples == 0:
-            ua = u
-            for i in range(len(creep)):
-                states[i] = ua
-            y = core(ua)
-            c = 0.0
-            for i, (gain, _, _, _) in enumerate(creep):
-                c += gain * states[i]
-        else:
-            u0, m = self._u_prev, self._m
-            slope = u - u0
-            ua = self._ua
-            u_fine_prev = u0
-            for j in range(1, m + 1):
-                u_fine = u if j == m else slope * (j / m) + u0
-                ua_prev = ua
-                if self._lag is not None:
-                    a, c1, c0 = self._lag
-                    ua = a * ua + c1 * u_fine + c0 * u_fine_prev
-                else:
-                    ua = u_fine
-                for i, (_, a, c1, c0) in enumerate(creep):
-                    states[i] = a * states[i] + c1 * ua + c0 * ua_prev
-                y = core(ua)
-                u_fine_prev = u_fine
-            c = 0.0
-            for i, (gain, _, _, _) in enumerate(creep):
-                c += gain * states[i]
-        self._u_prev = u
-        self._ua = ua
-        x_true = s.x0 + y + s.stroke_quadratic_per_um * y * y + c
+        m = s.oversample
+        previous = self._state.u_prev
+        fine = np.array([u]) if previous is None else _fine_grid(np.array([previous, u]), m)[1:]
+        x_fine, self._state = simulate_extended(self._params, self._effects, fine, self.dt / m, state=self._state)
+        x_true = float(x_fine[-1])
         t = self.samples * self.dt
-        vibration = 0.0
-        for w, a, phase in self._vibration:
-            vibration += a * math.sin(w * t + phase)
-        x = x_true + vibration + s.noise_um * self._next_noise()
-        if s.resolution_um > 0:
-            x = s.resolution_um * round(x / s.resolution_um)
-        x = min(max(x, -s.range_um), s.range_um)
-        if s.adc_bits:
-            code = min(max(round((u - s.adc_min_v) / s.adc_lsb_v), 0), 2**s.adc_bits - 1)
-            self.u_read = s.adc_min_v + code * s.adc_lsb_v
-        else:
-            self.u_read = u
+        vibration = float(floor_vibration(np.array([t]), s)[0])
+        x = float(_read_displacement(np.array([x_true + vibration + s.noise_um * self._next_noise()]), s)[0])
+        self.u_read = float(_read_voltage(np.array([u]), s)[0])
         self.t = t
-        self.u_applied = ua
+        self.u_applied = self._state.ua
         self.x_true = x_true
         self.vibration = vibration
         self.samples += 1

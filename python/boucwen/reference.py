@@ -9,18 +9,19 @@ follow the paper (Zhu, Bian & Rui, Precision Engineering 38 (2014) 921–927)::
 u: voltage [V]; x, h: displacement [µm]; t: time [s]; kv [µm/V], x0 [µm],
 A [µm/V], β and γ [µm^(1−n)/V], n [-], δ [µm/(V·s)].
 
-- :func:`simulate` uses the same integrator rule as the Rust core (RK4 on a
-  stiffness-chosen number of sub-steps, backward Euler beyond that, |h| held
-  within :data:`H_LIMIT_UM`), in the same order of operations, so the two agree
-  to rounding (about 1e-12 µm).
-- :func:`simulate_fine` is an independent accuracy reference: plain RK4 with a
-  fixed number of sub-steps per sample interval and no other rule.
+- :func:`simulate` integrates eq. (5) by classic RK4 with a fixed number of equal
+  steps per sample interval (u a straight line between samples), written from the
+  equation and nothing else: no step control, no implicit steps, no quantity carried
+  from one step to the next but h. Its error is RK4's at its step, so a test that
+  compares the Rust core with it takes its tolerance from that step (halving the step
+  bounds the reference's own error), not from the core's sub-step rules.
 - :class:`PaperIdentifier` is the paper's online method with the same guards
   and the same decisions as the Rust ``PaperIdentifier``, but every window
   statistic is recomputed from the stored window points at each sample (O(N)
   per sample) instead of being kept as running sums, and step 1 is an exact
-  least-squares fit of the window instead of a recursive one. The results
-  therefore differ from the Rust core by rounding only.
+  least-squares fit of the window instead of a recursive one. Its model's h comes
+  from the core's integrator (:func:`boucwen.simulate`): the identification method is
+  what it restates. The results therefore differ from the Rust core by rounding only.
 
 Parameters may be given as a :class:`boucwen.Params`, a mapping with the keys
 ``kv, x0, A, beta, gamma, n, delta`` or a sequence of the seven values in that
@@ -38,40 +39,21 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._core import Params
+from ._core import simulate as core_simulate
+
 __all__ = [
-    "H_LIMIT_UM",
-    "IMPLICIT_SUBSTEPS",
-    "IMPLICIT_TOLERANCE_UM",
-    "MAX_SUBSTEPS",
-    "MIN_SUBSTEPS",
-    "STIFFNESS_STEP",
-    "TRIAL_ABOVE_SUBSTEPS",
+    "DEFAULT_SUBSTEPS",
     "PaperIdentifier",
     "RefParams",
     "advance_h",
-    "advance_h_carried",
+    "advance_intervals",
     "hysteresis_rate",
     "simulate",
-    "simulate_fine",
 ]
 
-#: RK4 sub-steps for an interval in which h may cross zero (as in the Rust core).
-MIN_SUBSTEPS = 2
-#: Most RK4 sub-steps per sample interval; stiffer intervals take
-#: :data:`IMPLICIT_SUBSTEPS` backward-Euler steps instead.
-MAX_SUBSTEPS = 32
-#: RK4 sub-steps beyond which an interval first tries two backward-Euler half steps.
-TRIAL_ABOVE_SUBSTEPS = 16
-#: Largest difference [µm] between one backward-Euler step over the interval and two
-#: half steps at which the two half steps are kept.
-IMPLICIT_TOLERANCE_UM = 1e-4
-#: Backward-Euler sub-steps per interval when RK4 would need more than MAX_SUBSTEPS
-#: and the two half steps do not meet IMPLICIT_TOLERANCE_UM.
-IMPLICIT_SUBSTEPS = 32
-#: Largest |∂ḣ/∂h|·Δt allowed in one RK4 sub-step.
-STIFFNESS_STEP = 0.25
-#: |h| is held within this bound [µm].
-H_LIMIT_UM = 1.0e4
+#: RK4 steps per sample interval of :func:`simulate` by default.
+DEFAULT_SUBSTEPS = 64
 
 NAMES = ("kv", "x0", "A", "beta", "gamma", "n", "delta")
 
@@ -123,12 +105,11 @@ class RefParams(NamedTuple):
 
 
 # ---------------------------------------------------------------------------
-# Small helpers with the IEEE behaviour of the Rust core (Python's own float
-# operations raise on overflow, division by zero and log(0) instead).
+# Small helpers.
 
 
 def _pow(base: float, exponent: float) -> float:
-    """base**exponent for base ≥ 0, +inf on overflow."""
+    """base**exponent for base ≥ 0, +inf on overflow (Python raises instead)."""
     try:
         return float(base**exponent)
     except OverflowError:
@@ -142,12 +123,6 @@ def _sgn(v: float) -> float:
     if v < 0.0:
         return -1.0
     return 0.0
-
-
-def _abs_pow(h: float, n: float) -> float:
-    """|h|^n, exactly 0 at h = 0 (so |h|^(n−1)·h = sgn(h)·|h|^n is 0 there for every n > 0)."""
-    a = abs(h)
-    return 0.0 if a == 0.0 else _pow(a, n)
 
 
 def _finite(name: str, value: float) -> float:
@@ -174,228 +149,111 @@ def _samples(values: ArrayLike, name: str) -> NDArray[np.float64]:
     return arr
 
 
+def _substeps(substeps: int) -> int:
+    m = int(substeps)
+    if m < 1:
+        raise ValueError(f"invalid substeps = {substeps}: must be >= 1")
+    return m
+
+
 # ---------------------------------------------------------------------------
-# The model.
+# The model, from its equations.
 
 
-def hysteresis_rate(p: RefParams, h: float, u: float, udot: float, hn: float | None = None) -> float:
-    """dh/dt of eq. (5) [µm/s] at state h [µm], voltage u [V] and rate u̇ [V/s]; ``hn`` = |h|^n
-    where it is known (carried), else computed."""
-    if hn is None:
-        hn = _abs_pow(h, p.n)
-    return p.A * udot - (p.beta * abs(udot) * _sgn(h) + p.gamma * udot) * hn + p.delta * u * _sgn(udot)
+def hysteresis_rate(p: RefParams, h: float, u: float, udot: float) -> float:
+    """dh/dt of eq. (5) [µm/s] at state h [µm], voltage u [V] and rate u̇ [V/s].
+
+    |h|^(n−1)·h is written sgn(h)·|h|^n, its value for every h ≠ 0 and 0 at h = 0
+    (where |h|^(n−1) alone is infinite for n < 1).
+    """
+    hn = _pow(abs(h), p.n)
+    return p.A * udot - p.beta * abs(udot) * _sgn(h) * hn - p.gamma * udot * hn + p.delta * u * _sgn(udot)
 
 
-def _rate_slope(p: RefParams, h: float, udot: float) -> float:
-    """∂(dh/dt)/∂h [1/s]."""
-    a = abs(h)
-    if a == 0.0:
-        return 0.0
-    return -(p.beta * abs(udot) + p.gamma * udot * _sgn(h)) * p.n * _pow(a, p.n - 1.0)
+def _rates(p: RefParams, h: NDArray[np.float64], u: NDArray[np.float64], udot: NDArray[np.float64]) -> NDArray[Any]:
+    """:func:`hysteresis_rate` over arrays (each interval its own h, u, u̇)."""
+    hn = np.abs(h) ** p.n
+    return p.A * udot - p.beta * np.abs(udot) * np.sign(h) * hn - p.gamma * udot * hn + p.delta * u * np.sign(udot)
 
 
-def _implicit_step(p: RefParams, h0: float, u_end: float, udot: float, step: float) -> float:
-    """One backward-Euler step solved by (damped-slope) Newton iterations."""
-    h = h0
-    for _ in range(4):  # at most 4 Newton iterations
-        g = h - h0 - step * hysteresis_rate(p, h, u_end, udot)
-        dg = max(1.0 - step * _rate_slope(p, h, udot), 1.0)
-        nxt = h - g / dg
-        if not math.isfinite(nxt):
-            break
-        done = abs(nxt - h) <= 1e-12 * (1.0 + abs(h))
-        h = nxt
-        if done:
-            break
+def _rk4(rate: Callable[[Any, Any], Any], h: Any, u0: Any, udot: Any, dt: float, m: int) -> Any:
+    """``m`` classic RK4 steps of dh/dt = rate(h, u) over dt [s] while u = u0 + u̇·t, on
+    floats or on arrays (one interval per element)."""
+    step = dt / m
+    for i in range(m):
+        t0 = step * i
+        k1 = rate(h, u0 + udot * t0)
+        k2 = rate(h + 0.5 * step * k1, u0 + udot * (t0 + 0.5 * step))
+        k3 = rate(h + 0.5 * step * k2, u0 + udot * (t0 + 0.5 * step))
+        k4 = rate(h + step * k3, u0 + udot * (t0 + step))
+        h = h + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     return h
 
 
-def _substeps(p: RefParams, h: float, hn: float, k1: float, dt: float, udot: float) -> int | None:
-    """RK4 sub-steps for one interval (None: more than MAX_SUBSTEPS).
-
-    Enough that |∂ḣ/∂h|·Δt ≤ STIFFNESS_STEP, with |∂ḣ/∂h| ≤ n·(|β|+|γ|)·|u̇|·|h|^(n−1)
-    taken at the start of the interval (and at the Euler end point when h moves by
-    more than a tenth of itself); at least MIN_SUBSTEPS where h may cross
-    zero within the interval (an Euler predictor h + dt·k1 of the other sign, k1
-    being ḣ at the start), since |h|^n is not smooth there; otherwise at least one.
-    """
-    a = abs(h)
-    slope_weight = p.n * (abs(p.beta) + abs(p.gamma)) * abs(udot) * dt
-    if a > 0.0:
-        stiffness_dt = slope_weight * (hn / a)
-    elif p.n < 1.0:
-        stiffness_dt = math.inf
-    elif p.n == 1.0:
-        stiffness_dt = slope_weight
-    else:
-        stiffness_dt = 0.0
-    # Where h may move by more than a tenth of itself, also take the stiffness at
-    # the explicit-Euler end point (the start alone can badly underestimate it).
-    h_end = h + dt * k1
-    if abs(h_end - h) > 0.1 * a and abs(h_end) > 0.0:
-        stiffness_dt = max(stiffness_dt, slope_weight * _pow(abs(h_end), p.n - 1.0))
-    may_cross = h == 0.0 or h_end * h <= 0.0
-    floor = MIN_SUBSTEPS if may_cross else 1
-    wanted = stiffness_dt / STIFFNESS_STEP
-    if math.isnan(wanted) or wanted > MAX_SUBSTEPS:
-        return None
-    return max(math.ceil(wanted), floor)
+def advance_h(p: RefParams, h: float, u0: float, u1: float, dt: float, substeps: int = DEFAULT_SUBSTEPS) -> float:
+    """h [µm] after one sample interval dt [s] in which u goes linearly from u0 to u1 [V]:
+    classic RK4 with ``substeps`` equal steps."""
+    udot = (u1 - u0) / dt
+    return float(_rk4(lambda hh, uu: hysteresis_rate(p, hh, uu, udot), h, u0, udot, dt, _substeps(substeps)))
 
 
-#: Largest relative distance |ε| = |(h − h_ref)/h_ref| at which |h|^n is taken from its series.
-NEAR_POWER_MAX_EPS = 0.02
-#: Largest |ε| of an interval's end at which its |h|^n is taken from the series and carried
-#: to the next interval (the dropped ε⁵ term is then at the level of rounding).
-NEAR_POWER_CARRY_EPS = 1e-3
-
-
-class _NearPower:
-    """|h|^n = |h_ref|^n·(1 + ε)^n to ε⁴ with ε = (h − h_ref)/h_ref, as the Rust core
-    evaluates it: a stage's ε from its rate k as ε_start + k·(c/h_ref), the polynomial in
-    two halves |h_ref|^n + (ε·(a₁ + a₂ε) + ε³·(a₃ + a₄ε)), aₖ = |h_ref|^n·cₖ."""
-
-    def __init__(self, n: float, h_ref: float, hn_ref: float) -> None:
-        c1 = n
-        c2 = c1 * (n - 1.0) * 0.5  # cₖ = cₖ₋₁·(n − k + 1)·(1/k), as the core computes it
-        c3 = c2 * (n - 2.0) * (1.0 / 3.0)
-        c4 = c3 * (n - 3.0) * 0.25
-        self.inv_ref = 1.0 / h_ref if h_ref != 0.0 else 0.0
-        self.hn_ref = hn_ref
-        self.a = (hn_ref * c1, hn_ref * c2, hn_ref * c3, hn_ref * c4)
-
-    def power(self, e: float) -> float | None:
-        """|h|^n for the ε `e` of h, or None where the series does not apply (|ε| > 0.02)."""
-        if self.inv_ref == 0.0 or abs(e) > NEAR_POWER_MAX_EPS:
-            return None
-        a1, a2, a3, a4 = self.a
-        e3 = (e * e) * e
-        return self.hn_ref + (e * (a1 + a2 * e) + e3 * (a3 + a4 * e))
-
-
-def _clamp_h(h: float) -> float:
-    return min(max(h, -H_LIMIT_UM), H_LIMIT_UM)
-
-
-def advance_h(p: RefParams, h: float, u0: float, u1: float, dt: float) -> float:
-    """h [µm] after one sample interval dt [s] in which u goes linearly from u0 to u1 [V]."""
-    return advance_h_carried(p, h, _abs_pow(h, p.n), u0, u1, dt)[0]
-
-
-def advance_h_carried(p: RefParams, h: float, hn: float, u0: float, u1: float, dt: float) -> tuple[float, float]:
-    """:func:`advance_h` given hn = |h|^n at the start; returns h and |h|^n at the end, the
-    latter from the interval's series where h moved by at most 0.1 % of itself (carried
-    from sample to sample, as the Rust core does), else computed."""
-    du = u1 - u0
-    if du == 0.0:
-        return h, hn  # sgn(u̇) = 0 and u̇ = 0: h stands still
-    udot = du / dt
-    k1_first = hysteresis_rate(p, h, u0, udot, hn)
-    m = _substeps(p, h, hn, k1_first, dt, udot)
-    if m is None or m > TRIAL_ABOVE_SUBSTEPS:
-        # Stiff: two backward-Euler half steps where they agree with one whole step.
-        half = dt / 2.0
-        whole = _clamp_h(_implicit_step(p, h, u0 + udot * dt, udot, dt))
-        mid = _clamp_h(_implicit_step(p, h, u0 + udot * half, udot, half))
-        end = _clamp_h(_implicit_step(p, mid, u0 + udot * half * 2.0, udot, half))
-        if abs(whole - end) <= IMPLICIT_TOLERANCE_UM:
-            return end, _abs_pow(end, p.n)
-    if m is None:
-        step = dt / IMPLICIT_SUBSTEPS
-        for i in range(1, IMPLICIT_SUBSTEPS + 1):
-            h = _clamp_h(_implicit_step(p, h, u0 + udot * step * i, udot, step))
-        return h, _abs_pow(h, p.n)
-    step = dt / m
-    half = 0.5 * step
-    h_ref = h
-    near = _NearPower(p.n, h_ref, hn)
-    e_half, e_step = near.inv_ref * half, near.inv_ref * step
-
-    def rate(hh: float, e: float, uu: float) -> float:
-        # |h|^n by its binomial series around the interval's start where that is
-        # close (as the Rust core does, to save pow calls), else directly.
-        return hysteresis_rate(p, hh, uu, udot, near.power(e))
-
-    e = 0.0  # ε of the sub-step's start
-    for i in range(m):
-        ua = u0 + udot * (step * i)
-        um = ua + udot * half
-        ub = ua + udot * step
-        k1 = k1_first if i == 0 else rate(h, e, ua)
-        k2 = rate(h + half * k1, e + k1 * e_half, um)
-        k3 = rate(h + half * k2, e + k2 * e_half, um)
-        k4 = rate(h + step * k3, e + k3 * e_step, ub)
-        nxt = h + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        h = _clamp_h(nxt) if math.isfinite(nxt) else h
-        e = (h - h_ref) * near.inv_ref
-    carried = near.power(e) if abs(e) <= NEAR_POWER_CARRY_EPS else None
-    return h, _abs_pow(h, p.n) if carried is None else carried
+def advance_intervals(
+    p: RefParams, h: NDArray[np.float64], u0: NDArray[np.float64], u1: NDArray[np.float64], dt: float, m: int
+) -> NDArray[np.float64]:
+    """:func:`advance_h` over every interval at once (interval j from u0[j] to u1[j] [V],
+    starting at h[j] [µm]), ``m`` RK4 steps each: the same steps, on arrays; returns h
+    at the intervals' ends [µm]."""
+    udot = (u1 - u0) / dt
+    with np.errstate(over="ignore", invalid="ignore"):
+        end: NDArray[np.float64] = _rk4(lambda hh, uu: _rates(p, hh, uu, udot), h, u0, udot, dt, m)
+    return end
 
 
 def simulate(
-    params: Any, u: ArrayLike, dt: float, h0: float = 0.0, u_prev: float | None = None
-) -> tuple[NDArray[np.float64], float]:
-    """Simulates a record: returns ``(x, h_final)``, x [µm], h_final [µm].
-
-    Same contract as :func:`boucwen.simulate`: u [V] piecewise linear between
-    samples dt [s] apart; with ``u_prev=None`` h[0] = h0, otherwise the first
-    interval runs from u_prev to u[0].
-    """
-    p = RefParams.from_any(params)
-    dt = _positive_dt(dt)
-    h = _finite("h0", h0)
-    if u_prev is not None:
-        u_prev = _finite("u_prev", u_prev)
-    u_arr = _samples(u, "u")
-    x = np.empty_like(u_arr)
-    hn = _abs_pow(h, p.n)
-    for k, uk in enumerate(u_arr.tolist()):
-        if u_prev is not None:
-            h, hn = advance_h_carried(p, h, hn, u_prev, uk, dt)
-        x[k] = p.kv * uk + p.x0 + h
-        u_prev = uk
-    return x, h
-
-
-def simulate_fine(
     params: Any,
     u: ArrayLike,
     dt: float,
     h0: float = 0.0,
     u_prev: float | None = None,
-    substeps: int = 1000,
+    substeps: int = DEFAULT_SUBSTEPS,
     *,
     sequential: bool = False,
 ) -> tuple[NDArray[np.float64], float]:
-    """Independent accuracy reference: classic RK4 with ``substeps`` fixed steps per sample.
+    """Simulates a record by classic RK4 with ``substeps`` fixed steps per sample interval;
+    returns ``(x, h_final)``, x [µm], h_final [µm].
 
-    No stiffness rule, no implicit fallback, no bound on h: meant for parameters
-    whose solution is smooth and bounded (e.g. the paper's). Same contract as
-    :func:`simulate`.
+    Same contract as :func:`boucwen.simulate`: u [V] piecewise linear between samples
+    dt [s] apart; with ``u_prev=None`` h[0] = h0 [µm], otherwise the first interval
+    runs from u_prev to u[0]. No other rule: no step control, no implicit steps, no
+    bound on h, so it is meant for parameters whose solution is smooth and bounded
+    (e.g. the paper's), and its error is that of RK4 at step dt/substeps.
 
-    With ``sequential=True`` the steps are taken one after the other in pure
-    Python (about 1 µs per step). By default the same solution is computed by
-    parareal iteration: the fine steps of *all* sample intervals run at once as
-    NumPy arrays, started from the current guess of h at each sample, and a
-    sequential sweep of the coarse rule (:func:`advance_h`) carries the
-    corrections forward. Its fixed point is exactly the sequential solution
-    (h[k+1] = F(h[k]), F being ``substeps`` RK4 steps); the iteration stops when
-    max |h[k+1] − F(h[k])| ≤ 1e-13 µm, and falls back to the sequential loop if
-    that is not reached in 12 iterations.
+    With ``sequential=True`` the intervals are stepped one after the other in pure
+    Python (about 4 µs per RK4 step). By default the same numbers come from parareal
+    iteration: the steps of *all* intervals run at once on NumPy arrays from the
+    current guess of h at each sample, and a sequential sweep of one RK4 step per
+    interval carries the corrections forward. Its fixed point is exactly the
+    sequential solution (h[k+1] = F(h[k]), F being ``substeps`` RK4 steps); the
+    iteration stops when max |h[k+1] − F(h[k])| ≤ 1e-13 µm and falls back to the
+    sequential loop if that is not reached in 12 iterations.
     """
     p = RefParams.from_any(params)
     dt = _positive_dt(dt)
-    if int(substeps) < 1:
-        raise ValueError(f"invalid substeps = {substeps}: must be >= 1")
-    m = int(substeps)
+    m = _substeps(substeps)
     h0 = _finite("h0", h0)
     if u_prev is not None:
         u_prev = _finite("u_prev", u_prev)
     u_arr = _samples(u, "u")
     # The voltage at every sample point; h_at[k] belongs to points[k].
     points = u_arr if u_prev is None else np.concatenate(([u_prev], u_arr))
-    h_at = None if sequential else _fine_parareal(p, points, dt, h0, m)
+    h_at = None if sequential else _parareal(p, points, dt, h0, m)
     if h_at is None:
-        h_at = _fine_sequential(p, points, dt, h0, m)
+        h_at = np.empty_like(points)
+        h = h0
+        for k in range(points.size):
+            if k:
+                h = advance_h(p, h, float(points[k - 1]), float(points[k]), dt, m)
+            h_at[k] = h
     if u_prev is not None:
         h_at = h_at[1:]
     if h_at.size == 0:
@@ -403,113 +261,41 @@ def simulate_fine(
     return p.kv * u_arr + p.x0 + h_at, float(h_at[-1])
 
 
-def _interval_rate(lin: float, w_pos: float, w_neg: float, drift: float, n: float) -> Callable[[float, float], float]:
-    """dh/dt (h, u) of eq. (5) within one interval, where u̇ is constant:
-    A·u̇ − (β·|u̇|·sgn(h) + γ·u̇)·|h|^n + δ·sgn(u̇)·u, with ``lin`` = A·u̇, ``w_pos`` =
-    β·|u̇| + γ·u̇ (weight of |h|^n for h > 0), ``w_neg`` = −β·|u̇| + γ·u̇ (h < 0),
-    ``drift`` = δ·sgn(u̇)."""
-
-    def rate(hh: float, uu: float) -> float:
-        if hh > 0.0:
-            return lin - w_pos * _pow(hh, n) + drift * uu
-        if hh < 0.0:
-            return lin - w_neg * _pow(-hh, n) + drift * uu
-        return lin + drift * uu
-
-    return rate
-
-
-def _fine_sequential(p: RefParams, points: NDArray[np.float64], dt: float, h: float, m: int) -> NDArray[np.float64]:
-    """h at every sample point, RK4 with m fixed steps per interval, one step after the other."""
-    out = np.empty_like(points)
-    step = dt / m
-    half = 0.5 * step
-    big_a, beta, gamma, n, delta = p.A, p.beta, p.gamma, p.n, p.delta
-    values: list[float] = points.tolist()
-    if values:
-        out[0] = h
-    for k in range(1, len(values)):
-        u0, u1 = values[k - 1], values[k]
-        if u1 != u0:
-            udot = (u1 - u0) / dt
-            # Within the interval u̇ is constant, so eq. (5) reads
-            # dh/dt = A·u̇ − (β·|u̇|·sgn(h) + γ·u̇)·|h|^n + δ·sgn(u̇)·u(t).
-            rate = _interval_rate(
-                lin=big_a * udot,
-                w_pos=beta * abs(udot) + gamma * udot,
-                w_neg=-beta * abs(udot) + gamma * udot,
-                drift=delta * _sgn(udot),
-                n=n,
-            )
-            for i in range(m):
-                ua = u0 + udot * (step * i)
-                k1 = rate(h, ua)
-                k2 = rate(h + half * k1, ua + udot * half)
-                k3 = rate(h + half * k2, ua + udot * half)
-                k4 = rate(h + step * k3, ua + udot * step)
-                h += step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        out[k] = h
-    return out
-
-
-def _fine_all_intervals(
-    p: RefParams, h_start: NDArray[np.float64], u0: NDArray[np.float64], u1: NDArray[np.float64], dt: float, m: int
-) -> NDArray[np.float64]:
-    """F: m RK4 steps over every interval at once (interval j from u0[j] to u1[j], starting at h_start[j])."""
-    udot = (u1 - u0) / dt
-    lin = p.A * udot
-    drift = p.delta * np.sign(udot)
-    w_abs = p.beta * np.abs(udot)
-    w_lin = p.gamma * udot
-
-    def rate(hh: NDArray[np.float64], uu: NDArray[np.float64]) -> NDArray[np.float64]:
-        hn = np.abs(hh) ** p.n  # 0 at h = 0 for n > 0
-        return lin - (w_abs * np.sign(hh) + w_lin) * hn + drift * uu
-
-    step = dt / m
-    half = 0.5 * step
-    h: NDArray[np.float64] = h_start.copy()
-    with np.errstate(over="ignore", invalid="ignore"):
-        for i in range(m):
-            ua = u0 + udot * (step * i)
-            k1 = rate(h, ua)
-            k2 = rate(h + half * k1, ua + udot * half)
-            k3 = rate(h + half * k2, ua + udot * half)
-            k4 = rate(h + step * k3, ua + udot * step)
-            h = h + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    return h
-
-
-def _fine_parareal(
+def _parareal(
     p: RefParams, points: NDArray[np.float64], dt: float, h0: float, m: int, tol: float = 1e-13, max_iter: int = 12
 ) -> NDArray[np.float64] | None:
-    """The sequential fine solution by parareal iteration; None if it does not converge."""
+    """The sequential solution of :func:`simulate` by parareal iteration; None if it does
+    not converge."""
     count = points.size
     if count < 2:
         return np.full(count, h0)
     u_from, u_to = points[:-1].tolist(), points[1:].tolist()
 
     def coarse(h_start: float, j: int) -> float:
-        return advance_h(p, h_start, u_from[j], u_to[j], dt)
+        return advance_h(p, h_start, u_from[j], u_to[j], dt, 1)
 
     h_at = np.empty(count)
     h_at[0] = h0
     coarse_old = np.empty(count - 1)
-    for j in range(count - 1):  # first guess: the coarse rule alone
-        coarse_old[j] = coarse(float(h_at[j]), j)
-        h_at[j + 1] = coarse_old[j]
-    for _ in range(max_iter):
-        fine = _fine_all_intervals(p, h_at[:-1], points[:-1], points[1:], dt, m)
-        if not np.all(np.isfinite(fine)):
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            for j in range(count - 1):  # first guess: the coarse rule alone
+                coarse_old[j] = coarse(float(h_at[j]), j)
+                h_at[j + 1] = coarse_old[j]
+            for _ in range(max_iter):
+                fine = advance_intervals(p, h_at[:-1], points[:-1], points[1:], dt, m)
+                if not np.all(np.isfinite(fine)):
+                    return None
+                if np.max(np.abs(h_at[1:] - fine)) <= tol:
+                    h_at[1:] = fine
+                    return h_at
+                # h[j+1] = G(h_new[j]) + F(h_old[j]) − G(h_old[j])
+                for j in range(count - 1):
+                    g_new = coarse(float(h_at[j]), j)
+                    h_at[j + 1] = g_new + fine[j] - coarse_old[j]
+                    coarse_old[j] = g_new
+        except (OverflowError, ValueError):
             return None
-        if np.max(np.abs(h_at[1:] - fine)) <= tol:
-            h_at[1:] = fine
-            return h_at
-        # h[j+1] = G(h_new[j]) + F(h_old[j]) − G(h_old[j])
-        for j in range(count - 1):
-            g_new = coarse(float(h_at[j]), j)
-            h_at[j + 1] = g_new + fine[j] - coarse_old[j]
-            coarse_old[j] = g_new
     return None
 
 
@@ -661,7 +447,10 @@ class PaperIdentifier:
         x = _finite("x", x)
         p = self._params
         if self._raw:
-            self._h = advance_h(p, self._h, self._raw[-1].u, u, self.dt)
+            # The model's own h from the core's integrator: the identification method
+            # is what this class restates, not the integrator (checked on its own
+            # against :func:`simulate`).
+            _, self._h = core_simulate(Params(*p), [u], self.dt, self._h, self._raw[-1].u)
         prediction = p.kv * u + p.x0 + self._h
         newest = _Raw(u, x, self._h)
 

@@ -19,6 +19,7 @@ use super::input_lag::LagStage;
 use super::pickup::line_pickup;
 use super::resonance::{mode_stage_seeded, ModeNames, ResonanceStage};
 use super::saturation::clip;
+use super::state::ExtendedState;
 use super::{EffectSet, RESONANCE_SUBSTEPS};
 use crate::error::Result;
 use crate::model::integrator::{abs_pow, advance_h_carrying, advance_seeded_carrying, Drive, Power};
@@ -371,6 +372,57 @@ impl<S: ChainScalar> Chain<S> {
         self.power = None;
         self.creep_states.iter_mut().for_each(|c| *c = S::cst(0.0));
         self.delay.reset();
+    }
+}
+
+impl Chain<f64> {
+    /// What the chain carries to the next sample.
+    pub(crate) fn state(&self) -> ExtendedState {
+        if !self.started {
+            return ExtendedState { samples: self.samples, ..ExtendedState::initial(self.h) };
+        }
+        ExtendedState {
+            samples: self.samples,
+            u_prev: Some(self.u_prev),
+            ua: self.ua_prev,
+            h: self.h,
+            h_pow_n: self.power.map(|(hn, _)| (self.params.n, hn)),
+            creep: self.creep_states.clone(),
+            y: self.y_prev,
+            resonance: self.z,
+            resonance2: self.z2,
+            delay: self.delay.values(),
+        }
+    }
+
+    /// Takes `state` (made by [`Chain::state`] for the same effects, or
+    /// [`ExtendedState::initial`]); the next [`Chain::step`] continues from it.
+    pub(crate) fn set_state(&mut self, state: &ExtendedState) -> Result<()> {
+        state.check(self.creep_states.len(), self.delay.samples())?;
+        self.samples = state.samples;
+        self.h = state.h;
+        self.power = match state.h_pow_n {
+            Some((n, hn)) if n == self.params.n => Some((hn, 0.0)),
+            _ => None,
+        };
+        match state.u_prev {
+            None => {
+                self.started = false;
+                self.creep_states.iter_mut().for_each(|c| *c = 0.0);
+                self.delay.reset();
+            }
+            Some(u_prev) => {
+                self.started = true;
+                self.u_prev = u_prev;
+                self.ua_prev = state.ua;
+                self.creep_states.copy_from_slice(&state.creep);
+                self.y_prev = state.y;
+                self.z = state.resonance;
+                self.z2 = state.resonance2;
+                self.delay.set_values(&state.delay);
+            }
+        }
+        Ok(())
     }
 }
 

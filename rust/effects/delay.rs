@@ -65,6 +65,27 @@ impl<S: Scalar> DelayLine<S> {
         self.filled = false;
         self.next = 0;
     }
+
+    /// The delay in samples d.
+    pub(crate) fn samples(&self) -> usize {
+        self.ring.len() - 1
+    }
+
+    /// The d + 1 values held, oldest first (the next push returns the second); empty
+    /// before the first push.
+    pub(crate) fn values(&self) -> Vec<S> {
+        if !self.filled {
+            return Vec::new();
+        }
+        self.ring[self.next..].iter().chain(&self.ring[..self.next]).copied().collect()
+    }
+
+    /// Holds `values` (d + 1 of them, oldest first), as [`DelayLine::values`] gave them.
+    pub(crate) fn set_values(&mut self, values: &[S]) {
+        self.ring.copy_from_slice(values);
+        self.next = 0;
+        self.filled = true;
+    }
 }
 
 #[cfg(test)]

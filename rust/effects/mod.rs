@@ -40,6 +40,7 @@ pub mod pickup;
 pub mod resonance;
 pub mod resonance2;
 pub mod saturation;
+pub mod state;
 
 use alloc::vec;
 use alloc::vec::Vec;
@@ -54,6 +55,7 @@ pub use pickup::Pickup;
 pub use resonance::Resonance;
 pub use resonance2::Resonance2;
 pub use saturation::Saturation;
+pub use state::ExtendedState;
 
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use core::ops::Mul;
@@ -236,6 +238,19 @@ impl ExtendedModel {
     pub fn reset(&mut self) {
         self.chain.reset();
     }
+
+    /// What the model carries to its next sample: a copy to continue from.
+    pub fn state(&self) -> ExtendedState {
+        self.chain.state()
+    }
+
+    /// Continues from `state` ([`ExtendedModel::state`] of a model with the same
+    /// effects, or [`ExtendedState::initial`]); a state of other effects (another
+    /// number of creep elements or delay) or with a non-finite value is rejected and
+    /// the model kept.
+    pub fn set_state(&mut self, state: &ExtendedState) -> Result<()> {
+        self.chain.set_state(state)
+    }
 }
 
 /// Simulates the base model with `effects` over a record of commanded voltages `u`
@@ -260,6 +275,27 @@ pub fn simulate_extended_into(
         *x = model.step(v)?;
     }
     Ok(())
+}
+
+/// [`simulate_extended`] continuing from `state` ([`ExtendedState::initial`] for a
+/// record's start); also returns the state after the last sample, so that
+/// simulating a record in pieces, each from the state the previous piece returned,
+/// gives the same numbers as one call, bit for bit.
+pub fn simulate_extended_from(
+    params: &Params,
+    effects: &EffectSet,
+    u: &[f64],
+    dt: f64,
+    state: &ExtendedState,
+) -> Result<(Vec<f64>, ExtendedState)> {
+    // The state brings its own h (checked by set_state).
+    let mut model = ExtendedModel::new(*params, effects.clone(), dt, 0.0)?;
+    model.set_state(state)?;
+    for &v in u {
+        finite_sample("u", v)?;
+    }
+    let x = u.iter().map(|&v| model.chain.step(v)).collect();
+    Ok((x, model.state()))
 }
 
 /// Allocating form of [`simulate_extended_into`].
@@ -428,5 +464,92 @@ mod tests {
         let b = simulate_extended(&p, &both, u, dt, 0.0).unwrap();
         let worst = a.iter().zip(&b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(worst > 0.0 && worst < 0.05, "{worst}");
+    }
+
+    /// Every effect with a state: the lag, four creep elements, two modes, a delay,
+    /// and the time-dependent ones (t must continue across the cut too).
+    fn every_stateful_effect() -> EffectSet {
+        EffectSet {
+            creep: Some(Creep { tau_s: vec![0.01, 0.1, 1.0, 10.0], gain_um_per_v: vec![0.002; 4] }),
+            input_lag: Some(InputLag { fc_hz: 650.0 }),
+            gain_drift: Some(GainDrift { rate_per_s: 0.01 }),
+            electrostriction: Some(Electrostriction { epsilon_per_um: 0.004 }),
+            resonance: Some(Resonance { fn_hz: 900.0, zeta: 0.05 }),
+            resonance2: Some(Resonance2 { fn_hz: 1700.0, zeta: 0.1 }),
+            drift: Some(Drift { rate_um_per_s: 0.2 }),
+            delay: Some(Delay { samples: 3 }),
+            pickup: Some(Pickup { line_hz: 50.0, sin_um: vec![0.01], cos_um: vec![0.02] }),
+            saturation: None,
+        }
+    }
+
+    #[test]
+    fn a_record_in_pieces_is_the_record_in_one_call_bit_for_bit() {
+        let dt = 1e-4;
+        let u = paper_input(dt, 0.01);
+        let p = Params::paper_1hz();
+        for effects in [EffectSet::none(), every_stateful_effect()] {
+            let whole = simulate_extended(&p, &effects, &u, dt, 0.3).unwrap();
+            let (same, _) = simulate_extended_from(&p, &effects, &u, dt, &ExtendedState::initial(0.3)).unwrap();
+            assert_eq!(same, whole);
+            // Cuts at the start, in the 1 Hz part, in the 100 Hz part, one sample apart.
+            let cuts = [0, 1, 12_345, 33_100, 33_101, u.len()];
+            let mut state = ExtendedState::initial(0.3);
+            let mut pieces = Vec::new();
+            for w in cuts.windows(2) {
+                let (x, next) = simulate_extended_from(&p, &effects, &u[w[0]..w[1]], dt, &state).unwrap();
+                pieces.extend(x);
+                state = next;
+            }
+            assert_eq!(pieces, whole, "{:?}", effects.names());
+            assert_eq!(state.samples, u.len() as u64);
+            assert_eq!(state.u_prev, u.last().copied());
+        }
+    }
+
+    #[test]
+    fn a_state_of_other_effects_or_with_a_non_finite_value_is_rejected() {
+        let (p, dt) = (Params::paper_1hz(), 1e-4);
+        let effects = every_stateful_effect();
+        let (_, state) =
+            simulate_extended_from(&p, &effects, &[0.0, 1.0, 2.0], dt, &ExtendedState::initial(0.0)).unwrap();
+        assert_eq!(state.creep.len(), 4);
+        assert_eq!(state.delay.len(), 4);
+        let err = simulate_extended_from(&p, &EffectSet::none(), &[3.0], dt, &state).unwrap_err().to_string();
+        assert!(err.contains("state.creep"), "{err}");
+        let no_creep = EffectSet { creep: None, delay: Some(Delay { samples: 1 }), ..effects.clone() };
+        let mut cut = state.clone();
+        cut.creep.clear();
+        let err = simulate_extended_from(&p, &no_creep, &[3.0], dt, &cut).unwrap_err().to_string();
+        assert!(err.contains("state.delay"), "{err}");
+        let bad = ExtendedState { h: f64::NAN, ..state.clone() };
+        assert!(simulate_extended_from(&p, &effects, &[3.0], dt, &bad).is_err());
+        let bad = ExtendedState { samples: 5, ..ExtendedState::initial(0.0) };
+        assert!(simulate_extended_from(&p, &effects, &[3.0], dt, &bad)
+            .unwrap_err()
+            .to_string()
+            .contains("state.samples"));
+        // Other parameters: |h|^n is recomputed, not taken for another n.
+        let q = Params { n: 1.3, ..p };
+        let (x, _) = simulate_extended_from(&q, &effects, &[3.0, 4.0], dt, &state).unwrap();
+        let mut fresh = state.clone();
+        fresh.h_pow_n = None;
+        assert_eq!(x, simulate_extended_from(&q, &effects, &[3.0, 4.0], dt, &fresh).unwrap().0);
+    }
+
+    #[test]
+    fn the_model_gives_its_state_and_takes_one() {
+        let (p, dt) = (Params::paper_1hz(), 1e-4);
+        let u = sine_record(400);
+        let mut a = ExtendedModel::new(p, every_stateful_effect(), dt, 0.0).unwrap();
+        for &v in &u[..150] {
+            a.step(v).unwrap();
+        }
+        let mut b = ExtendedModel::new(p, every_stateful_effect(), dt, 0.0).unwrap();
+        b.set_state(&a.state()).unwrap();
+        assert_eq!(b.state(), a.state());
+        for &v in &u[150..] {
+            assert_eq!(a.step(v).unwrap(), b.step(v).unwrap());
+        }
     }
 }

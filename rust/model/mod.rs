@@ -187,20 +187,45 @@ pub fn simulate(params: &Params, u: &[f64], dt: f64, h0: f64, u_prev: Option<f64
 
 /// The paper's input, u = 50 + 50·sin(2πft − π/2), sampled every `dt` \[s\], with
 /// f = 1 Hz for t < 3 s, 10 Hz up to 3.3 s, 100 Hz up to 3.33 s and 200 Hz for
-/// `tail_s` seconds after that. Each switch falls on a minimum (u = 0), so the
-/// phase restarts there and u is continuous.
+/// `tail_s` seconds after that: [`sine_segments`] of [`paper_segments`].
 pub fn paper_input(dt: f64, tail_s: f64) -> Vec<f64> {
-    let segments = [(1.0, 0.0, 3.0), (10.0, 3.0, 3.3), (100.0, 3.3, 3.33), (200.0, 3.33, 3.33 + tail_s)];
-    let total = math::round((3.33 + tail_s) / dt) as usize;
-    (0..total)
+    sine_segments(dt, &paper_segments(tail_s))
+}
+
+/// The paper's segments as (frequency \[Hz\], duration \[s\]) pairs: 1 Hz for 3 s,
+/// 10 Hz for 0.3 s, 100 Hz for 0.03 s, 200 Hz for `tail_s`.
+pub fn paper_segments(tail_s: f64) -> [(f64, f64); 4] {
+    [(1.0, 3.0), (10.0, 0.3), (100.0, 0.03), (200.0, tail_s)]
+}
+
+/// u = 50 + 50·sin(2πf·(t − t_i) − π/2) \[V\] at t = k·dt \[s\], k = 0 … round(T/dt) − 1
+/// (T the total duration), where segment i of `segments` ((f \[Hz\], duration \[s\])
+/// pairs, in order) starts at t_i, the sum of the durations before it (rounded once). A
+/// segment of a whole number of periods ends on a minimum (u = 0), where the next one
+/// starts, so u is continuous; the caller checks that (the sample of a segment's start
+/// is taken within 1e-12 s).
+pub fn sine_segments(dt: f64, segments: &[(f64, f64)]) -> Vec<f64> {
+    // The starts and the total as compensated (Neumaier) sums: the double nearest the
+    // exact sum of the durations, so that 3 + 0.3 + 0.03 s is the double of 3.33 s.
+    let mut starts = Vec::with_capacity(segments.len());
+    let (mut sum, mut carry) = (0.0_f64, 0.0_f64);
+    for &(_, d) in segments {
+        starts.push(sum + carry);
+        let next = sum + d;
+        carry += if sum.abs() >= d.abs() { (sum - next) + d } else { (d - next) + sum };
+        sum = next;
+    }
+    let total = sum + carry;
+    let count = math::round(total / dt) as usize;
+    (0..count)
         .map(|k| {
             let t = k as f64 * dt;
             let (f, start) = segments
                 .iter()
+                .zip(&starts)
                 .rev()
-                .find(|(_, start, _)| t >= start - 1e-12)
-                .map(|&(f, start, _)| (f, start))
-                .unwrap_or((1.0, 0.0));
+                .find(|&(_, &start)| t >= start - 1e-12)
+                .map_or((segments[0].0, 0.0), |(&(f, _), &start)| (f, start));
             50.0 + 50.0 * math::sin(2.0 * core::f64::consts::PI * f * (t - start) - core::f64::consts::FRAC_PI_2)
         })
         .collect()

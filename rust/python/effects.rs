@@ -5,6 +5,7 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
+use super::extended_state::PyExtendedState;
 use super::params::PyParams;
 use super::{samples, value_error, InvalidParams};
 use crate::effects::jacobian::Jacobian;
@@ -302,10 +303,15 @@ impl PyEffectSet {
 /// \[s\] apart; ``h0``: initial hysteresis state \[µm\]. Returns x \[µm\] as the sensor
 /// reads it. The chain is u → input_lag → (Bouc–Wen with gain_drift, electrostriction,
 /// + creep) → resonance → resonance2 → + drift → delay → + pickup → saturation;
-/// everything starts at rest with the first sample. The GIL is released while
-/// it runs.
+/// everything starts at rest with the first sample.
+///
+/// With ``state`` (an :class:`ExtendedState`), the chain continues from it instead
+/// (``h0`` is then the state's) and the call returns ``(x, final_state)``, as
+/// ``scipy.signal.lfilter`` does with ``zi``: a record simulated in pieces, each from
+/// the state the previous one returned, is the record simulated in one call, bit for
+/// bit. ``ExtendedState(h0)`` starts a record. The GIL is released while it runs.
 #[pyfunction]
-#[pyo3(signature = (params, effects, u, dt, h0 = 0.0))]
+#[pyo3(signature = (params, effects, u, dt, h0 = 0.0, *, state = None))]
 pub fn simulate_extended<'py>(
     py: Python<'py>,
     params: &PyParams,
@@ -313,10 +319,23 @@ pub fn simulate_extended<'py>(
     u: &Bound<'py, PyAny>,
     dt: f64,
     h0: f64,
-) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    state: Option<&PyExtendedState>,
+) -> PyResult<Bound<'py, PyAny>> {
     let (p, e, u) = chain_inputs(params, effects, u)?;
-    let x = py.detach(move || crate::effects::simulate_extended(&p, &e, &u, dt, h0)).map_err(value_error)?;
-    Ok(PyArray1::from_vec(py, x))
+    let Some(state) = state else {
+        let x = py.detach(move || crate::effects::simulate_extended(&p, &e, &u, dt, h0)).map_err(value_error)?;
+        return Ok(PyArray1::from_vec(py, x).into_any());
+    };
+    if h0 != 0.0 {
+        return Err(PyValueError::new_err(format!(
+            "h0 = {h0} and state are exclusive: the state holds h (ExtendedState(h0) starts a record)"
+        )));
+    }
+    let start = state.inner.clone();
+    let (x, end) =
+        py.detach(move || crate::effects::simulate_extended_from(&p, &e, &u, dt, &start)).map_err(value_error)?;
+    let end = Bound::new(py, PyExtendedState { inner: end })?;
+    Ok((PyArray1::from_vec(py, x), end).into_pyobject(py)?.into_any())
 }
 
 /// :func:`simulate_extended` with the Jacobian of x with respect to the unknowns of a

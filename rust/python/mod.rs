@@ -6,6 +6,7 @@ mod compensate;
 mod config;
 mod effects;
 mod errors;
+mod extended_state;
 mod identifier;
 mod model;
 mod params;
@@ -66,6 +67,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(config::_validate_config, m)?)?;
     m.add_function(wrap_pyfunction!(model::simulate, m)?)?;
     m.add_class::<effects::PyEffectSet>()?;
+    m.add_class::<extended_state::PyExtendedState>()?;
     m.add_function(wrap_pyfunction!(effects::simulate_extended, m)?)?;
     m.add_function(wrap_pyfunction!(effects::simulate_extended_with_jacobian, m)?)?;
     m.add_function(wrap_pyfunction!(model::paper_input, m)?)?;

@@ -1,6 +1,7 @@
 //! `boucwen.Model` (per-sample) and `boucwen.simulate` (batch, chunkable).
 
 use numpy::PyArray1;
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
@@ -37,15 +38,57 @@ pub fn simulate<'py>(
 
 /// The paper's input u = 50 + 50·sin(2πft − π/2) \[V\], sampled every `dt` \[s\]:
 /// 1 Hz for 3 s, 10 Hz to 3.3 s, 100 Hz to 3.33 s, then 200 Hz for `tail_s` \[s\].
+///
+/// ``segments``: (frequency \[Hz\], duration \[s\]) pairs in place of the paper's
+/// four (``tail_s`` is then not used), each a whole number of periods so that every
+/// switch falls on a minimum (u = 0). The record has round(T/dt) samples, T the total
+/// duration, t = k·dt from 0.
 #[pyfunction]
-#[pyo3(signature = (dt, tail_s = 0.05))]
-pub fn paper_input<'py>(py: Python<'py>, dt: f64, tail_s: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
+#[pyo3(signature = (dt, tail_s = 0.05, *, segments = None))]
+pub fn paper_input<'py>(
+    py: Python<'py>,
+    dt: f64,
+    tail_s: f64,
+    segments: Option<Vec<(f64, f64)>>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
     positive_dt(dt).map_err(value_error)?;
-    let tail_s = finite(tail_s, "tail_s")?;
-    if tail_s < 0.0 || (3.33 + tail_s) / dt > 1e9 {
-        return Err(pyo3::exceptions::PyValueError::new_err("tail_s must be >= 0 and the record at most 1e9 samples"));
+    let segments = match segments {
+        None => {
+            let tail_s = finite(tail_s, "tail_s")?;
+            if tail_s < 0.0 {
+                return Err(PyValueError::new_err(format!("tail_s = {tail_s} must be >= 0 s")));
+            }
+            crate::model::paper_segments(tail_s).to_vec()
+        }
+        Some(segments) => whole_periods(segments)?,
+    };
+    let total: f64 = segments.iter().map(|&(_, d)| d).sum();
+    if total / dt > 1e9 {
+        return Err(PyValueError::new_err(format!("{total} s at dt = {dt} s is more than 1e9 samples")));
     }
-    Ok(PyArray1::from_vec(py, crate::model::paper_input(dt, tail_s)))
+    Ok(PyArray1::from_vec(py, crate::model::sine_segments(dt, &segments)))
+}
+
+/// Checks that there is at least one segment and that each lasts a whole number (≥ 1)
+/// of periods of its finite, positive frequency.
+fn whole_periods(segments: Vec<(f64, f64)>) -> PyResult<Vec<(f64, f64)>> {
+    if segments.is_empty() {
+        return Err(PyValueError::new_err("segments must hold at least one (frequency, duration) pair"));
+    }
+    for &(f, d) in &segments {
+        if !(f.is_finite() && f > 0.0 && d.is_finite() && d > 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "segment ({f}, {d}): frequency [Hz] and duration [s] must be finite and > 0"
+            )));
+        }
+        let periods = f * d;
+        if (periods - periods.round()).abs() > 1e-6 * periods.max(1.0) || periods.round() < 1.0 {
+            return Err(PyValueError::new_err(format!(
+                "segment ({f}, {d}): {periods} periods, not a whole number; the switch would not fall on a minimum"
+            )));
+        }
+    }
+    Ok(segments)
 }
 
 /// A per-sample asymmetric Bouc–Wen model for control loops: `step(u) -> x`.
