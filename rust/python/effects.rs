@@ -7,7 +7,7 @@ use pyo3::types::{PyDict, PyTuple};
 
 use super::extended_state::PyExtendedState;
 use super::params::PyParams;
-use super::{samples, value_error, InvalidParams};
+use super::{samples, value_error, InvalidConfig, InvalidParams};
 use crate::effects::jacobian::Jacobian;
 use crate::effects::{
     Creep, Delay, Drift, EffectSet, Electrostriction, GainDrift, InputLag, Pickup, Resonance, Resonance2, Saturation,
@@ -327,7 +327,7 @@ pub fn simulate_extended<'py>(
         return Ok(PyArray1::from_vec(py, x).into_any());
     };
     if h0 != 0.0 {
-        return Err(PyValueError::new_err(format!(
+        return Err(InvalidConfig::new_err(format!(
             "h0 = {h0} and state are exclusive: the state holds h (ExtendedState(h0) starts a record)"
         )));
     }
