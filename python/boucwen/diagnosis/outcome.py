@@ -23,7 +23,13 @@ from .starts import null_effort
 from .unexplained import unexplained
 from .unseen import judged_on, prediction_error
 
-__all__ = ["outcome"]
+__all__ = ["final_refit", "outcome"]
+
+
+def final_refit(record: Record, current: ExtendedFit, policy: DiagnosisPolicy) -> ExtendedFit:
+    """The kept effects refitted on the whole record from the search's fit, at most
+    ``final_nfev`` evaluations (a polish: the trials converged, or nearly)."""
+    return fit_extended_record(record, current.params, current.effects, current.h0, max_nfev=policy.final_nfev)
 
 
 def outcome(
@@ -59,7 +65,7 @@ def outcome(
         current, added, evidence["validation"] = judged_on(validate, current, added, refit, say)
     if added:
         say("refitting on the whole record")
-        ext = fit_extended_record(record, current.params, current.effects, current.h0, max_nfev=policy.final_nfev)
+        ext = final_refit(record, current, policy)
         x_ext = ext.simulate(u, dt)
         params = ext.to_dict()
         effect_set = ext.effects

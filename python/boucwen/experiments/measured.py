@@ -30,8 +30,9 @@ Targets (the tracker's issue), checked on the RMS errors:
    than :data:`WORSE_TOLERANCE` (2 %).
 
 ``python -m boucwen.experiments.measured [--out DIR] [--progress]`` prints one table per
-case and whether the targets hold, and writes ``DIR/results.json``; without measured
-data it says what it skipped and exits 0.
+case and whether the targets hold, and writes ``DIR/results.json``; it exits with status
+1 when a target fails (one line on stderr naming it and the cases that break it), 0
+otherwise; without measured data it says what it skipped and exits 0.
 """
 
 from __future__ import annotations
@@ -67,6 +68,7 @@ __all__ = [
     "Case",
     "cases",
     "check_targets",
+    "failed_targets",
     "main",
     "predictions",
     "run",
@@ -328,8 +330,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the base fits' starts (default 0)")
     ap.add_argument("--progress", action="store_true", help="the diagnoses' progress on stderr")
     args = ap.parse_args(argv)
-    run(args.out, seed=args.seed, progress=args.progress)
+    doc = run(args.out, seed=args.seed, progress=args.progress)
+    failed = failed_targets(doc["targets"])
+    if failed:
+        print(f"{ap.prog}: target failed: {'; '.join(failed)}", file=sys.stderr)
+        return 1
     return 0
+
+
+def failed_targets(targets: dict[str, Any]) -> list[str]:
+    """Each target of :func:`check_targets` that does not hold, as ``rule (cases)``."""
+    return [f"{t['rule']} ({', '.join(t['broken_by'])})" for t in targets.values() if not t["holds"]]
 
 
 if __name__ == "__main__":  # pragma: no cover
