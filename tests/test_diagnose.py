@@ -15,13 +15,13 @@ import json
 import numpy as np
 import pytest
 
-from boucwen import diagnose
+from boucwen import Drift, Params, diagnose, simulate, simulate_extended
 from boucwen.cli import main
 from boucwen.diagnosis import residual_evidence
 from boucwen.experiments.suite_records import make_suite_record
 from boucwen.experiments.undeclared_records import make_record
 from boucwen.experiments.undeclared_records import test_input as make_input  # not a test
-from boucwen.io import read_csv, write_csv
+from boucwen.io import jsonable, read_csv, write_csv
 
 # (effect, seed, base parameter set, noise [µm]): one record per effect, two clean ones.
 CASES = [
@@ -48,11 +48,11 @@ def test_names_the_undeclared_effect_and_cuts_the_error(effect, seed, pset, nois
     if effect == "none":
         assert d.effects == []
         assert after == before
-        assert d.rms_after == d.rms_before
+        assert d.rms_after_um == d.rms_before_um
     else:
         assert d.effects == [effect], d.evidence["rounds"]
         assert after < 0.5 * before, (before, after)
-        assert d.rms_after < d.rms_before
+        assert d.rms_after_um < d.rms_before_um
 
 
 def test_a_drift_the_base_model_bends_to_follow_starts_its_trial_at_the_trend():
@@ -134,7 +134,7 @@ def test_a_strong_electrostriction_the_base_model_imitates_is_found_from_a_bent_
         (("electrostriction", 0.3),), "triangle", 115, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02
     )
     assert d.effects == ["electrostriction"]
-    assert d.rms_after < 0.3 * d.rms_before
+    assert d.rms_after_um < 0.3 * d.rms_before_um
     assert _rms(d.x_extended - rec.x_true) < 0.2 * _rms(d.x_base - rec.x_true)
 
 
@@ -155,7 +155,7 @@ def test_every_whole_sample_delay_is_refitted_on_a_record_not_screened():
     # two resonance modes were named instead. Refitted at every shift, the delay is found.
     _, d = _diagnosed((("delay", 0.3),), "triangle", 211, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.005)
     assert d.effects == ["delay"]
-    assert d.params["delay"]["samples"] == 8
+    assert d.effect_set.to_dict()["delay"]["samples"] == 8
 
 
 def test_a_lag_the_base_model_bent_to_follow_starts_its_trial_from_a_refit_to_lagged_u():
@@ -165,7 +165,7 @@ def test_a_lag_the_base_model_bent_to_follow_starts_its_trial_from_a_refit_to_la
     # and the trial was hopeless. Refitted to u lagged at each corner, it starts right.
     _, d = _diagnosed((("input_lag", 0.3),), "triangle", 70, fs_hz=10_000.0, param_set="paper_100hz", noise_um=0.02)
     assert d.effects == ["input_lag"]
-    assert 50.0 < d.params["input_lag"]["fc_hz"] < 200.0
+    assert 50.0 < d.effect_set.to_dict()["input_lag"]["fc_hz"] < 200.0
 
 
 def test_trials_side_by_side_give_the_result_of_trials_in_turn():
@@ -191,10 +191,10 @@ def test_result_fields_and_json():
     doc = json.loads(json.dumps(d.to_dict()))
     assert set(doc) == {
         "effects",
-        "rms_before",
-        "max_before",
-        "rms_after",
-        "max_after",
+        "rms_before_um",
+        "max_before_um",
+        "rms_after_um",
+        "max_after_um",
         "params",
         "evidence",
         "unexplained",
@@ -211,7 +211,7 @@ def test_result_fields_and_json():
     left = doc["unexplained"]
     assert left["noise_um"] == pytest.approx(rec.noise_um, rel=0.15)
     assert isinstance(left["consistent_with_noise"], bool) and 0.0 <= left["p_value"] <= 1.0
-    assert left["rms_um"] == pytest.approx(d.rms_after)
+    assert left["rms_um"] == pytest.approx(d.rms_after_um)
     assert left["summary"] == d.unexplained.summary()
     first = doc["evidence"]["rounds"][0]
     assert first["null"]["rms_um"] > 0 and len(first["null"]["fold_rms_um"]) == doc["evidence"]["folds"]
@@ -227,6 +227,19 @@ def test_result_fields_and_json():
         rec.effects.to_dict()["drift"]["rate_um_per_s"], rel=0.05
     )
     assert "base" in doc["params"] and "base_only" in doc["params"]
+    # Typed: the returned model (base parameters, h0, effects) and the base model alone
+    # replay the two predictions; each effect named, typed, with its confidence.
+    assert isinstance(d.params, Params) and doc["params"]["base"] == d.params.to_dict()
+    assert doc["params"]["h0_um"] == d.h0_um and doc["params"]["base_only"] == d.base_only.to_dict()
+    np.testing.assert_allclose(simulate_extended(d.params, d.effect_set, rec.u, rec.dt, d.h0_um), d.x_extended)
+    np.testing.assert_allclose(simulate(d.base_only.params, rec.u, rec.dt, d.base_only.h0_um)[0], d.x_base)
+    [named] = d.named_effects
+    assert jsonable(named) == {"effect": "drift", "params": doc["params"]["drift"], **doc["confidence"]["drift"]}
+    assert isinstance(named.effect, Drift) and named.name == "drift"
+    assert named.effect.rate_um_per_s == doc["params"]["drift"]["rate_um_per_s"]
+    assert (named.level, named.why, named.competing) == tuple(
+        doc["confidence"]["drift"][k] for k in ("level", "why", "competing")
+    )
     assert doc["evidence"]["rounds"][0]["most_likely"] == "drift"
     assert d.x_base.shape == d.x_extended.shape == rec.u.shape
 
@@ -284,7 +297,7 @@ def test_cli_writes_report_predictions_and_plot(tmp_path, capsys):
     assert "residual:" in out and "consistent with noise" in out
     doc = json.loads(report.read_text())
     assert doc["effects"] == ["delay"]
-    assert doc["rms_after"] < doc["rms_before"]
+    assert doc["rms_after_um"] < doc["rms_before_um"]
     header = pred.read_text().splitlines()[0]
     assert header == "t,x,x_base,x_extended"
     table = np.loadtxt(pred, delimiter=",", skiprows=1)

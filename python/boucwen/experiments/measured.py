@@ -49,7 +49,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from .. import datasets
-from .._core import EffectSet, Params, simulate, simulate_extended
+from .._core import EffectSet, simulate, simulate_extended
 from ..checks import FloatArray
 from ..diagnosis import Diagnosis, diagnose
 from ..diagnosis.unseen import carried
@@ -129,20 +129,12 @@ def cases() -> tuple[list[Case], list[str]]:
     return found, skipped
 
 
-def _models(result: Diagnosis) -> tuple[tuple[Params, float], tuple[Params, float]]:
-    """(base params, h0) and (returned params, h0) of a diagnosis."""
-    base = result.params["base_only"]
-    return (
-        (Params.from_dict(base["base"]), float(base["h0_um"])),
-        (Params.from_dict(result.params["base"]), float(result.params["h0_um"])),
-    )
-
-
 def predictions(result: Diagnosis, case: Case) -> dict[str, Any]:
     """The base and returned models' displacement [µm] on ``case.unseen`` (see the module
     docs), and how far their simulation over the fitted samples is from the diagnosis's
     own (``replay_um``: 0 up to rounding when the models are read back right)."""
-    (base_p, base_h0), (ret_p, ret_h0) = _models(result)
+    base_p, base_h0 = result.base_only.params, result.base_only.h0_um
+    ret_p, ret_h0 = result.params, result.h0_um
     effects = result.effect_set
     k = len(case.fitted)
     u = np.concatenate([case.fitted.u, case.unseen.u]) if case.continued else case.unseen.u
@@ -195,14 +187,14 @@ def run_case(case: Case, *, seed: int = 0, progress: bool = False, workers: int 
         "explained_share": result.evidence.get("explained_share"),
         "time_s": elapsed,
         "in_record": {
-            "base": {"rms_um": result.rms_before, "max_um": result.max_before},
-            "returned": {"rms_um": result.rms_after, "max_um": result.max_after},
-            "rms_change": _change(result.rms_before, result.rms_after),
+            "base": {"rms_um": result.rms_before_um, "max_um": result.max_before_um},
+            "returned": {"rms_um": result.rms_after_um, "max_um": result.max_after_um},
+            "rms_change": _change(result.rms_before_um, result.rms_after_um),
         },
         "unseen": {"base": base, "returned": returned, "rms_change": _change(base["rms_um"], returned["rms_um"])},
         "replay_um": pred["replay_um"],
         "offset_reestimated": not case.continued,
-        "params": result.params,
+        "params": result.to_dict()["params"],
     }
 
 
