@@ -21,6 +21,9 @@ else
     "set BOUCWEN_DATA to a folder holding yan9a-piezo-micromanipulator/)"
 fi
 echo "== python -m boucwen.experiments.measured --out out/measured"
-python -m boucwen.experiments.measured --out out/measured
+# Status 1 when a target of the benchmark fails: the tracking still runs, the job fails after it.
+measured=0
+python -m boucwen.experiments.measured --out out/measured || measured=$?
 echo "== boucwen track --out out/track"
 boucwen track --out out/track
+exit "$measured"

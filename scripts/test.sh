@@ -27,7 +27,7 @@ echo "== pytest"
 python -m pytest -q -p no:cacheprovider tests
 echo "== python -m boucwen.experiments.diagnosis_suite --quick (both halves; fails when a check of the suite fails)"
 python -m boucwen.experiments.diagnosis_suite --quick --out out/diagnosis_suite_quick
-echo "== python -m boucwen.experiments.measured --out out/measured (the measured-data benchmark)"
+echo "== python -m boucwen.experiments.measured --out out/measured (the measured-data benchmark; fails when a target fails)"
 python -m boucwen.experiments.measured --out out/measured
 echo "== no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
 rustup target add thumbv7em-none-eabihf

@@ -18,9 +18,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from hypothesis import settings
 
 import boucwen
+from boucwen.record import Record, validate_record
 
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
 settings.register_profile("explore", derandomize=False, print_blob=True)
@@ -107,3 +109,16 @@ def reference_pair(params: Any, u: Any, dt: float, substeps: int, **options: Any
     x_2m, h_2m = reference.simulate(params, u, dt, substeps=2 * substeps, **options)
     error = max(float(np.max(np.abs(x_m - x_2m), initial=0.0)), abs(h_m - h_2m))
     return x_2m, h_2m, error
+
+
+@pytest.fixture(scope="session")
+def drift_record() -> Record:
+    """A small constructed record for the rules of the diagnosis: the paper's 1 Hz model
+    with a drift of 2 µm/s under a sine with square steps (1 kHz, 2 s, 5 nm of noise)."""
+    rng = np.random.default_rng(0)
+    dt, n = 1e-3, 2000
+    t = np.arange(n) * dt
+    u = 50.0 + 40.0 * np.sin(2 * np.pi * 3 * t) + 10.0 * np.sign(np.sin(2 * np.pi * 0.7 * t))
+    drift = boucwen.EffectSet(drift={"rate_um_per_s": 2.0})
+    x = boucwen.simulate_extended(boucwen.Params.paper_1hz(), drift, u, dt) + rng.normal(0.0, 0.005, n)
+    return validate_record(u, x, dt)

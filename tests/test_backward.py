@@ -1,10 +1,9 @@
 """The backward step of the diagnosis (boucwen.diagnosis.backward) on a small constructed
 record: a drift of 2 µm/s under a sine with square steps (1 kHz, 2 s, 5 nm of noise)."""
 
-import numpy as np
 import pytest
 
-from boucwen import DiagnosisPolicy, EffectSet, Params, simulate_extended
+from boucwen import DiagnosisPolicy, EffectSet, Params
 from boucwen.diagnosis.backward import backward_step
 from boucwen.diagnosis.credit import Credit, earns
 from boucwen.effects import candidate_starts, fit_extended_record
@@ -15,13 +14,8 @@ P = Params.paper_1hz()
 
 
 @pytest.fixture(scope="module")
-def record():
-    rng = np.random.default_rng(0)
-    dt, n = 1e-3, 2000
-    t = np.arange(n) * dt
-    u = 50.0 + 40.0 * np.sin(2 * np.pi * 3 * t) + 10.0 * np.sign(np.sin(2 * np.pi * 0.7 * t))
-    x = simulate_extended(P, EffectSet(drift={"rate_um_per_s": 2.0}), u, dt) + rng.normal(0.0, 0.005, n)
-    return validate_record(u, x, dt)
+def record(drift_record):
+    return drift_record
 
 
 def _creep_start(record):

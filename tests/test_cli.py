@@ -222,7 +222,8 @@ def test_a_dataset_file_is_read_as_its_record(tmp_path, capsys):
 def test_plot_legend_says_base_model_only_when_nothing_was_added(tmp_path, monkeypatch):
     from matplotlib.figure import Figure
 
-    from boucwen.diagnosis import Diagnosis
+    from boucwen import Params
+    from boucwen.diagnosis import Diagnosis, ModelFit
     from boucwen.plots import plot_diagnosis
 
     legends = []
@@ -234,7 +235,8 @@ def test_plot_legend_says_base_model_only_when_nothing_was_added(tmp_path, monke
     t = np.arange(200) * 1e-3
     u, x = np.sin(t), np.cos(t)
     for effects in ([], ["drift"]):
-        d = Diagnosis(effects, 0.1, 0.2, 0.05, 0.1, {}, {}, x_base=x + 0.01, x_extended=x + 0.005)
+        p = Params.paper_1hz()
+        d = Diagnosis(effects, 0.1, 0.2, 0.05, 0.1, p, 0.0, ModelFit(p, 0.0), {}, x_base=x + 0.01, x_extended=x + 0.005)
         plot_diagnosis(d, t, u, x, tmp_path / "f.png")
     nothing, drift = legends
     assert any(text.startswith("base model only") for text in nothing)

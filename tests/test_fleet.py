@@ -18,6 +18,7 @@ import pandas as pd
 import pytest
 from distributed import Client, LocalCluster
 
+from boucwen import Params
 from boucwen.batch import diagnose_many, fit_many
 from boucwen.cli import main
 from boucwen.fleet.generate import compare, write_fleet
@@ -528,11 +529,12 @@ def test_task_keeps_what_the_diagnosis_left_unexplained(mirror, monkeypatch):
     root, _ = mirror
     ref = find_records(root / "records")[0]
     report = SimpleNamespace(
-        params={"base": dict.fromkeys(tasks.PARAM_COLUMNS, 0.1), "h0_um": 0.0},
-        rms_before=0.3,
-        max_before=1.0,
-        rms_after=0.2,
-        max_after=0.8,
+        params=Params.paper_1hz(),
+        h0_um=0.0,
+        rms_before_um=0.3,
+        max_before_um=1.0,
+        rms_after_um=0.2,
+        max_after_um=0.8,
         effects=["creep"],
         unexplained={"rms_um": 0.15, "note": "start-up transient"},
         to_dict=lambda: {"effects": ["creep"]},

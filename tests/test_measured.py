@@ -86,3 +86,44 @@ def test_too_short_to_split():
     rec = Record(t=np.arange(4.0), u=np.arange(4.0), x=np.arange(4.0), dt=1.0)
     with pytest.raises(ValueError, match="too few"):
         measured.forward_split(rec)
+
+
+def _case_row(name, in_record, unseen):
+    """A row of run_case for a case ``name`` whose in-record and unseen RMS errors change
+    by ``in_record`` and ``unseen`` (relative), base model at 0.1 µm."""
+
+    def errors(change):
+        return {"base": {"rms_um": 0.1, "max_um": 0.3}, "returned": {"rms_um": 0.1 * (1 + change), "max_um": 0.3}}
+
+    return {
+        "case": name,
+        "kind": "forward split",
+        "fitted_samples": 60,
+        "unseen_samples": 40,
+        "effects": ["drift"],
+        "confidence": {},
+        "time_s": 0.1,
+        "offset_reestimated": False,
+        "in_record": {**errors(in_record), "rms_change": in_record},
+        "unseen": {**errors(unseen), "rms_change": unseen},
+    }
+
+
+@pytest.mark.parametrize(
+    "unseen, code",
+    [(-0.3, 0), (0.05, 1)],
+)
+def test_main_exits_1_naming_the_target_that_fails(monkeypatch, tmp_path, capsys, unseen, code):
+    # Two cases (constructed rows in place of the diagnoses): the second predicts unseen
+    # data 5 % worse than the base model, which breaks the second target.
+    rows = {"a": _case_row("a", -0.5, -0.3), "b": _case_row("b", -0.1, unseen)}
+    monkeypatch.setattr(measured, "cases", lambda: ([measured.Case(k, None, None, True) for k in rows], []))
+    monkeypatch.setattr(measured, "run_case", lambda case, **_: rows[case.name])
+    assert measured.main(["--out", str(tmp_path)]) == code
+    err = capsys.readouterr().err
+    if code:
+        assert err.count("\n") == 1 and "target failed" in err and "(b)" in err
+        assert measured.check_targets(list(rows.values()))["never_worse_than_base"]["rule"] in err
+    else:
+        assert err == ""
+    assert (tmp_path / "results.json").exists()

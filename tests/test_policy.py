@@ -65,6 +65,8 @@ def test_the_default_policy_is_frozen_documented_and_serialisable():
         (dict(trial_nfev=0), "trial_nfev"),
         (dict(confirm_ratio=0.5), "confirm_ratio"),
         (dict(close_gain=-1e-4), "close_gain"),
+        (dict(alpha=0.0), "alpha"),
+        (dict(tolerance=2.0), "tolerance"),
     ],
 )
 def test_a_bad_policy_field_is_refused_by_name(change, words):

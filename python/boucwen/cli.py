@@ -278,9 +278,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     for name, c in result.confidence.items():
         rival = f"; competing: {c['competing']}" if c["competing"] else ""
         print(f"  {name}: {c['level']} ({c['why']}{rival})")
-    print(f"error before (base model): rms {result.rms_before:.4g} um, max {result.max_before:.4g} um")
+    print(f"error before (base model): rms {result.rms_before_um:.4g} um, max {result.max_before_um:.4g} um")
     after = f"with {', '.join(result.effects)}" if result.effects else "base model only, nothing added"
-    print(f"error after ({after}): rms {result.rms_after:.4g} um, max {result.max_after:.4g} um")
+    print(f"error after ({after}): rms {result.rms_after_um:.4g} um, max {result.max_after_um:.4g} um")
     unseen = result.unseen
     if unseen:
         print(

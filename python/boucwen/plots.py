@@ -145,14 +145,14 @@ def plot_diagnosis(
         x_arr - result.x_base,
         linewidth=0.7,
         color="tab:red",
-        label=f"base model (RMS {result.rms_before:.3g} µm, max {result.max_before:.3g} µm)",
+        label=f"base model (RMS {result.rms_before_um:.3g} µm, max {result.max_before_um:.3g} µm)",
     )
     ax_r.plot(
         t_arr,
         x_arr - result.x_extended,
         linewidth=0.7,
         color="tab:blue",
-        label=f"{named} (RMS {result.rms_after:.3g} µm, max {result.max_after:.3g} µm)",
+        label=f"{named} (RMS {result.rms_after_um:.3g} µm, max {result.max_after_um:.3g} µm)",
     )
     ax_r.axhline(0.0, color="grey", linewidth=0.5)
     ax_r.set_xlabel("time t [s]")

@@ -151,7 +151,7 @@ figure is :func:`boucwen.plots.plot_diagnosis`.
 from .evidence import residual_evidence, residual_evidence_record
 from .lookalike import lookalike_tests
 from .policy import DiagnosisPolicy
-from .report import Diagnosis, write_predictions, write_report
+from .report import Diagnosis, ModelFit, NamedEffect, write_predictions, write_report
 from .search import FOLDS, MAX_DELAY_SAMPLES, MIN_GAIN, TRIAL_NFEV, diagnose, diagnose_record
 from .unexplained import Unexplained, noise_level, unexplained
 
@@ -162,6 +162,8 @@ __all__ = [
     "TRIAL_NFEV",
     "Diagnosis",
     "DiagnosisPolicy",
+    "ModelFit",
+    "NamedEffect",
     "Unexplained",
     "diagnose",
     "diagnose_record",

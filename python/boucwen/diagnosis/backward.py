@@ -21,7 +21,7 @@ from .starts import null_effort, ranked_starts
 from .trial import trial_fit
 from .unexplained import noise_level
 
-__all__ = ["backward_step", "look_alike_swap", "swap_group"]
+__all__ = ["backward_step", "look_alike_swap", "swap_group", "takes_place"]
 
 
 def _credit(model: Scored, rest: Scored, noise_um: float, policy: DiagnosisPolicy) -> Credit:
@@ -119,6 +119,25 @@ def swap_group(name: str, full_rate: bool) -> tuple[str, tuple[str, ...]] | None
     return None
 
 
+def takes_place(
+    other: Credit,
+    kept: Credit,
+    named_by_test: bool,
+    policy: DiagnosisPolicy,
+    calls: CloseCalls | None = None,
+    what: str = "",
+) -> bool:
+    """A look-alike (credit ``other``) takes the place of a kept effect (credit ``kept``,
+    both against the others refitted without it): it earns its parameters, and its
+    credit is at least the kept one's, or, where the group's test names it
+    (``named_by_test``), within ``lookalike_margin`` below (a credit within
+    ``close_gain`` of that floor is a close call, noted as ``what``: it does not take the
+    place)."""
+    floor = kept.gain_over_null - (policy.lookalike_margin if named_by_test else 0.0)
+    takes = at_least(other.gain_over_null, floor, policy.close_gain, what, calls)
+    return earns(other, policy, calls, what) and takes
+
+
 def look_alike_swap(
     on: Record,
     name: str,
@@ -164,9 +183,7 @@ def look_alike_swap(
             continue
         scored = score(on, fr, policy.folds)
         c = _credit(scored, rest, noise_um, policy)
-        floor = credit.gain_over_null - (policy.lookalike_margin if other == said else 0.0)
-        takes = at_least(c.gain_over_null, floor, policy.close_gain, f"{other} in place of {name}", calls)
-        if earns(c, policy, calls, f"{other} in place of {name}") and takes:
+        if takes_place(c, credit, other == said, policy, calls, f"{other} in place of {name}"):
             earning.append((other, scored, c, said))
     if not earning:
         return None

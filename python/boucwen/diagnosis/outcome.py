@@ -17,13 +17,19 @@ from .confidence import confidence
 from .credit import Credit, earns, explained_share, partial
 from .margins import PATH, CloseCalls
 from .policy import DiagnosisPolicy
-from .report import Diagnosis
+from .report import Diagnosis, ModelFit
 from .scoring import base_fit, cv_rms, on_bounds
 from .starts import null_effort
 from .unexplained import unexplained
 from .unseen import judged_on, prediction_error
 
-__all__ = ["outcome"]
+__all__ = ["final_refit", "outcome"]
+
+
+def final_refit(record: Record, current: ExtendedFit, policy: DiagnosisPolicy) -> ExtendedFit:
+    """The kept effects refitted on the whole record from the search's fit, at most
+    ``final_nfev`` evaluations (a polish: the trials converged, or nearly)."""
+    return fit_extended_record(record, current.params, current.effects, current.h0, max_nfev=policy.final_nfev)
 
 
 def outcome(
@@ -59,13 +65,13 @@ def outcome(
         current, added, evidence["validation"] = judged_on(validate, current, added, refit, say)
     if added:
         say("refitting on the whole record")
-        ext = fit_extended_record(record, current.params, current.effects, current.h0, max_nfev=policy.final_nfev)
+        ext = final_refit(record, current, policy)
         x_ext = ext.simulate(u, dt)
-        params = ext.to_dict()
+        returned = ModelFit(ext.params, ext.h0)
         effect_set = ext.effects
     else:
         x_ext = x_base.copy()
-        params = {"base": base.params.to_dict(), "h0_um": base.h0}
+        returned = ModelFit(base.params, base.h0)
         effect_set = EffectSet()
     left = unexplained(record, x_ext, alpha=policy.alpha, tolerance=policy.tolerance)
     share = explained_share(rms(x - x_base), rms(x - x_ext), left.noise_um)
@@ -93,7 +99,6 @@ def outcome(
             "after": None if on_val is None else on_val.to_dict(),
         }
     evidence["unseen"] = unseen
-    params["base_only"] = {"base": base.params.to_dict(), "h0_um": base.h0}
     err_b, err_e = x - x_base, x - x_ext
     say(left.summary())
     evidence["close_calls"] = calls.to_list()
@@ -103,11 +108,13 @@ def outcome(
     evidence["elapsed_s"] = time.perf_counter() - started
     result = Diagnosis(
         effects=added,
-        rms_before=rms(err_b),
-        max_before=max_abs(err_b),
-        rms_after=rms(err_e),
-        max_after=max_abs(err_e),
-        params=params,
+        rms_before_um=rms(err_b),
+        max_before_um=max_abs(err_b),
+        rms_after_um=rms(err_e),
+        max_after_um=max_abs(err_e),
+        params=returned.params,
+        h0_um=returned.h0_um,
+        base_only=ModelFit(base.params, base.h0),
         evidence=jsonable(evidence),
         x_base=x_base,
         x_extended=x_ext,

@@ -18,7 +18,7 @@ from .rounds import Round, Trial
 from .scoring import Scored, score
 from .starts import null_effort
 
-__all__ = ["pair_pool", "pair_round"]
+__all__ = ["pair_earns", "pair_pool", "pair_round", "pairs_wanted"]
 
 
 def pair_pool(trials: dict[str, Trial], barred: list[str], policy: DiagnosisPolicy) -> list[str]:
@@ -31,6 +31,33 @@ def pair_pool(trials: dict[str, Trial], barred: list[str], policy: DiagnosisPoli
         if t.credit is not None and t.credit.in_sample_gain > 0 and effect_class(k).partner is None and k not in barred
     ]
     return sorted(tried, key=lambda k: -_credit(trials[k]).in_sample_gain)[: policy.pair_pool]
+
+
+def pairs_wanted(left_rms_um: float, noise_um: float, screened: bool, policy: DiagnosisPolicy) -> bool:
+    """Pairs are tried (where no effect earned alone) only on a record not ``screened``
+    and only where the current model leaves at least ``pair_ratio`` times the record's
+    noise (RMS errors [µm]): near the noise one of the many pairs fits its structure by
+    chance."""
+    return not screened and left_rms_um >= policy.pair_ratio * noise_um
+
+
+def pair_earns(
+    credit: Credit,
+    alone: tuple[Credit, Credit],
+    policy: DiagnosisPolicy,
+    calls: CloseCalls | None = None,
+    what: str = "",
+) -> bool:
+    """A pair (``credit`` against the round's reference) earns its parameters: by the
+    rule of a single effect (:func:`~boucwen.diagnosis.credit.earns`), and its
+    cross-validated RMS error is at most ``1 − min_gain`` times the lower of its members'
+    single trials (``alone``): each member must add to the other (a ratio within
+    ``close_rel`` of that is a close call: not beyond)."""
+    least = min(c.cv_rms_um for c in alone)
+    beyond = least > 0 and at_most(
+        credit.cv_rms_um / least, 1.0 - policy.min_gain, policy.close_rel, f"{what}: beyond either alone", calls
+    )
+    return beyond and earns(credit, policy, calls, what)
 
 
 def _credit(trial: Trial) -> Credit:
@@ -94,11 +121,7 @@ def pair_round(
             f"  + {pair}: CV RMS {scored.cv.rms_um:.4g} µm (over the null {c.gain_over_null:+.1%}, "
             f"where they act {c.local_gain:+.1%}; {took:.1f} s)"
         )
-        alone = min(_credit(trials[a]).cv_rms_um, _credit(trials[b]).cv_rms_um)
-        beyond = alone > 0 and at_most(
-            scored.cv.rms_um / alone, 1.0 - policy.min_gain, policy.close_rel, f"{pair}: beyond either alone", calls
-        )
-        if beyond and earns(c, policy, calls, pair):
+        if pair_earns(c, (_credit(trials[a]), _credit(trials[b])), policy, calls, pair):
             earning.append((pair, scored))
     round_.evidence["pairs"] = {k: c.to_dict() for k, c in credits.items()}
     if not earning:

@@ -122,10 +122,10 @@ class DiagnosisPolicy:
         close_gain: margin on a credit [-]: a credit within it of its threshold or of
             another credit is a close call (:mod:`~boucwen.diagnosis.margins`).
         close_rel: relative margin on an error or a first-order cost [-].
-        alpha: significance level of the tests on the final residual [-]
-            (:func:`~boucwen.diagnosis.unexplained.unexplained`).
-        tolerance: structure beyond the noise, as a multiple of its RMS [-], that still
-            counts as consistent with noise (0.3 adds 4.4 % to the RMS of the noise).
+        alpha: significance level of the tests on the final residual [-] (1e-12 … 0.5;
+            :func:`~boucwen.diagnosis.unexplained.unexplained`).
+        tolerance: structure beyond the noise, as a multiple of its RMS [-] (0 … 1), that
+            still counts as consistent with noise (0.3 adds 4.4 % to the RMS of the noise).
     """
 
     folds: int = FOLDS
@@ -172,9 +172,11 @@ class DiagnosisPolicy:
         check_number("pair_ratio", self.pair_ratio, 0.0, 1e6)
         check_number("peak_over_median", self.peak_over_median, 1.0, 1e12)
         check_number("lookalike_margin", self.lookalike_margin, 0.0, 1.0)
-        for name in ("trial_tol", "bound_tolerance", "close_gain", "close_rel", "alpha"):
+        for name in ("trial_tol", "bound_tolerance", "close_gain", "close_rel"):
             check_number(name, getattr(self, name), 0.0, 0.5)
-        check_number("tolerance", self.tolerance, 0.0, 10.0)
+        # The ranges :func:`~boucwen.diagnosis.unexplained.unexplained` accepts.
+        check_number("alpha", self.alpha, 1e-12, 0.5)
+        check_number("tolerance", self.tolerance, 0.0, 1.0)
 
     def replace(self, **changes: Any) -> DiagnosisPolicy:
         """A copy with ``changes`` (checked as the defaults are); ValueError or TypeError

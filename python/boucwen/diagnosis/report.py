@@ -9,12 +9,62 @@ from typing import Any
 
 from numpy.typing import ArrayLike
 
-from .._core import EffectSet
+from .._core import EffectSet, Params
 from ..checks import FloatArray
+from ..effects import Effect, effects_of
 from ..io import jsonable, write_csv
 from .unexplained import Unexplained
 
-__all__ = ["Diagnosis", "jsonable", "write_predictions", "write_report"]
+__all__ = ["Diagnosis", "ModelFit", "NamedEffect", "jsonable", "write_predictions", "write_report"]
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """A model the diagnosis fitted: the base parameters and the initial hysteresis state.
+
+    Attributes:
+        params: the base :class:`boucwen.Params`.
+        h0_um: initial hysteresis state h(0) [µm].
+    """
+
+    params: Params
+    h0_um: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"base": {kv, x0, A, beta, gamma, n, delta}, "h0_um": …}`` (JSON-ready)."""
+        return {"base": self.params.to_dict(), "h0_um": self.h0_um}
+
+
+@dataclass(frozen=True)
+class NamedEffect:
+    """An effect the diagnosis named, with its fitted parameters and how sure it is.
+
+    Attributes:
+        effect: the typed effect (:mod:`boucwen.effects`), with its fitted parameters.
+        level: ``"confident"`` or ``"tentative"`` (:mod:`~boucwen.diagnosis.confidence`).
+        why: the reason for the level.
+        competing: the competing explanation named, or None.
+    """
+
+    effect: Effect
+    level: str
+    why: str
+    competing: str | None = None
+
+    @property
+    def name(self) -> str:
+        """The effect's name in the vocabulary."""
+        return self.effect.name
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"effect": name, "params": {…}, "level", "why", "competing"}`` (JSON-ready)."""
+        return {
+            "effect": self.name,
+            "params": self.effect.to_dict(),
+            "level": self.level,
+            "why": self.why,
+            "competing": self.competing,
+        }
 
 
 @dataclass(frozen=True, eq=False)
@@ -23,32 +73,38 @@ class Diagnosis:
 
     Attributes:
         effects: names of the effects added, in the order added ([] when none).
-        rms_before, max_before: RMS and maximum absolute error [µm] of the base model
-            fitted on the whole record.
-        rms_after, max_after: the same with the effects added (equal to *before* when
-            none was added).
-        params: ``{"base": {kv, x0, A, beta, gamma, n, delta}, "h0_um": …, <effect>:
-            {…}, "base_only": {"base": {...}, "h0_um": …}}`` — the extended model's
-            values and, under ``base_only``, the base model's.
+        rms_before_um, max_before_um: RMS and maximum absolute error [µm] of the base
+            model fitted on the whole record.
+        rms_after_um, max_after_um: the same for the returned model (equal to *before*
+            when no effect was added).
+        params: the returned model's base :class:`boucwen.Params`.
+        h0_um: the returned model's initial hysteresis state [µm].
+        effect_set: the returned model's effects, a :class:`boucwen.EffectSet` with
+            their fitted parameters (empty when none was added).
+        base_only: the base model alone, fitted on the whole record
+            (:class:`ModelFit`).
         evidence: what the decision rests on (see :mod:`boucwen.diagnosis`).
-        x_base, x_extended: displacement [µm] of the two models over the record.
-        effect_set: the fitted :class:`boucwen.EffectSet`.
-        unexplained: what the final model leaves unexplained: its residual against the
+        x_base, x_extended: displacement [µm] of the base and returned models over the
+            record.
+        unexplained: what the returned model leaves unexplained: its residual against the
             noise estimated from the record, the signals, spectral lines and time spans
             it follows, and whether it is consistent with noise
             (:class:`~boucwen.diagnosis.unexplained.Unexplained`; None if not computed).
         confidence: per effect named, ``{"level": "confident" | "tentative", "why",
-            "competing"}`` (:mod:`~boucwen.diagnosis.confidence`).
+            "competing"}`` (:mod:`~boucwen.diagnosis.confidence`; typed:
+            :attr:`named_effects`).
         at_bounds: the returned model's unknowns that ended on a bound of the fit:
             ``{"parameter", "value", "bound", "side"}`` each.
     """
 
     effects: list[str]
-    rms_before: float
-    max_before: float
-    rms_after: float
-    max_after: float
-    params: dict[str, Any]
+    rms_before_um: float
+    max_before_um: float
+    rms_after_um: float
+    max_after_um: float
+    params: Params
+    h0_um: float
+    base_only: ModelFit
     evidence: dict[str, Any]
     x_base: FloatArray
     x_extended: FloatArray
@@ -56,6 +112,21 @@ class Diagnosis:
     unexplained: Unexplained | None = None
     confidence: dict[str, dict[str, Any]] = field(default_factory=dict)
     at_bounds: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def model(self) -> ModelFit:
+        """The returned model's base parameters and h0 (its effects: :attr:`effect_set`)."""
+        return ModelFit(self.params, self.h0_um)
+
+    @property
+    def named_effects(self) -> tuple[NamedEffect, ...]:
+        """The effects of the returned model, typed (:func:`boucwen.effects_of`), in the
+        order added, each with its confidence."""
+        typed = {e.name: e for e in effects_of(self.effect_set)}
+        levels = self.confidence
+        return tuple(
+            NamedEffect(typed[k], levels[k]["level"], levels[k]["why"], levels[k]["competing"]) for k in self.effects
+        )
 
     @property
     def close_calls(self) -> list[dict[str, Any]]:
@@ -79,11 +150,11 @@ class Diagnosis:
         """The JSON report (without the arrays)."""
         return {
             "effects": list(self.effects),
-            "rms_before": self.rms_before,
-            "max_before": self.max_before,
-            "rms_after": self.rms_after,
-            "max_after": self.max_after,
-            "params": self.params,
+            "rms_before_um": self.rms_before_um,
+            "max_before_um": self.max_before_um,
+            "rms_after_um": self.rms_after_um,
+            "max_after_um": self.max_after_um,
+            "params": {**self.model.to_dict(), **self.effect_set.to_dict(), "base_only": self.base_only.to_dict()},
             "evidence": self.evidence,
             "unexplained": None if self.unexplained is None else jsonable(self.unexplained.to_dict()),
             "confidence": self.confidence,
@@ -113,8 +184,8 @@ class Diagnosis:
             cv += f"; validation record RMS {val['before']['rms_um']:.4g} → {val['after']['rms_um']:.4g} µm"
         bounds = "".join(f"; {b['parameter']} = {b['value']:.4g} on its {b['side']} bound" for b in self.at_bounds)
         return (
-            f"effects: {named}; RMS {self.rms_before:.4g} → {self.rms_after:.4g} µm, "
-            f"max {self.max_before:.4g} → {self.max_after:.4g} µm{cv}{bounds}{close}"
+            f"effects: {named}; RMS {self.rms_before_um:.4g} → {self.rms_after_um:.4g} µm, "
+            f"max {self.max_before_um:.4g} → {self.max_after_um:.4g} µm{cv}{bounds}{close}"
         )
 
     def __repr__(self) -> str:

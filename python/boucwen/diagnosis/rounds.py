@@ -3,6 +3,7 @@ credited against the better of the two, and the one kept (:func:`score_round`)."
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -23,7 +24,7 @@ from .starts import null_effort, ranked_starts
 from .trial import joint_partner, trial_fit
 from .unexplained import noise_level
 
-__all__ = ["Round", "Trial", "barred", "candidates", "score_round"]
+__all__ = ["Round", "Trial", "barred", "beyond_partner", "candidates", "lookalike_order", "score_round"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +104,39 @@ def barred(lookalike: dict[str, Any], present: set[str]) -> dict[str, str]:
                 if k != said and k not in present:
                     out[k] = f"a look-alike is in the model and the {test!r} test names {said!r}"
     return out
+
+
+def beyond_partner(
+    joint: Credit, partner: Credit, policy: DiagnosisPolicy, calls: CloseCalls | None = None, what: str = ""
+) -> bool:
+    """A joint trial (an effect added with its partner, :attr:`~boucwen.effects.Effect.partner`)
+    earns its further parameters only beyond the partner alone: its cross-validated RMS
+    error at most ``1 − min_gain`` times the partner's (a ratio within ``close_rel`` of
+    that is a close call, noted as ``what``: not beyond)."""
+    ratio = joint.cv_rms_um / partner.cv_rms_um if partner.cv_rms_um > 0 else math.inf
+    return at_most(ratio, 1.0 - policy.min_gain, policy.close_rel, what, calls)
+
+
+def lookalike_order(
+    earning: list[str], credits: dict[str, Credit], lookalike: dict[str, Any], policy: DiagnosisPolicy
+) -> tuple[list[str], dict[str, Any] | None]:
+    """The effects that earn (best first) with the first two swapped where their credits
+    differ by less than ``lookalike_margin``, both are of one look-alike group and the
+    group's test (``lookalike``: :func:`~boucwen.diagnosis.lookalike.lookalike_tests`)
+    names the second; a test that cannot choose (``"none"``, a lag the phase cannot tell
+    from a delay) leaves the order to the credits. Returns the order and the decision
+    (``{"test", "between", "chose"}``, or None where the test did not reorder)."""
+    order = list(earning)
+    if len(order) < 2:
+        return order, None
+    a, b = order[0], order[1]
+    if not credits[a].gain_over_null - credits[b].gain_over_null < policy.lookalike_margin:
+        return order, None
+    for test, members in GROUPS.items():
+        if a in members and b in members and named(lookalike[test], (a, b)) == b:
+            order[0], order[1] = b, a
+            return order, {"test": test, "between": [a, b], "chose": b}
+    return order, None
 
 
 def score_round(
@@ -247,20 +281,12 @@ def score_round(
     for k in [k for k in VOCABULARY if k in earning]:
         partner = joint_partner(k, tuple(present))
         joint = effect_class(k).joint
-        if partner is not None and partner in earning:
-            ratio = credits[k].cv_rms_um / credits[partner].cv_rms_um
-            if not at_most(ratio, 1.0 - policy.min_gain, policy.close_rel, f"{joint} beyond one", calls):
-                # Both at once earn their further parameters only beyond the partner alone.
-                earning.remove(k)
-                refused[k] = f"{joint} fit no better than one by the least gain"
-    decision = None
-    if len(earning) >= 2:
-        a, b = earning[0], earning[1]
-        close = credits[a].gain_over_null - credits[b].gain_over_null < policy.lookalike_margin
-        for test, members in GROUPS.items():
-            if close and a in members and b in members and named(lookalike[test], (a, b)) == b:
-                earning[0], earning[1] = b, a
-                decision = {"test": test, "between": [a, b], "chose": b}
+        if partner is None or partner not in earning:
+            continue
+        if not beyond_partner(credits[k], credits[partner], policy, calls, f"{joint} beyond one"):
+            earning.remove(k)
+            refused[k] = f"{joint} fit no better than one by the least gain"
+    earning, decision = lookalike_order(earning, credits, lookalike, policy)
     best = earning[0] if earning else (ranked[0] if ranked else None)
     keep = bool(earning)
     evidence = {

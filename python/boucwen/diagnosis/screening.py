@@ -11,6 +11,8 @@ record too.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 
 from ..effects import FN_MAX_NYQUIST_FRACTION, ExtendedFit, Solved, effect_class, simulate_chain
@@ -19,7 +21,15 @@ from .evidence import spectral_peak
 from .policy import DiagnosisPolicy
 from .validation import blocked_cv
 
-__all__ = ["decimated", "hopeless_direction", "peak_beyond", "screen_copy", "screen_factor", "screenable"]
+__all__ = [
+    "decimated",
+    "hopeless_direction",
+    "peak_beyond",
+    "screen_copy",
+    "screen_factor",
+    "screenable",
+    "to_confirm",
+]
 
 
 def screen_factor(record: Record, policy: DiagnosisPolicy) -> int:
@@ -31,6 +41,17 @@ def screen_factor(record: Record, policy: DiagnosisPolicy) -> int:
 def decimated(record: Record, q: int) -> Record:
     """Every ``q``-th sample of the record, from the first (the record itself for q = 1)."""
     return record if q == 1 else validate_record(record.u[::q], record.x[::q], record.dt * q)
+
+
+def to_confirm(ranked: Sequence[str], cv_rms_um: Mapping[str, float], policy: DiagnosisPolicy) -> list[str]:
+    """The screened effects confirmed on the full record: of those that earned on the
+    copy (``ranked``, best first), at most ``confirm``, each with a cross-validated RMS
+    error (``cv_rms_um`` [µm], by effect) within ``confirm_ratio`` times the best's."""
+    chosen = list(ranked[: policy.confirm])
+    if not chosen:
+        return []
+    best = cv_rms_um[chosen[0]]
+    return [k for k in chosen if cv_rms_um[k] <= policy.confirm_ratio * best]
 
 
 def screen_copy(record: Record, policy: DiagnosisPolicy) -> tuple[Record, int]:

@@ -11,9 +11,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._core import EffectSet
 from ..checks import check_int
-from ..effects import VOCABULARY, ExtendedFit, effect_class, fit_extended_record, simulate_chain
+from ..effects import VOCABULARY, ExtendedFit, effect_class, simulate_chain
 from ..fit import fit_record
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
@@ -22,12 +21,13 @@ from .credit import partial
 from .evidence import fit_evidence
 from .margins import CloseCalls
 from .outcome import outcome
-from .pairs import pair_round
+from .pairs import pair_round, pairs_wanted
 from .policy import DiagnosisPolicy
+from .rebase import fits_better, rebased
 from .report import Diagnosis
 from .rounds import Round, candidates, score_round
 from .scoring import Scored, base_fit, solved_at
-from .screening import hopeless_direction, peak_beyond, screen_copy, screenable
+from .screening import hopeless_direction, peak_beyond, screen_copy, screenable, to_confirm
 from .unexplained import Unexplained, noise_level, unexplained
 from .validation import FOLDS
 
@@ -125,11 +125,9 @@ def _screened_round(
     present = current.effects.names
     names = tuple(k for k in candidates(present) if not effect_class(k).full_rate_only)
     screened = score_round(screen, current, names=names, **opts)
-    ranked = screened.ranked[: policy.confirm]
-    scores = screened.evidence["trials"]
-    confirm = {
-        k: f for k, f in ranked if scores[k]["cv_rms_um"] <= policy.confirm_ratio * scores[ranked[0][0]]["cv_rms_um"]
-    }
+    scores = {k: float(t["cv_rms_um"]) for k, t in screened.evidence["trials"].items() if "cv_rms_um" in t}
+    fits = dict(screened.ranked)
+    confirm = {k: fits[k] for k in to_confirm([k for k, _ in screened.ranked], scores, policy)}
     full_only = [k for k in candidates(present) if k not in names]
     for k in list(full_only):
         xs = simulate_chain(current.params, current.effects, record.u, record.dt, current.h0)
@@ -224,7 +222,7 @@ def diagnose_record(
         else:
             round_, screened, current_jac = _screened_round(record, screen, current, current_jac, policy, opts)
         left_rms = round_.evidence["current"]["in_sample_rms_um"]
-        if round_.kept is None and q == 1 and left_rms >= policy.pair_ratio * noise_um:
+        if round_.kept is None and pairs_wanted(left_rms, noise_um, q > 1, policy):
             paired = pair_round(record, current, round_, noise_um=noise_um, **opts)
             round_ = paired or round_
         evidence["rounds"].append(round_.evidence)
@@ -237,9 +235,9 @@ def diagnose_record(
             ):
                 # The effects kept explain too little: refitted once from a fresh base
                 # model, the search goes on from there if that fits better.
-                fresh = _rebased(record, current, seed=seed, workers=workers, q=q, policy=policy)
+                fresh = rebased(record, current, seed=seed, workers=workers, q=q, policy=policy)
                 evidence["rebased"] = {"rms_um": current.rms_um, "fresh_rms_um": fresh.rms_um if fresh else None}
-                if fresh is not None and not fresh.rms_um < (1.0 - policy.close_rel) * current.rms_um:
+                if fresh is not None and not fits_better(fresh, current, policy):
                     fresh = None
             if fresh is None:
                 say("nothing left that earns its parameters under cross-validation")
@@ -262,28 +260,3 @@ def diagnose_record(
     return outcome(
         record, base, current, added, evidence, validate=validate, policy=policy, say=say, calls=calls, started=started
     )
-
-
-def _rebased(
-    record: Record, kept: ExtendedFit, *, seed: int, workers: int | None, q: int, policy: DiagnosisPolicy
-) -> ExtendedFit | None:
-    """``kept`` refitted from a fresh base model: the base model fitted from scratch
-    (global stage and all) on the record less what the kept effects add to the kept
-    base model, then everything refitted from there (``rebase_nfev``). A base model
-    fitted without the effect may have found a basin where its hysteresis imitates the
-    effect (the rate term δ·u·sgn(u̇) integrating into a drift, kv and A cancelling);
-    the trial that adds the effect starts in that basin and a few iterations do not
-    leave it. None when the fresh start cannot be simulated or fitted."""
-    u, dt = record.u, record.dt
-    with_effects = simulate_chain(kept.params, kept.effects, u, dt, kept.h0)
-    plain_x = simulate_chain(kept.params, EffectSet(), u, dt, kept.h0)
-    if with_effects is None or plain_x is None:
-        return None
-    try:
-        plain = validate_record(u, record.x - (with_effects - plain_x), dt)
-        base = fit_record(plain, seed=seed, workers=workers, decimate=q if q > 1 else None)
-        return fit_extended_record(
-            record, base.params, kept.effects, base.h0, max_nfev=policy.rebase_nfev, tol=policy.trial_tol
-        )
-    except ValueError:
-        return None

@@ -24,7 +24,7 @@ from .policy import DiagnosisPolicy
 from .scoring import cost
 from .starts import first_stage, refit_start
 
-__all__ = ["joint_partner", "trial_fit"]
+__all__ = ["joint_partner", "second_stage", "still_falling", "trial_fit"]
 
 
 def joint_partner(name: str, present: tuple[str, ...] | list[str]) -> str | None:
@@ -32,6 +32,23 @@ def joint_partner(name: str, present: tuple[str, ...] | list[str]) -> str | None
     :attr:`~boucwen.effects.Effect.partner` where the model (``present``) lacks it."""
     partner = effect_class(name).partner
     return partner if partner is not None and partner not in present else None
+
+
+def second_stage(policy: DiagnosisPolicy, joint: bool) -> int:
+    """Evaluations of a trial's second stage: ``trial_nfev``, ``joint_effort`` times that
+    for a joint trial (an effect added with its partner: twice the unknowns, the two
+    modes trading places as they part)."""
+    return policy.joint_effort * policy.trial_nfev if joint else policy.trial_nfev
+
+
+def still_falling(
+    first_um: float, second_um: float, policy: DiagnosisPolicy, calls: CloseCalls | None = None, what: str = ""
+) -> bool:
+    """A trial's RMS error after its second stage (``second_um``) is at most
+    ``still_falling`` times the one after its first (``first_um``, both [µm]): a trial
+    still leaving a valley, which gets a third stage where it has not converged (a ratio
+    within ``close_rel`` of the threshold is a close call on the path: not falling)."""
+    return first_um > 0 and at_most(second_um / first_um, policy.still_falling, policy.close_rel, what, calls, PATH)
 
 
 def trial_fit(
@@ -83,17 +100,10 @@ def trial_fit(
         if not decide(goes_on, f"{name}: trial goes on after stage 1", calls, yes="goes on", no="stopped", kind=PATH):
             return "hopeless: no better than the null trial after a third of the effort"
         if not fr.success:
-            effort = policy.joint_effort * nfev if partner is not None else nfev
+            effort = second_stage(policy, joint=partner is not None)
             solved = solve_extended_record(record, fr.params, fr.effects, fr.h0, max_nfev=effort, tol=policy.trial_tol)
             went = solved.fit
-            falling = fr.rms_um > 0 and at_most(
-                went.rms_um / fr.rms_um,
-                policy.still_falling,
-                policy.close_rel,
-                f"{name}: still falling after stage 2",
-                calls,
-                PATH,
-            )
+            falling = still_falling(fr.rms_um, went.rms_um, policy, calls, f"{name}: still falling after stage 2")
             if not went.success and falling and null().success:
                 # Still falling fast when its effort ran out: a trial judged there would
                 # be credited with where it happened to stop, not with what it explains.

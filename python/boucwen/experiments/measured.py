@@ -30,8 +30,9 @@ Targets (the tracker's issue), checked on the RMS errors:
    than :data:`WORSE_TOLERANCE` (2 %).
 
 ``python -m boucwen.experiments.measured [--out DIR] [--progress]`` prints one table per
-case and whether the targets hold, and writes ``DIR/results.json``; without measured
-data it says what it skipped and exits 0.
+case and whether the targets hold, and writes ``DIR/results.json``; it exits with status
+1 when a target fails (one line on stderr naming it and the cases that break it), 0
+otherwise; without measured data it says what it skipped and exits 0.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from .. import datasets
-from .._core import EffectSet, Params, simulate, simulate_extended
+from .._core import EffectSet, simulate, simulate_extended
 from ..checks import FloatArray
 from ..diagnosis import Diagnosis, diagnose
 from ..diagnosis.unseen import carried
@@ -67,6 +68,7 @@ __all__ = [
     "Case",
     "cases",
     "check_targets",
+    "failed_targets",
     "main",
     "predictions",
     "run",
@@ -127,20 +129,12 @@ def cases() -> tuple[list[Case], list[str]]:
     return found, skipped
 
 
-def _models(result: Diagnosis) -> tuple[tuple[Params, float], tuple[Params, float]]:
-    """(base params, h0) and (returned params, h0) of a diagnosis."""
-    base = result.params["base_only"]
-    return (
-        (Params.from_dict(base["base"]), float(base["h0_um"])),
-        (Params.from_dict(result.params["base"]), float(result.params["h0_um"])),
-    )
-
-
 def predictions(result: Diagnosis, case: Case) -> dict[str, Any]:
     """The base and returned models' displacement [µm] on ``case.unseen`` (see the module
     docs), and how far their simulation over the fitted samples is from the diagnosis's
     own (``replay_um``: 0 up to rounding when the models are read back right)."""
-    (base_p, base_h0), (ret_p, ret_h0) = _models(result)
+    base_p, base_h0 = result.base_only.params, result.base_only.h0_um
+    ret_p, ret_h0 = result.params, result.h0_um
     effects = result.effect_set
     k = len(case.fitted)
     u = np.concatenate([case.fitted.u, case.unseen.u]) if case.continued else case.unseen.u
@@ -193,14 +187,14 @@ def run_case(case: Case, *, seed: int = 0, progress: bool = False, workers: int 
         "explained_share": result.evidence.get("explained_share"),
         "time_s": elapsed,
         "in_record": {
-            "base": {"rms_um": result.rms_before, "max_um": result.max_before},
-            "returned": {"rms_um": result.rms_after, "max_um": result.max_after},
-            "rms_change": _change(result.rms_before, result.rms_after),
+            "base": {"rms_um": result.rms_before_um, "max_um": result.max_before_um},
+            "returned": {"rms_um": result.rms_after_um, "max_um": result.max_after_um},
+            "rms_change": _change(result.rms_before_um, result.rms_after_um),
         },
         "unseen": {"base": base, "returned": returned, "rms_change": _change(base["rms_um"], returned["rms_um"])},
         "replay_um": pred["replay_um"],
         "offset_reestimated": not case.continued,
-        "params": result.params,
+        "params": result.to_dict()["params"],
     }
 
 
@@ -328,8 +322,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the base fits' starts (default 0)")
     ap.add_argument("--progress", action="store_true", help="the diagnoses' progress on stderr")
     args = ap.parse_args(argv)
-    run(args.out, seed=args.seed, progress=args.progress)
+    doc = run(args.out, seed=args.seed, progress=args.progress)
+    failed = failed_targets(doc["targets"])
+    if failed:
+        print(f"{ap.prog}: target failed: {'; '.join(failed)}", file=sys.stderr)
+        return 1
     return 0
+
+
+def failed_targets(targets: dict[str, Any]) -> list[str]:
+    """Each target of :func:`check_targets` that does not hold, as ``rule (cases)``."""
+    return [f"{t['rule']} ({', '.join(t['broken_by'])})" for t in targets.values() if not t["holds"]]
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -161,15 +161,15 @@ def _diagnose_columns(record: Record, options: TaskOptions) -> dict[str, Any]:
     unexplained = getattr(report, "unexplained", None)
     if unexplained is not None:
         detail.setdefault("unexplained", _jsonable(unexplained))
-    base = report.params.get("base", {})
+    base = report.params.to_dict()
     return {
         "status": "ok",
         **{name: base.get(name) for name in PARAM_COLUMNS},
-        "h0_um": report.params.get("h0_um"),
-        "rms_before_um": report.rms_before,
-        "max_before_um": report.max_before,
-        "rms_after_um": report.rms_after,
-        "max_after_um": report.max_after,
+        "h0_um": report.h0_um,
+        "rms_before_um": report.rms_before_um,
+        "max_before_um": report.max_before_um,
+        "rms_after_um": report.rms_after_um,
+        "max_after_um": report.max_after_um,
         "effects": ",".join(report.effects),
         "unexplained": None if unexplained is None else json.dumps(_jsonable(unexplained), sort_keys=True),
         "success": True,
