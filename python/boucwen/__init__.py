@@ -46,7 +46,7 @@ from ._core import (
     simulate_extended,
 )
 from .config import HorizonConfig, PaperConfig, RpemConfig
-from .diagnosis import Diagnosis, DiagnosisPolicy, diagnose
+from .diagnosis import Diagnosis, DiagnosisPolicy, ModelFit, NamedEffect, diagnose
 from .effects import (
     Creep,
     Delay,
@@ -87,6 +87,8 @@ __all__ = [
     "Inverse",
     "LengthMismatch",
     "Model",
+    "ModelFit",
+    "NamedEffect",
     "PaperConfig",
     "Params",
     "Pickup",
