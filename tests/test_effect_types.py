@@ -86,7 +86,7 @@ def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
     # The creep gains share the sign of kv: bounded at 0 for the optimiser.
     seen = {}
 
-    def solve(self, z0, lower, upper, *, x_scale, tol, max_nfev):
+    def solve(self, z0, lower, upper, *, x_scale, tol, max_nfev, **options):
         seen.update(z0=z0, lower=lower, upper=upper, x_scale=x_scale)
         raise _Stop
 

@@ -148,3 +148,15 @@ def test_bad_options():
         fit(u, x, DT, h0=float("nan"))
     with pytest.raises(ValueError):
         fit(u, x, DT, decimate=0)
+
+
+def test_the_trf_solver_reaches_the_same_fit_and_a_bad_method_is_refused():
+    u = np.asarray(boucwen.paper_input(1e-4, 0.05))[:12_000]
+    x = boucwen.simulate(Params.paper_1hz(), u, 1e-4)[0] + 2e-3 * np.random.default_rng(3).standard_normal(u.size)
+    lm = boucwen.fit(u, x, 1e-4)
+    trf = boucwen.fit(u, x, 1e-4, method="trf")
+    # Both at the noise: the same optimum within the statistical margin's share of it.
+    assert lm.rms_um == pytest.approx(trf.rms_um, rel=1e-4)
+    assert lm.rms_um == pytest.approx(2e-3, rel=0.05)
+    with pytest.raises(boucwen.InvalidConfig, match="method"):
+        boucwen.fit(u, x, 1e-4, method="newton")

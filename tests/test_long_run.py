@@ -54,8 +54,9 @@ def test_random_input_is_band_limited_within_0_to_100_v():
 
 def test_the_paper_method_keeps_delta_bounded_on_the_bench():
     """On noise-free bench data at 1 Hz (windows of 0.1 to 1 s) step 2's two-column fit
-    trades A + kv for δ; without max_delta_ratio δ reaches tens of µm/(V·s), with it δ
-    stays where δ·u does not outweigh the rate term."""
+    trades A + kv for δ; without max_delta_ratio δ goes beyond ten times the scale the
+    rate term allows (≈ 0.4 µm/(V·s), below), with it δ stays where δ·u does not
+    outweigh the rate term."""
     u_cmd, _ = lr.repeated_schedule(1)
     rec = plant.measure(u_cmd[:30_000], DT, lr.bench(0.0), seed=0)
     trad = boucwen.fit(rec.u, rec.x, DT, seed=0, n_candidates=16, n_starts=2)
@@ -66,9 +67,11 @@ def test_the_paper_method_keeps_delta_bounded_on_the_bench():
             config = boucwen.PaperConfig(max_delta_ratio=bound)
             run = lr.record_run(boucwen.Identifier.paper(DT, window, start, trad.h0, config=config), rec.u, rec.x)
             largest[bound] = float(np.max(np.abs(run.params[:, 6])))
-        assert largest[math.inf] > 10.0, largest
-        # At 1 Hz over 0–100 V, |A + kv|·rms(u̇)/rms(u) ≈ 0.11 µm/V · 3.6 /s ≈ 0.4 µm/(V·s).
-        assert largest[1.0] < 1.0, largest
+        # At 1 Hz over 0–100 V, |A + kv|·rms(u̇)/rms(u) ≈ 0.11 µm/V · 3.6 /s ≈ 0.4 µm/(V·s):
+        # unbounded, δ goes past ten times that; bounded, it stays within a few times it
+        # (the bound compares δ·u with the rate term sample by sample, not in rms).
+        assert largest[math.inf] > 10 * 0.4, largest
+        assert largest[1.0] < 3 * 0.4, largest
 
 
 @pytest.fixture(scope="module")

@@ -277,3 +277,32 @@ def test_wrong_kinds_of_input():
     assert x.shape == (0,) and h == 0.5
     x, _ = boucwen.simulate(PAPER, [0, 1, 2], DT)  # integers are accepted
     assert x.dtype == np.float64
+
+
+# -- many parameter sets on one record ---------------------------------------------
+
+
+def test_simulate_many_rows_equal_simulate_bit_for_bit(paper_u):
+    u = paper_u[:4000]
+    sets = [
+        PAPER,
+        PAPER.replace(A=-0.05, n=1.2),
+        PAPER.replace(beta=0.05, gamma=0.01, n=2.3),
+        PAPER.replace(delta=-0.01),
+    ]
+    # More sets than cores, and an odd count: every worker's share, the last one short.
+    sets = sets + sets[:3]
+    out = boucwen.simulate_many(sets, u, DT, 0.3)
+    assert out.shape == (len(sets), u.size)
+    for row, p in zip(out, sets):
+        np.testing.assert_array_equal(row, boucwen.simulate(p, u, DT, 0.3)[0])
+    assert boucwen.simulate_many([], u, DT).shape == (0, u.size)
+
+
+def test_simulate_many_rejects_a_bad_sample_or_dt_before_running(paper_u):
+    u = np.array(paper_u[:10])
+    u[4] = np.nan
+    with pytest.raises(boucwen.InvalidRecord):
+        boucwen.simulate_many([PAPER], u, DT)
+    with pytest.raises(boucwen.InvalidConfig):
+        boucwen.simulate_many([PAPER], paper_u[:10], 0.0)

@@ -44,6 +44,7 @@ from ._core import (
     paper_input,
     simulate,
     simulate_extended,
+    simulate_many,
 )
 from .config import HorizonConfig, PaperConfig, RpemConfig
 from .diagnosis import Diagnosis, DiagnosisPolicy, ModelFit, NamedEffect, diagnose
@@ -105,4 +106,5 @@ __all__ = [
     "paper_input",
     "simulate",
     "simulate_extended",
+    "simulate_many",
 ]

@@ -32,6 +32,7 @@ part is one new section (and one line in ``__all__``):
   ``_CompensatorGains`` (type-only), ``Inverse``, ``invert``, ``Compensator``
 """
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypedDict, final, overload
 
 import numpy as np
@@ -57,12 +58,14 @@ __all__ = [
     "Params",
     "__version__",
     "_config_defaults",
+    "_substep_plan",
     "_validate_config",
     "invert",
     "paper_input",
     "simulate",
     "simulate_extended",
     "simulate_extended_with_jacobian",
+    "simulate_many",
 ]
 
 # ---------------------------------------------------------------- module constants
@@ -175,6 +178,15 @@ def simulate(
     sample to sample, is computed afresh at the cut (:class:`Model` continues bit
     for bit). A non-finite sample raises
     ``ValueError`` before anything is computed. Releases the GIL.
+    """
+
+def simulate_many(params: Sequence[Params], u: ArrayLike, dt: float, h0: float = 0.0) -> NDArray[np.float64]:
+    """The model of each parameter set simulated over the same voltage ``u`` [V] from
+    h[0] = ``h0`` [µm]: an array of shape ``(len(params), len(u))`` whose row i is
+    ``simulate(params[i], u, dt, h0)[0]`` [µm] to the last bit. The sets are shared
+    among the machine's cores with the GIL released (scoring many candidate models on
+    one record). A non-finite sample raises :class:`InvalidRecord` before anything
+    runs.
     """
 
 def paper_input(
@@ -298,6 +310,11 @@ class _HorizonStatus(TypedDict):
 
 def _config_defaults(method: _IdentifierMethod) -> dict[str, Any]:
     """Default options of a method's config (``boucwen.config`` takes them from here)."""
+
+def _substep_plan(params: ArrayLike, h: ArrayLike, u: ArrayLike, dt: float) -> NDArray[np.int64]:
+    """The integrator's plan of each interval u[k] → u[k+1] [V] from h[k] [µm] with the
+    parameters of row k of ``params`` (kv, x0, A, β, γ, n, δ per interval, flattened):
+    the RK4 sub-steps, 0 where u holds, −1 where the implicit path is taken."""
 
 def _validate_config(method: _IdentifierMethod, config: object) -> None:
     """``InvalidConfig`` naming the offending option of a method's config object."""

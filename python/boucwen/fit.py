@@ -42,15 +42,24 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import OptimizeResult
 
-from ._core import InvalidRecord, Params, simulate, simulate_extended_with_jacobian
+from ._core import InvalidConfig, InvalidRecord, Params, simulate, simulate_extended_with_jacobian, simulate_many
 from .checks import FloatArray, check_finite, check_int
-from .lsq import OutputErrorProblem, Ridge, finite_or_none, with_jacobian_or_none, worker_threads
+from .lsq import (
+    Method,
+    OutputErrorProblem,
+    Ridge,
+    Solution,
+    finite_or_none,
+    with_jacobian_or_none,
+    worker_count,
+    worker_threads,
+)
 from .metrics import max_abs, rms
 from .progress import Progress, reporter
 from .record import Record, validate_record
@@ -128,6 +137,19 @@ class _Hysteresis:
 
     def __init__(self, u: FloatArray, dt: float, scale: FloatArray, fixed_h0: float | None):
         self.u, self.dt, self.scale, self.fixed_h0 = u, dt, scale, fixed_h0
+        # The last (unknowns, h) simulated: the optimiser's last point is simulated
+        # already (one tuple, replaced whole, so threads read a consistent pair).
+        self._last: tuple[bytes, FloatArray] | None = None
+
+    def _remember(self, z: FloatArray, h: FloatArray | None) -> FloatArray | None:
+        if h is not None:
+            self._last = (z.tobytes(), h)
+        return h
+
+    def simulated(self, z: FloatArray) -> FloatArray | None:
+        """h [µm] for z: the last simulation's if it was at z, else a new one."""
+        last = self._last
+        return last[1] if last is not None and last[0] == z.tobytes() else self(z)
 
     @property
     def nvar(self) -> int:
@@ -149,7 +171,21 @@ class _Hysteresis:
     def __call__(self, z: FloatArray) -> FloatArray | None:
         """h [µm] simulated for the unknowns z, or None if they cannot be simulated."""
         th = self.theta(z)
-        return finite_or_none(lambda: simulate(self._params(th), self.u, self.dt, float(th[5]))[0])
+        return self._remember(z, finite_or_none(lambda: simulate(self._params(th), self.u, self.dt, float(th[5]))[0]))
+
+    def many(self, zs: Sequence[FloatArray]) -> list[FloatArray | None]:
+        """h [µm] for each z of ``zs`` (None where one cannot be simulated), in one
+        call of :func:`boucwen.simulate_many` when they share h0."""
+        thetas = [self.theta(z) for z in zs]
+        if not thetas or any(th[5] != thetas[0][5] for th in thetas):
+            return [self(z) for z in zs]
+        hs = finite_or_none(
+            lambda: simulate_many([self._params(th) for th in thetas], self.u, self.dt, float(thetas[0][5]))
+        )
+        if hs is not None:
+            return list(hs)
+        # Some set diverged: the finite rows stand, each checked alone.
+        return [self(z) for z in zs]
 
     def with_jacobian(self, z: FloatArray) -> tuple[FloatArray, FloatArray] | None:
         """(h [µm], ∂h/∂z) for the unknowns z, from one pass, or None if they cannot be
@@ -160,6 +196,7 @@ class _Hysteresis:
         if out is None:
             return None
         h, jac = out
+        self._remember(z, h)
         # Columns kv, x0, A, β, γ, n, δ, h0 of the core; z = θ / scale.
         return h, jac[:, 2 : 2 + self.nvar] * self.scale[: self.nvar]
 
@@ -169,15 +206,24 @@ def _problem(record: Record, scale: FloatArray, fixed_h0: float | None) -> tuple
     hysteresis = _Hysteresis(record.u, record.dt, scale, fixed_h0)
     ridge = Ridge(index=5, weight=H0_RIDGE, scale=float(scale[5])) if fixed_h0 is None else None
     basis = np.column_stack([record.u, np.ones_like(record.u)])
-    problem = OutputErrorProblem(hysteresis, hysteresis.with_jacobian, record.x, basis=basis, ridge=ridge)
+    problem = OutputErrorProblem(
+        hysteresis, hysteresis.with_jacobian, record.x, basis=basis, ridge=ridge, simulate_many=hysteresis.many
+    )
     return problem, hysteresis
+
+
+def _line(u: FloatArray, y: FloatArray) -> tuple[float, float]:
+    """(slope, intercept) of the least-squares line y ≈ slope·u + intercept (u not
+    constant): the normal equations of the two columns [u, 1], solved about the mean."""
+    u_mean, y_mean = float(np.mean(u)), float(np.mean(y))
+    du = u - u_mean
+    slope = float(du @ (y - y_mean)) / float(du @ du)
+    return slope, y_mean - slope * u_mean
 
 
 def _linear_part(record: Record, h: FloatArray) -> tuple[float, float]:
     """(kv, x0) of the least-squares fit of x − h on [u, 1]."""
-    basis = np.column_stack([record.u, np.ones_like(record.u)])
-    coef, *_ = np.linalg.lstsq(basis, record.x - h, rcond=None)
-    return float(coef[0]), float(coef[1])
+    return _line(record.u, record.x - h)
 
 
 # --------------------------------------------------------------------------- guesses
@@ -185,10 +231,8 @@ def _linear_part(record: Record, h: FloatArray) -> tuple[float, float]:
 
 def _scales(u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
     """Scale of (A, β, γ, n, δ, h0) derived from the record."""
-    basis = np.column_stack([u, np.ones_like(u)])
-    coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
-    slope = float(coef[0])
-    resid = x - basis @ coef
+    slope, intercept = _line(u, x)
+    resid = x - (slope * u + intercept)
     span_x = float(np.ptp(x))
     half_width = max(0.5 * float(np.ptp(resid)), 1e-6 * max(span_x, 1e-12), 1e-12)
     span_u = float(np.ptp(u))
@@ -236,13 +280,22 @@ def _decimation(u: FloatArray) -> int:
 # --------------------------------------------------------------------------- fit
 
 
-def _local(problem: OutputErrorProblem, nvar: int, z0: FloatArray, max_nfev: int, tol: float) -> OptimizeResult:
+def _local(
+    problem: OutputErrorProblem,
+    nvar: int,
+    z0: FloatArray,
+    max_nfev: int,
+    tol: float,
+    method: Method,
+) -> Solution:
+    """The local solver ``method`` from ``z0`` (n kept in :data:`N_BOUNDS`); with
+    ``"lm"``, a Jacobian is kept while it predicts the steps (:mod:`boucwen.levenberg`)."""
     lb = np.full(nvar, -np.inf)
     ub = np.full(nvar, np.inf)
     lb[3], ub[3] = N_BOUNDS
     z0 = z0[:nvar].copy()
     z0[3] = min(max(z0[3], N_BOUNDS[0] + 1e-9), N_BOUNDS[1] - 1e-9)
-    return problem.solve(z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev)
+    return problem.solve(z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev, method=method, reuse_jacobian=True)
 
 
 def fit(
@@ -259,6 +312,7 @@ def fit(
     decimate: int | None = None,
     workers: int | None = None,
     progress: Progress = False,
+    method: Method = "lm",
 ) -> FitResult:
     """Identifies the seven parameters and h0 from a record by output-error least squares.
 
@@ -279,6 +333,9 @@ def fit(
         workers: threads scoring the global stage's candidates (default: the number
             of CPUs).
         progress: ``True`` to print progress lines to stderr, or a callable taking a str.
+        method: the local solver: ``"lm"`` (:mod:`boucwen.levenberg`, the default) or
+            ``"trf"`` (SciPy's trust-region reflective, a pass of the core per accepted
+            step and a full-record stage from scratch: slower, for comparison).
 
     Returns:
         A :class:`FitResult`.
@@ -299,6 +356,7 @@ def fit(
         decimate=decimate,
         workers=workers,
         progress=progress,
+        method=method,
     )
 
 
@@ -314,6 +372,7 @@ def fit_record(
     decimate: int | None = None,
     workers: int | None = None,
     progress: Progress = False,
+    method: Method = "lm",
 ) -> FitResult:
     """:func:`fit` on a checked :class:`~boucwen.record.Record` (same options, same result)."""
     started = time.perf_counter()
@@ -328,6 +387,8 @@ def fit_record(
     check_int("n_starts", n_starts, 1)
     check_int("n_candidates", n_candidates, 0)
     check_int("max_nfev", max_nfev, 1)
+    if method not in ("lm", "trf"):
+        raise InvalidConfig(f"method must be 'lm' or 'trf', got {method!r}")
     if decimate is not None:
         check_int("decimate", decimate, 1)
     say = reporter(progress, "fit", started, width=5)
@@ -354,42 +415,55 @@ def fit_record(
         if n_candidates:
             say(f"scoring {n_candidates} candidates on {coarse_u_size} samples (every {q}th)")
             rows = [c[:nvar] for c in cands]
-            costs = list(pool.map(coarse.cost, rows)) if pool is not None else [coarse.cost(c) for c in rows]
+            costs = coarse.costs(rows)
             order = np.argsort(costs)
             starts.extend(cands[i] for i in order[:n_starts])
 
-        # Local stage on the coarse record.
-        # Stops early once a second start lands on the best cost found so far.
-        best: OptimizeResult | None = None
+        # Local stage on the coarse record, as many starts at a time as there are
+        # workers; the results are read in the order of the starts, so the outcome does
+        # not depend on the number of workers. Stops early once a second start lands on
+        # the best cost found so far.
+        batch = worker_count(workers)
+        best: Solution | None = None
         confirmed = False
-        for k, z0 in enumerate(starts):
-            res = _local(coarse, nvar, z0, max_nfev, 1e-8)
-            fit_rms = math.sqrt(2.0 * res.cost / coarse_u_size)
-            say(f"start {k + 1}/{len(starts)}: rms {fit_rms:.4g} µm after {res.nfev} steps")
-            if best is not None and abs(res.cost - best.cost) <= _SAME_COST * max(best.cost, 1e-300):
-                confirmed = True
-            # A later start replaces the best only beyond _SAME_COST: within it the two
-            # are the same optimum, and the earlier start keeps it whichever way the
-            # last bits of the arithmetic fall.
-            if best is None or res.cost < (1.0 - _SAME_COST) * best.cost:
-                best = res
-            if confirmed and k + 1 < len(starts):
-                say("optimum reached from two starts; skipping the rest")
+        for first in range(0, len(starts), batch):
+            group = starts[first : first + batch]
+
+            def local(z0: FloatArray) -> Solution:
+                return _local(coarse, nvar, z0, max_nfev, 1e-8, method)
+
+            results = list(pool.map(local, group)) if pool is not None and len(group) > 1 else [local(z) for z in group]
+            for k, res in enumerate(results, start=first):
+                fit_rms = math.sqrt(2.0 * res.cost / coarse_u_size)
+                say(f"start {k + 1}/{len(starts)}: rms {fit_rms:.4g} µm after {res.nfev} steps")
+                if best is not None and abs(res.cost - best.cost) <= _SAME_COST * max(best.cost, 1e-300):
+                    confirmed = True
+                # A later start replaces the best only beyond _SAME_COST: within it the
+                # two are the same optimum, and the earlier start keeps it whichever way
+                # the last bits of the arithmetic fall.
+                if best is None or res.cost < (1.0 - _SAME_COST) * best.cost:
+                    best = res
+                if confirmed:
+                    break
+            if confirmed:
+                if first + batch < len(starts) or k + 1 < len(starts):
+                    say("optimum reached from two starts; skipping the rest")
                 break
         if best is None:  # pragma: no cover - n_starts >= 1 or init gives at least one start
             raise ValueError("no starting point for the local stage")
 
-        # Refinement on the full record.
+        # Refinement on the full record, from the coarse optimum: near the full
+        # record's, so one pass and a step or two usually reach it.
         if coarse is not full:
             say(f"refining on {u.size} samples")
-            final = _local(full, nvar, best.x, max_nfev, 1e-10)
+            final = _local(full, nvar, best.x, max_nfev, 1e-10, method)
             say(f"full record: {final.nfev} steps")
             stage = "full record"
         else:
             final = best
             stage = "record"
         th = hysteresis.theta(final.x)
-        h = full.simulate(final.x)
+        h = hysteresis.simulated(final.x)
         if h is None:  # pragma: no cover - the optimiser never accepts a failing point
             raise ValueError("the fitted parameters cannot be simulated")
         kv, x0 = _linear_part(record, h)

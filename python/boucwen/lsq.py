@@ -17,8 +17,14 @@ share:
   forward-mode automatic differentiation through the same integrator);
 * a residual of :data:`FAIL_RESIDUAL_UM` for a point that cannot be simulated, so
   the optimiser backs away from it;
-* the count of simulations, and the call of ``scipy.optimize.least_squares``
-  (trust-region reflective, one tolerance for ``xtol``, ``ftol`` and ``gtol``);
+* the count of simulations, and the minimisation, by one of two methods
+  (:data:`Method`): ``"lm"``, :func:`boucwen.levenberg.levenberg_marquardt`
+  (trust-region Levenberg–Marquardt on the normal equations, a pass of the core per
+  linearisation or fewer, stopped where the remaining step is a small fraction of the
+  unknowns' standard error: :func:`boucwen.fit`), or ``"trf"``,
+  ``scipy.optimize.least_squares``'s trust-region reflective method (one tolerance for
+  ``xtol``, ``ftol`` and ``gtol``: :func:`boucwen.effects.fit_extended`, whose
+  budget-limited trials in the diagnosis were validated with it);
 * threads for independent simulations (:func:`worker_threads`, :func:`thread_map`:
   the fit's candidates, the diagnosis's trials; the simulators release the GIL).
 """
@@ -31,22 +37,28 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Callable, Optional, TypeVar
+from typing import Any, Callable, Literal, Optional, TypeVar
 
 import numpy as np
-from scipy.optimize import OptimizeResult, least_squares
+from scipy.optimize import least_squares
 
 from .checks import FloatArray, check_int
+from .levenberg import STATISTICAL_MARGIN, Solution, levenberg_marquardt
 
 __all__ = [
     "FAIL_RESIDUAL_UM",
+    "ManySimulator",
+    "Method",
     "OutputErrorProblem",
     "Ridge",
     "Simulator",
     "SimulatorWithJacobian",
+    "Solution",
     "finite_or_none",
+    "orthonormal",
     "thread_map",
     "with_jacobian_or_none",
+    "worker_count",
     "worker_threads",
 ]
 
@@ -56,8 +68,15 @@ FAIL_RESIDUAL_UM = 1e6
 #: Unknowns → simulated signal [µm], or None when they cannot be simulated.
 Simulator = Callable[[FloatArray], Optional[FloatArray]]
 #: Unknowns → (simulated signal [µm], its Jacobian ∂s/∂z: one row per sample, one column
-#: per unknown), or None when they cannot be simulated.
+#: per unknown; a new array, which the engine projects in place), or None when they
+#: cannot be simulated.
 SimulatorWithJacobian = Callable[[FloatArray], Optional[tuple[FloatArray, FloatArray]]]
+#: Several unknowns → the simulated signal of each [µm] (None where one cannot be
+#: simulated), in one batch.
+ManySimulator = Callable[[Sequence[FloatArray]], list[Optional[FloatArray]]]
+
+#: The minimisation methods of :meth:`OutputErrorProblem.solve` (module docs).
+Method = Literal["lm", "trf"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -84,13 +103,19 @@ def with_jacobian_or_none(run: Callable[[], tuple[Any, Any]]) -> tuple[FloatArra
     return (s, jac) if bool(np.all(np.isfinite(s)) and np.all(np.isfinite(jac))) else None
 
 
+def worker_count(workers: int | None) -> int:
+    """``workers``, or the number of CPUs for None. ValueError if ``workers`` is not None
+    or an integer >= 1."""
+    return (os.cpu_count() or 1) if workers is None else check_int("workers", workers, 1)
+
+
 @contextmanager
 def worker_threads(workers: int | None) -> Iterator[ThreadPoolExecutor | None]:
     """A thread pool for independent simulations (:func:`thread_map`, the fit's
     candidates, the diagnosis's trials): ``workers`` threads (default: the number of
     CPUs), or None when that is one; shut down on exit. ValueError if ``workers`` is
     not None or an integer >= 1."""
-    count = (os.cpu_count() or 1) if workers is None else check_int("workers", workers, 1)
+    count = worker_count(workers)
     pool = ThreadPoolExecutor(max_workers=count) if count > 1 else None
     try:
         yield pool
@@ -105,6 +130,19 @@ def thread_map(fn: Callable[[T], R], items: Sequence[T], workers: int | None) ->
     release the GIL."""
     with worker_threads(workers) as pool:
         return list(pool.map(fn, items)) if pool is not None else [fn(item) for item in items]
+
+
+def orthonormal(basis: FloatArray) -> FloatArray:
+    """An orthonormal basis of the span of the columns of ``basis`` (rows × k, k small,
+    columns independent): Gram–Schmidt with each column orthogonalised twice, which
+    keeps it orthogonal to rounding; a C-ordered rows × k array."""
+    q = np.array(basis, dtype=np.float64, order="F", copy=True)
+    for j in range(q.shape[1]):
+        for _ in range(2):
+            for i in range(j):
+                q[:, j] -= (q[:, i] @ q[:, j]) * q[:, i]
+        q[:, j] /= np.linalg.norm(q[:, j])
+    return np.ascontiguousarray(q)
 
 
 @dataclass(frozen=True)
@@ -128,6 +166,8 @@ class OutputErrorProblem:
         basis: columns whose span is projected out of the residual (variable
             projection), or None.
         ridge: an extra residual row, or None.
+        simulate_many: several unknowns → their simulated signals (each or None) in
+            one batch, for :meth:`costs`; None to run ``simulate`` in threads.
     """
 
     def __init__(
@@ -138,12 +178,14 @@ class OutputErrorProblem:
         *,
         basis: FloatArray | None = None,
         ridge: Ridge | None = None,
+        simulate_many: ManySimulator | None = None,
     ):
         self._simulate = simulate
+        self._simulate_many = simulate_many
         self._simulate_with_jacobian = simulate_with_jacobian
         self.target = target
         self.ridge = ridge
-        self._q: FloatArray | None = np.linalg.qr(basis)[0] if basis is not None else None
+        self._q: FloatArray | None = orthonormal(basis) if basis is not None else None
         self._rows = target.size + (1 if ridge is not None else 0)
         self._lock = threading.Lock()
         self._count = 0
@@ -163,38 +205,69 @@ class OutputErrorProblem:
         return self._simulate(z)
 
     def _project(self, v: FloatArray) -> FloatArray:
-        if self._q is None:
-            return v
-        out: FloatArray = v - self._q @ (self._q.T @ v)
-        return out
+        """P·v, overwriting ``v`` (an array this problem owns)."""
+        if self._q is not None:
+            v -= self._q @ (self._q.T @ v)
+        return v
 
     def residual(self, z: FloatArray) -> FloatArray:
         """r(z) [µm]; every row :data:`FAIL_RESIDUAL_UM` where z cannot be simulated."""
         s = self.simulate(z)
         if s is None:
             return np.full(self._rows, FAIL_RESIDUAL_UM)
-        r = self._project(s - self.target)
-        if self.ridge is not None:
-            r = np.append(r, self.ridge.weight * z[self.ridge.index] * self.ridge.scale)
-        return r
+        return self._with_ridge(self._project(s - self.target), z)
 
-    def jacobian(self, z: FloatArray) -> FloatArray:
-        """∂r/∂z = P·∂s/∂z from one simulation with the Jacobian (zeros where z cannot
-        be simulated)."""
+    def _with_ridge(self, r: FloatArray, z: FloatArray) -> FloatArray:
+        if self.ridge is None:
+            return r
+        return np.append(r, self.ridge.weight * z[self.ridge.index] * self.ridge.scale)
+
+    def linearise(self, z: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """(r(z), ∂r/∂z = P·∂s/∂z) from one simulation with the Jacobian, or None where z
+        cannot be simulated. The simulator's Jacobian array is projected in place."""
         self._counted()
         out = self._simulate_with_jacobian(z)
-        jac = np.zeros((self._rows, z.size))
         if out is None:
-            return jac
-        jac[: self.target.size] = self._project(out[1])
-        if self.ridge is not None:
-            jac[-1, self.ridge.index] = self.ridge.weight * self.ridge.scale
+            return None
+        s, ds = out
+        return self._with_ridge(self._project(s - self.target), z), self._jacobian_rows(ds)
+
+    def _jacobian_rows(self, ds: FloatArray) -> FloatArray:
+        """P·ds with the ridge row appended (``ds`` projected in place when no row is added)."""
+        if self.ridge is None:
+            return self._project(np.require(ds, requirements=["C", "W"]))
+        jac = np.empty((self._rows, ds.shape[1]))
+        jac[: self.target.size] = ds
+        self._project(jac[: self.target.size])
+        jac[-1] = 0.0
+        jac[-1, self.ridge.index] = self.ridge.weight * self.ridge.scale
         return jac
+
+    def jacobian(self, z: FloatArray) -> FloatArray:
+        """∂r/∂z (zeros where z cannot be simulated), from :meth:`linearise`."""
+        out = self.linearise(z)
+        return out[1] if out is not None else np.zeros((self._rows, z.size))
 
     def cost(self, z: FloatArray) -> float:
         """Σ r(z)² [µm²]."""
         r = self.residual(z)
         return float(r @ r)
+
+    def costs(self, zs: Sequence[FloatArray], workers: int | None = None) -> list[float]:
+        """Σ r(z)² [µm²] for each z of ``zs``: one batch of simulations where the
+        problem has a ``simulate_many``, else :meth:`cost` in ``workers`` threads."""
+        if self._simulate_many is None:
+            return thread_map(self.cost, zs, workers)
+        with self._lock:
+            self._count += len(zs)
+        out = []
+        for z, s in zip(zs, self._simulate_many(zs)):
+            if s is None:
+                out.append(float(self._rows) * FAIL_RESIDUAL_UM**2)
+                continue
+            r = self._with_ridge(self._project(s - self.target), z)
+            out.append(float(r @ r))
+        return out
 
     def solve(
         self,
@@ -205,17 +278,39 @@ class OutputErrorProblem:
         x_scale: FloatArray | float,
         tol: float,
         max_nfev: int,
-    ) -> OptimizeResult:
-        """``scipy.optimize.least_squares`` (trf) from ``z0`` within [lower, upper]."""
-        return least_squares(
+        method: Method = "lm",
+        margin: float = STATISTICAL_MARGIN,
+        reuse_jacobian: bool = False,
+    ) -> Solution:
+        """Minimises ½‖r‖² from ``z0`` within [lower, upper] by ``method`` (module
+        docs); ``margin`` and ``reuse_jacobian`` are those of
+        :func:`~boucwen.levenberg.levenberg_marquardt` ("lm" only)."""
+        if method == "trf":
+            res = least_squares(
+                self.residual,
+                z0,
+                jac=self.jacobian,
+                bounds=(lower, upper),
+                method="trf",
+                x_scale=x_scale,
+                xtol=tol,
+                ftol=tol,
+                gtol=tol,
+                max_nfev=max_nfev,
+            )
+            jac = np.asarray(res.jac, dtype=np.float64)
+            return Solution(res.x, float(res.cost), jac, int(res.nfev), int(res.njev), bool(res.success), res.message)
+        if method != "lm":
+            raise ValueError(f"method must be 'lm' or 'trf', got {method!r}")
+        return levenberg_marquardt(
             self.residual,
+            self.linearise,
             z0,
-            jac=self.jacobian,
-            bounds=(lower, upper),
-            method="trf",
+            lower,
+            upper,
             x_scale=x_scale,
-            xtol=tol,
-            ftol=tol,
-            gtol=tol,
+            tol=tol,
             max_nfev=max_nfev,
+            margin=margin,
+            reuse_jacobian=reuse_jacobian,
         )

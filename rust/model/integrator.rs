@@ -498,6 +498,22 @@ impl NearPower {
     }
 }
 
+/// The integrator's plan for the interval `u0` → `u1` \[V\] of length `dt` \[s\] from
+/// h \[µm\] (the rule [`advance_h`] applies at the interval's start): `Some(0)` where u
+/// holds (no integration), `Some(m)` for m RK4 sub-steps, `None` where the interval is
+/// too stiff for [`MAX_SUBSTEPS`] and takes the implicit path. For experiments that
+/// count the stiff intervals of an identifier's estimates.
+pub fn interval_plan(p: &Params, h: f64, u0: f64, u1: f64, dt: f64) -> Option<u32> {
+    let du = u1 - u0;
+    if du == 0.0 {
+        return Some(0);
+    }
+    let udot = du / dt;
+    let hn = abs_pow(h, p.n);
+    let k1 = rate(&Coefficients::of(p), h, hn, u0, udot, sgn(udot));
+    substeps(p, h, k1, hn, udot, dt)
+}
+
 /// Advances h over one sample interval of length `dt` \[s\] while u moves linearly
 /// from `u0` to `u1` \[V\]: the model's integrator. Returns the new h \[µm\]; never NaN
 /// for finite input.

@@ -25,8 +25,8 @@ use crate::params::Params;
 
 use integrator::{abs_pow, advance_h_carried};
 pub use integrator::{
-    advance, advance_h, hysteresis_rate, sgn, Coefficients, H_LIMIT_UM, IMPLICIT_SUBSTEPS, IMPLICIT_TOLERANCE_UM,
-    MAX_SUBSTEPS, MIN_SUBSTEPS, NEWTON_ITERATIONS, STIFFNESS_STEP, TRIAL_ABOVE_SUBSTEPS,
+    advance, advance_h, hysteresis_rate, interval_plan, sgn, Coefficients, H_LIMIT_UM, IMPLICIT_SUBSTEPS,
+    IMPLICIT_TOLERANCE_UM, MAX_SUBSTEPS, MIN_SUBSTEPS, NEWTON_ITERATIONS, STIFFNESS_STEP, TRIAL_ABOVE_SUBSTEPS,
 };
 
 /// Output equation (3): x = kv·u + x0 + h \[µm\].

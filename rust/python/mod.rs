@@ -66,6 +66,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(config::_config_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(config::_validate_config, m)?)?;
     m.add_function(wrap_pyfunction!(model::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(model::simulate_many, m)?)?;
+    m.add_function(wrap_pyfunction!(model::_substep_plan, m)?)?;
     m.add_class::<effects::PyEffectSet>()?;
     m.add_class::<extended_state::PyExtendedState>()?;
     m.add_function(wrap_pyfunction!(effects::simulate_extended, m)?)?;

@@ -1,7 +1,7 @@
 //! `boucwen.Model` (per-sample) and `boucwen.simulate` (batch, chunkable).
 
-use numpy::PyArray1;
-use pyo3::exceptions::PyValueError;
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
@@ -34,6 +34,98 @@ pub fn simulate<'py>(
     let p = params.inner;
     let (x, h) = py.detach(move || crate::simulate(&p, &u, dt, h0, u_prev)).map_err(value_error)?;
     Ok((PyArray1::from_vec(py, x), h))
+}
+
+/// The model of each parameter set of `params` simulated over the same voltage `u`
+/// \[V\] from h\[0\] = `h0` \[µm\]: row i is `simulate(params[i], u, dt, h0)[0]` to
+/// the last bit. The sets are shared among the machine's cores, the GIL released
+/// (scoring many candidate models on one record). A non-finite sample raises
+/// before anything runs.
+#[pyfunction]
+#[pyo3(signature = (params, u, dt, h0 = 0.0))]
+pub fn simulate_many<'py>(
+    py: Python<'py>,
+    params: Vec<PyRef<'py, PyParams>>,
+    u: &Bound<'py, PyAny>,
+    dt: f64,
+    h0: f64,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let u = samples(u, "u")?;
+    positive_dt(dt).map_err(value_error)?;
+    finite(h0, "h0")?;
+    let sets: Vec<crate::Params> = params.iter().map(|p| p.inner).collect();
+    let (rows, n) = (sets.len(), u.len());
+    let values = py.detach(move || -> PyResult<Vec<f64>> {
+        let mut out = vec![0.0; rows * n];
+        if rows == 0 || n == 0 {
+            return Ok(out);
+        }
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(rows);
+        let per = rows.div_ceil(threads);
+        std::thread::scope(|scope| {
+            let workers: Vec<_> = out
+                .chunks_mut(per * n)
+                .zip(sets.chunks(per))
+                .map(|(block, sets)| {
+                    let u = &u;
+                    scope.spawn(move || -> crate::Result<()> {
+                        for (row, p) in block.chunks_mut(n).zip(sets) {
+                            crate::simulate_into(p, u, dt, h0, None, row)?;
+                        }
+                        Ok(())
+                    })
+                })
+                .collect();
+            workers.into_iter().try_for_each(|w| match w.join() {
+                Ok(done) => done.map_err(value_error),
+                Err(_) => Err(PyRuntimeError::new_err("a simulation worker stopped unexpectedly")),
+            })
+        })?;
+        Ok(out)
+    })?;
+    PyArray1::from_vec(py, values).reshape([rows, n])
+}
+
+/// The integrator's plan of each interval u\[k\] → u\[k+1\] \[V\] from h\[k\] \[µm\] with
+/// the parameters of row k of `params` (kv, x0, A, β, γ, n, δ: 7 values per interval,
+/// row after row): the RK4 sub-steps, 0 where u holds, −1 where the implicit path is
+/// taken ([`crate::model::interval_plan`]).
+#[pyfunction]
+pub fn _substep_plan<'py>(
+    py: Python<'py>,
+    params: &Bound<'py, PyAny>,
+    h: &Bound<'py, PyAny>,
+    u: &Bound<'py, PyAny>,
+    dt: f64,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let (params, h, u) = (samples(params, "params")?, samples(h, "h")?, samples(u, "u")?);
+    positive_dt(dt).map_err(value_error)?;
+    let intervals = u.len().saturating_sub(1);
+    if params.len() != 7 * intervals || h.len() != intervals {
+        return Err(PyValueError::new_err(format!(
+            "params and h need one row per interval: {intervals} × 7 and {intervals} values, got {} and {}",
+            params.len(),
+            h.len()
+        )));
+    }
+    let plan = params
+        .chunks_exact(7)
+        .zip(&h)
+        .zip(u.windows(2))
+        .map(|((row, &h), w)| {
+            let p = crate::Params {
+                kv: row[0],
+                x0: row[1],
+                a: row[2],
+                beta: row[3],
+                gamma: row[4],
+                n: row[5],
+                delta: row[6],
+            };
+            crate::model::interval_plan(&p, h, w[0], w[1], dt).map_or(-1, i64::from)
+        })
+        .collect();
+    Ok(PyArray1::from_vec(py, plan))
 }
 
 /// The paper's input u = 50 + 50·sin(2πft − π/2) \[V\], sampled every `dt` \[s\]:

@@ -4,7 +4,7 @@ out of a base model that bent its hysteresis to imitate an effect."""
 from __future__ import annotations
 
 from .._core import EffectSet
-from ..effects import ExtendedFit, fit_extended_record, simulate_chain
+from ..effects import DIAGNOSIS_METHOD, ExtendedFit, fit_extended_record, simulate_chain
 from ..fit import fit_record
 from ..record import Record, validate_record
 from .policy import DiagnosisPolicy
@@ -29,7 +29,7 @@ def rebased(
         return None
     try:
         plain = validate_record(u, record.x - (with_effects - plain_x), dt)
-        base = fit_record(plain, seed=seed, workers=workers, decimate=q if q > 1 else None)
+        base = fit_record(plain, seed=seed, workers=workers, decimate=q if q > 1 else None, method=DIAGNOSIS_METHOD)
         return fit_extended_record(
             record, base.params, kept.effects, base.h0, max_nfev=policy.rebase_nfev, tol=policy.trial_tol
         )

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..checks import check_int
-from ..effects import VOCABULARY, ExtendedFit, effect_class, simulate_chain
+from ..effects import DIAGNOSIS_METHOD, VOCABULARY, ExtendedFit, effect_class, simulate_chain
 from ..fit import fit_record
 from ..progress import Progress, reporter
 from ..record import Record, validate_record
@@ -186,7 +186,7 @@ def diagnose_record(
     noise_um = noise_level(x).sigma_um
 
     say(f"fitting the base model on {n} samples")
-    base = fit_record(record, seed=seed, workers=workers, decimate=q if q > 1 else None)
+    base = fit_record(record, seed=seed, workers=workers, decimate=q if q > 1 else None, method=DIAGNOSIS_METHOD)
     current = base_fit(base)
     say(
         f"base model: RMS {base.rms_um:.4g} µm; {policy.folds} folds"

@@ -2,6 +2,7 @@
 
 :func:`fit_extended` minimises Σ (x_k − x̂_k)² over a record, where x̂ is *simulated*
 from u alone with :func:`boucwen.simulate_extended`, by ``scipy.optimize.least_squares``
+(trust-region reflective: method ``"trf"`` of :meth:`boucwen.lsq.OutputErrorProblem.solve`)
 — the same approach as :func:`boucwen.fit` for the base model (whose result is the
 usual starting point here).
 
@@ -30,13 +31,14 @@ from numpy.typing import ArrayLike
 from .._core import EffectSet, Params, simulate_extended, simulate_extended_with_jacobian
 from ..checks import FloatArray
 from ..fit import N_BOUNDS
-from ..lsq import OutputErrorProblem, with_jacobian_or_none
+from ..lsq import Method, OutputErrorProblem, with_jacobian_or_none
 from ..metrics import max_abs, rms
 from ..record import Record, validate_record
 from .base import Context, Effect, Start, simulate_chain, with_effect
 from .registry import effect_class, effect_set, effects_of
 
 __all__ = [
+    "DIAGNOSIS_METHOD",
     "ExtendedFit",
     "Layout",
     "Solved",
@@ -49,6 +51,12 @@ __all__ = [
 
 #: The base model's unknowns: the seven parameters and h0.
 _BASE = (*Params.names, "h0")
+
+#: The local solver of :func:`fit_extended` and of the diagnosis's base-model fits:
+#: SciPy's trust-region reflective method, the one the diagnosis's budgets and
+#: thresholds were validated with (a budget-limited fit ends where the solver's path
+#: takes it; ``docs/design.md``, *The offline fit's solver*).
+DIAGNOSIS_METHOD: Method = "trf"
 
 
 @dataclass(frozen=True)
@@ -305,7 +313,7 @@ def solve_extended_record(
     prob = OutputErrorProblem(chain, chain.with_jacobian, x)
     if prob.simulate(v0) is None:
         raise ValueError("the starting point of fit_extended cannot be simulated")
-    res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev)
+    res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev, method=DIAGNOSIS_METHOD)
     p, e, h = layout.unpack(res.x)
     xs = simulate_chain(p, e, u, dt, h)
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point

@@ -36,14 +36,13 @@ first sample on. The traditional model itself (not projected) is the baseline.
   random input the "periods" are blocks of :data:`RANDOM_BLOCK` samples (0.1 s); the
   ratio to the traditional is taken block by block.
 * **Implicit-path share**: the share of pushes whose prediction interval the model's
-  integrator (``rust/model/integrator.rs``) sends to backward Euler. Computed by
-  *replaying* the integrator's rule in Python (:func:`implicit_intervals`) on every
-  interval with the estimates and h recorded after the push before it (exactly what
-  the identifier integrates with): the stiffness n·(|β|+|γ|)·|u̇|·|h|^(n−1)·Δt at the
-  interval's start, or at its explicit-Euler end point h + Δt·ḣ when h moves by more
-  than a tenth of itself, above ``STIFFNESS_STEP · MAX_SUBSTEPS`` = 0.25 · 32 = 8
-  (:data:`IMPLICIT_STIFFNESS`), or n < 1 at h = 0. An interval over which u holds is
-  not integrated at all and counts as explicit. The horizon method also re-simulates
+  integrator (``rust/model/integrator.rs``) sends to backward Euler: the core's own
+  plan of every interval (:func:`implicit_intervals`) with the estimates and h
+  recorded after the push before it (exactly what the identifier integrates with):
+  implicit where the stiffness n·(|β|+|γ|)·|u̇|·|h|^(n−1)·Δt, at the interval's start or
+  at its explicit-Euler end point when h moves by more than a tenth of itself, asks
+  for more than ``MAX_SUBSTEPS`` RK4 sub-steps, or n < 1 at h = 0. An interval over
+  which u holds is not integrated at all and counts as explicit. The horizon method also re-simulates
   its window (16 intervals per push, with the same estimates but the window's h);
   those intervals are not replayed.
 
@@ -72,14 +71,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import evaluation, plant
-from .._core import Identifier, Params, simulate
+from .._core import Identifier, Params, _substep_plan, simulate
 from ..config import PaperConfig
 from ..fit import fit
 from ..io import jsonable
 
 __all__ = [
     "BOUNDS_OFF",
-    "IMPLICIT_STIFFNESS",
     "NOISE_LEVELS_UM",
     "N_BOUNDS",
     "PAPER_WINDOWS",
@@ -123,9 +121,6 @@ SEED = 0
 N_BOUNDS = (0.25, 4.0)
 #: β ± γ of the projected starting values [µm^(1−n)/V] (the identifiers' own margin).
 REGION_MARGIN = 1e-6
-#: Stiffness per interval beyond which the integrator takes backward Euler:
-#: STIFFNESS_STEP (0.25) × MAX_SUBSTEPS (32) in ``rust/model/integrator.rs``.
-IMPLICIT_STIFFNESS = 0.25 * 32
 #: Targets: period-ahead error at most this × the traditional's; explicit share at least this.
 TRADITIONAL_FACTOR = 2.0
 EXPLICIT_SHARE = 0.95
@@ -270,35 +265,14 @@ def period_bounds(segments: Sequence[tuple[float, int, int]], dt: float) -> list
 def implicit_intervals(params: FloatArray, h: FloatArray, u: FloatArray, dt: float) -> NDArray[np.bool_]:
     """For each interval u[k−1] → u[k] (k ≥ 1), whether the integrator takes the implicit
     path when it starts from estimates ``params[k−1]`` and state ``h[k−1]`` (rows as in
-    :class:`Record` shifted by one: pass ``rec.params[1:-1]``, ``rec.h[1:-1]``).
-
-    The replay of ``substeps`` in ``rust/model/integrator.rs``: stiffness
-    s = n·(|β|+|γ|)·|u̇|·Δt·|h|^(n−1) at the start (∞ for n < 1 at h = 0, n·(|β|+|γ|)·|u̇|·Δt
-    for n = 1 at h = 0, 0 for n > 1 at h = 0), raised to the value at the explicit-Euler end
-    point h + Δt·ḣ(h, u[k−1]) where that moves h by more than 0.1·|h|; implicit when
-    s / 0.25 > 32 (or NaN). No integration (u holds) is not implicit.
-    """
-    p = np.asarray(params, dtype=np.float64)
+    :class:`Record` shifted by one: pass ``rec.params[1:-1]``, ``rec.h[1:-1]``): the
+    core's own plan of each interval (``interval_plan`` in ``rust/model/integrator.rs``).
+    An interval over which u holds is not integrated and is not implicit."""
+    p = np.ascontiguousarray(params, dtype=np.float64)
     h0 = np.asarray(h, dtype=np.float64)
-    u0, u1 = u[:-1], u[1:]
-    if p.shape[0] != u0.size or h0.size != u0.size:
+    if p.shape[0] != u.size - 1 or h0.size != u.size - 1:
         raise ValueError("params and h need one row per interval (len(u) - 1)")
-    A, beta, gamma, n, delta = p[:, 2], p[:, 3], p[:, 4], p[:, 5], p[:, 6]
-    du = u1 - u0
-    udot = du / dt
-    a = np.abs(h0)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        hn = np.where(a > 0.0, a**n, 0.0)
-        k1 = A * udot - (beta * np.abs(udot) * np.sign(h0) + gamma * udot) * hn + delta * u0 * np.sign(udot)
-        weight = n * (np.abs(beta) + np.abs(gamma)) * np.abs(udot) * dt
-        at_zero = np.where(n < 1.0, np.inf, np.where(n == 1.0, weight, 0.0))
-        stiff = np.where(a > 0.0, weight * (hn / np.where(a > 0.0, a, 1.0)), at_zero)
-        h_end = h0 + dt * k1
-        b = np.abs(h_end)
-        far = (np.abs(h_end - h0) > 0.1 * a) & (b > 0.0)
-        stiff = np.where(far, np.maximum(stiff, weight * np.where(b > 0.0, b, 1.0) ** (n - 1.0)), stiff)
-        wanted = stiff / 0.25
-    out: NDArray[np.bool_] = (du != 0.0) & (np.isnan(wanted) | (wanted > IMPLICIT_STIFFNESS / 0.25))
+    out: NDArray[np.bool_] = _substep_plan(p.ravel(), h0, u, dt) < 0
     return out
 
 
