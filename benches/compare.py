@@ -2,6 +2,9 @@
 """Side-by-side speed of boucwen's Rust core against plain NumPy/SciPy, in one run.
 
     python benches/compare.py            # about a minute; prints a markdown table
+    python benches/compare.py --out out/compare   # also writes results.json there, from
+                                                  # which experiments.report writes the
+                                                  # table of docs/results.md
 
 Every row uses the same data: the paper's input (1 Hz for 3 s, then 10, 100 and
 200 Hz) sampled at 10 kHz, its simulated response with the paper's parameters and
@@ -33,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import json
 import os
 import platform
 import statistics
@@ -137,6 +141,7 @@ def push_many(method: str, params: Params, u: np.ndarray, x: np.ndarray) -> None
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=5, help="repeats of each fast figure (median; default 5)")
+    parser.add_argument("--out", help="folder for results.json (the table, for experiments.report)")
     args = parser.parse_args(argv)
     reps = max(1, args.repeats)
 
@@ -309,10 +314,17 @@ def main(argv: list[str] | None = None) -> int:
             f"min {trf_min * 1e3:.0f} ms; {trf.nfev} simulations and passes, rms error {trf.rms_um:.4g} µm",
         )
 
+    caption = f"Measured with `python benches/compare.py` on {machine()}; boucwen {boucwen.__version__}."
     print()
-    print(f"Measured with `python benches/compare.py` on {machine()}; boucwen {boucwen.__version__}.")
+    print(caption)
     print()
     print(table.markdown())
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        path = os.path.join(args.out, "results.json")
+        with open(path, "w", encoding="utf-8") as fh:
+            json.dump({"caption": caption, "rows": [list(row) for row in table.rows]}, fh, indent=1)
+        print(f"wrote {path}", file=sys.stderr)
     return 0
 
 

@@ -72,6 +72,10 @@ def test_a_table_holds_the_runs_figures() -> None:
     track = report.render("readme_track", {"track": _track()})
     assert track is not None and "| sine 1 Hz | 1.250 (6.25 %) | 1.250 (6.25 %) |" in track
     assert report.render("results_table1", {}) is None
+    compare = {"caption": "Measured on a host.", "rows": [["`simulate` (Rust)", "70 ns/sample", "", "paper input"]]}
+    table = report.render("compare", {"compare": compare})
+    assert table is not None and table.startswith("Measured on a host.\n\n| what | figure | ratio | note |")
+    assert table.endswith("| `simulate` (Rust) | 70 ns/sample |  | paper input |")
 
 
 def test_blocks_are_rewritten_and_the_prose_is_kept() -> None:

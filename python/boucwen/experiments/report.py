@@ -8,8 +8,10 @@ Every table those documents show of the main job's runs sits between two markers
 
 and is written by this module from the JSON the runs leave in ``out/`` (``bash
 scripts/main.sh``): ``out/reproduce/results.json`` (Tables 1 and 1b), ``out/measured/
-results.json`` (the measured records) and ``out/track/results.json`` (closed-loop
-tracking). Nothing between the markers is written by hand; the prose around them is.
+results.json`` (the measured records), ``out/track/results.json`` (closed-loop
+tracking) and ``out/compare/results.json`` (``python benches/compare.py --out
+out/compare``: the speed of the core beside NumPy/SciPy). Nothing between the markers
+is written by hand; the prose around them is.
 
 Run as ``python -m boucwen.experiments.report [--runs out] [FILE ...]`` (default files:
 ``README.md`` and ``docs/results.md``): each block whose run is present is rewritten;
@@ -156,7 +158,15 @@ BLOCKS: dict[str, Block] = {
     ),
     "track_off": Block("track", lambda r: _track(r, "vibration_off", None, rms=True)),
     "track_on": Block("track", lambda r: _track(r, "vibration_on", None, rms=True)),
+    "compare": Block("compare", lambda r: _compare(r)),
 }
+
+
+def _compare(r: Mapping[str, Any]) -> str:
+    """The table of ``python benches/compare.py --out out/compare``, with its caption."""
+    head = "| what | figure | ratio | note |\n|---|---:|---:|---|"
+    rows = "\n".join("| " + " | ".join(str(c) for c in row) + " |" for row in r["rows"])
+    return f"{r['caption']}\n\n{head}\n{rows}"
 
 
 def load_runs(runs_dir: str | Path) -> dict[str, dict[str, Any]]:
