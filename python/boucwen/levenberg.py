@@ -103,16 +103,10 @@ class _Normal:
         self.w = np.maximum(w, 0.0)
         self.determined = self.w > _RCOND * max(float(self.w[-1]), 1e-300)
 
-    def gauss_newton(self, g: FloatArray) -> FloatArray:
-        """δ = −H⁺g (the minimum-norm step where H is singular)."""
-        c = self.v.T @ (g * self.scale)
-        coef = np.where(self.determined, c / np.where(self.determined, self.w, 1.0), 0.0)
-        step: FloatArray = -self.scale * (self.v @ coef)
-        return step
-
     def within(self, g: FloatArray, radius: float) -> tuple[FloatArray, float]:
-        """(δ, μ): the minimiser of the linear model with ‖S⁻¹δ‖ ≤ ``radius``, to 10 %
-        of the radius on the edge (Newton on 1/‖S⁻¹δ(μ)‖, which is nearly linear in μ)."""
+        """(δ, μ): the minimiser of the linear model with ‖S⁻¹δ‖ ≤ ``radius`` (for
+        ``radius`` = ∞ the Gauss–Newton step −H⁺g, minimum-norm where H is singular), to
+        10 % of the radius on the edge (Newton on 1/‖S⁻¹δ(μ)‖, which is nearly linear in μ)."""
         c = self.v.T @ (g * self.scale)
         gn = np.where(self.determined, c / np.where(self.determined, self.w, 1.0), 0.0)
         if float(np.linalg.norm(gn)) <= radius:
@@ -220,7 +214,7 @@ def levenberg_marquardt(
     while True:
         g = jac.T @ r
         at_lower, at_upper = z <= lo, z >= hi
-        gauss_newton = normal.gauss_newton(g)
+        gauss_newton = normal.within(g, np.inf)[0]
         if _held(gauss_newton, at_lower, at_upper).any():
             held = _bounded(normal, jac, g, np.inf, at_lower, at_upper)
             remaining = float(-(g @ held))

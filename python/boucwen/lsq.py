@@ -215,9 +215,11 @@ class OutputErrorProblem:
         s = self.simulate(z)
         if s is None:
             return np.full(self._rows, FAIL_RESIDUAL_UM)
-        return self._with_ridge(self._project(s - self.target), z)
+        return self._residual_of(s, z)
 
-    def _with_ridge(self, r: FloatArray, z: FloatArray) -> FloatArray:
+    def _residual_of(self, s: FloatArray, z: FloatArray) -> FloatArray:
+        """r(z) from the signal ``s`` simulated at z: P·(s − target), the ridge row appended."""
+        r = self._project(s - self.target)
         if self.ridge is None:
             return r
         return np.append(r, self.ridge.weight * z[self.ridge.index] * self.ridge.scale)
@@ -230,7 +232,7 @@ class OutputErrorProblem:
         if out is None:
             return None
         s, ds = out
-        return self._with_ridge(self._project(s - self.target), z), self._jacobian_rows(ds)
+        return self._residual_of(s, z), self._jacobian_rows(ds)
 
     def _jacobian_rows(self, ds: FloatArray) -> FloatArray:
         """P·ds with the ridge row appended (``ds`` projected in place when no row is added)."""
@@ -265,7 +267,7 @@ class OutputErrorProblem:
             if s is None:
                 out.append(float(self._rows) * FAIL_RESIDUAL_UM**2)
                 continue
-            r = self._with_ridge(self._project(s - self.target), z)
+            r = self._residual_of(s, z)
             out.append(float(r @ r))
         return out
 
