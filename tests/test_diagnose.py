@@ -180,6 +180,8 @@ def test_trials_side_by_side_give_the_result_of_trials_in_turn():
     first = {k: v for k, v in one.evidence.items() if k not in strip}
     second = {k: v for k, v in two.evidence.items() if k not in strip}
     assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
+    # The costliest trials (the modes) start first; the evidence lists them in turn.
+    assert [list(r["trials"]) for r in one.evidence["rounds"]] == [list(r["trials"]) for r in two.evidence["rounds"]]
     np.testing.assert_array_equal(one.x_extended, two.x_extended)
     trial_lines = [m for m in progress if m.startswith(("  + ", "  - "))]
     assert len(trial_lines) == sum(len(r["trials"]) for r in two.evidence["rounds"])

@@ -224,6 +224,26 @@ def test_oversampling_converges(bench):
     assert np.abs(fine - rec.meta["x_true"]).max() < 0.01  # µm
 
 
+def test_oversampled_simulation_keeps_a_delay_in_samples():
+    """A delay of d samples is m·d fine points: the output of the chain with it is the
+    output without it, d samples later (from rest, the first value held)."""
+    from boucwen import EffectSet, Params, simulate_extended
+
+    t = np.arange(2000) * DT
+    u = 50.0 + 40.0 * np.sin(2 * np.pi * 7.0 * t)
+    params = Params.paper_1hz()
+    lag = {"input_lag": {"fc_hz": 400.0}}
+    plain = plant.simulate_oversampled(params, EffectSet(**lag), u, DT, 4)
+    late = plant.simulate_oversampled(params, EffectSet(**lag, delay={"samples": 3}), u, DT, 4)
+    np.testing.assert_array_equal(late[3:], plain[:-3])
+    np.testing.assert_array_equal(late[:3], plain[0])
+    # m = 1 is the core's own simulation.
+    np.testing.assert_array_equal(
+        plant.simulate_oversampled(params, EffectSet(**lag), u, DT, 1),
+        simulate_extended(params, EffectSet(**lag), u, DT),
+    )
+
+
 def test_paper_input_is_the_cores():
     core = pytest.importorskip("boucwen._core")
     for dt, tail in [(1e-4, 0.05), (2.5e-5, 0.1)]:

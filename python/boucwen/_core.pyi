@@ -43,6 +43,7 @@ if TYPE_CHECKING:  # type-only: the compiled core does not import the config mod
 
 __all__ = [
     "INVERSE_TOLERANCE_UM",
+    "RESONANCE_SUBSTEPS",
     "Bank",
     "Compensator",
     "CorruptSnapshot",
@@ -76,6 +77,11 @@ __version__: str
 INVERSE_TOLERANCE_UM: float
 """The inverse's tolerance on |model x − x_d| [µm] per µm of max(1 µm, |x_d|): 1e-7, a
 tenth of a picometre, a thousand times below the best capacitive sensors' resolution."""
+
+RESONANCE_SUBSTEPS: int
+"""Sub-intervals per sample interval on which :func:`simulate_extended` runs the whole
+chain when a resonance (or a second one) is present: such a pass costs about that many
+times one without."""
 
 # ---------------------------------------------------------------- exceptions
 

@@ -102,6 +102,7 @@ __all__ = [
     "floor_vibration",
     "measure",
     "paper_input",
+    "simulate_oversampled",
     "true_displacement",
 ]
 
@@ -330,11 +331,24 @@ def _fine_grid(u: FloatArray, m: int) -> FloatArray:
     return np.concatenate([u[:1], np.column_stack([inside, u[1:]]).ravel()])
 
 
+def simulate_oversampled(params: Params, effects: EffectSet, u: FloatArray, dt: float, m: int) -> FloatArray:
+    """x [µm] at the sample instants of :func:`boucwen.simulate_extended` run on a grid
+    ``m`` times finer than the sampling interval ``dt`` [s], u [V] a straight line
+    between samples: the simulated record of a plant whose dynamics act between the
+    samples (the lag's and the creep's output bend within an interval). A delay of d
+    samples is m·d points of the fine grid."""
+    chain = effects.to_dict()
+    if "delay" in chain and m > 1:
+        chain["delay"] = {"samples": int(chain["delay"]["samples"]) * m}
+        effects = EffectSet.from_dict(chain)
+    x = simulate_extended(params, effects, _fine_grid(u, m), dt / m)
+    return np.ascontiguousarray(np.asarray(x, dtype=np.float64)[::m])
+
+
 def _respond(u: FloatArray, dt: float, s: BenchSettings) -> FloatArray:
-    """Noise-free displacement of the stack x [µm] at the sample instants: the core's
-    chain run on the fine grid, read at every ``oversample``-th point."""
-    m = s.oversample
-    return np.asarray(simulate_extended(s.params(), s.effects(), _fine_grid(u, m), dt / m), dtype=np.float64)[::m]
+    """Noise-free displacement of the stack x [µm] at the sample instants
+    (:func:`simulate_oversampled` every ``oversample``-th point)."""
+    return simulate_oversampled(s.params(), s.effects(), u, dt, s.oversample)
 
 
 def floor_vibration(t: Any, settings: BenchSettings = BenchSettings()) -> FloatArray:

@@ -78,5 +78,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<compensate::PyCompensator>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("INVERSE_TOLERANCE_UM", crate::compensate::inverse::TOLERANCE_UM)?;
+    m.add("RESONANCE_SUBSTEPS", crate::effects::RESONANCE_SUBSTEPS)?;
     Ok(())
 }

@@ -11,7 +11,7 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
-from .._core import EffectSet
+from .._core import RESONANCE_SUBSTEPS, EffectSet
 from ..effects import VOCABULARY, ExtendedFit, Solved, effect_class, solve_extended_record
 from ..lsq import worker_threads
 from ..record import Record
@@ -24,7 +24,7 @@ from .starts import null_effort, ranked_starts
 from .trial import joint_partner, trial_fit
 from .unexplained import noise_level
 
-__all__ = ["Round", "Trial", "barred", "beyond_partner", "candidates", "lookalike_order", "score_round"]
+__all__ = ["Round", "Trial", "barred", "beyond_partner", "candidates", "lookalike_order", "pass_cost", "score_round"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,6 +139,13 @@ def lookalike_order(
     return order, None
 
 
+def pass_cost(name: str) -> int:
+    """Relative cost of a pass of the model with the effect ``name`` added: a mode
+    makes the core run the chain on :data:`~boucwen._core.RESONANCE_SUBSTEPS`
+    sub-intervals per sample."""
+    return RESONANCE_SUBSTEPS if effect_class(name).substepped else 1
+
+
 def score_round(
     record: Record,
     current: ExtendedFit,
@@ -250,7 +257,10 @@ def score_round(
             outcomes = [trial(name) for name in todo]
         else:
             null_run = pool.submit(null_trial)  # first in the queue: started before any trial waits for it
-            outcomes = list(pool.map(trial, todo))
+            # The costliest trials start first, so that none is left running alone at
+            # the end; the outcomes are read in the order of ``todo``.
+            running = {name: pool.submit(trial, name) for name in sorted(todo, key=lambda k: -pass_cost(k))}
+            outcomes = [running[name].result() for name in todo]
     scored_null = null_run.result()
     null_gain = 1.0 - scored_null.cv.rms_um / cur_cv.rms_um if cur_cv.rms_um > 0 else 0.0
     reference_fit = reference()

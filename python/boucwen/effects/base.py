@@ -168,6 +168,10 @@ class Effect(ABC):
     bars_when_undecided: ClassVar[bool] = False
     #: The backward step may swap it for a look-alike the group's test names.
     swappable: ClassVar[bool] = False
+    #: In the chain, it makes the core run every stage on
+    #: :data:`boucwen._core.RESONANCE_SUBSTEPS` sub-intervals per sample (a mode), so a
+    #: pass with it costs that many times one without.
+    substepped: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         raw = {f.name: getattr(self, f.name) for f in fields(self)}

@@ -103,6 +103,7 @@ class Resonance(Effect):
 
     name: ClassVar[str] = "resonance"
     spectral_peak: ClassVar[bool] = True
+    substepped: ClassVar[bool] = True
     #: A second-order low-pass has a peak only for ζ below 1/√2; without one it is a lag
     #: shape the other effects describe.
     PEAK_ZETA: ClassVar[float] = 1.0 / math.sqrt(2.0)

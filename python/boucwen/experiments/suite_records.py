@@ -7,7 +7,7 @@ one seed:
 * **excitations** (:data:`FAMILIES`): sine bursts, a staircase with holds, a single
   step, a chirp, band-limited random, a multisine, triangles, a decaying sine; all
   within 0…100 V;
-* **effects of the vocabulary** are simulated by :func:`boucwen.simulate_extended` on
+* **effects of the vocabulary** are simulated by :func:`boucwen.plant.simulate_oversampled` on
   a grid 4× finer than the sampling (the input interpolated linearly), with creep
   time constants (3 ms, 30 ms, 0.3 s, 3 s) the diagnosis does not use; their
   parameters come from :data:`VOCABULARY_MAKERS`, keyed by effect name. Only the
@@ -35,10 +35,11 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from .._core import Params, simulate_extended
+from .._core import Params
 from ..checks import FloatArray
 from ..effects import VOCABULARY
 from ..effects.base import set_of
+from ..plant import simulate_oversampled
 from .undeclared_records import PARAM_SETS
 
 __all__ = [
@@ -287,14 +288,7 @@ class SuiteRecord:
 
 
 def _simulate(params: Params, effects: dict[str, Any], u: FloatArray, dt: float) -> FloatArray:
-    fine_dt = dt / _OVERSAMPLE
-    t_fine = np.arange((u.size - 1) * _OVERSAMPLE + 1) * fine_dt
-    u_fine = np.interp(t_fine, np.arange(u.size) * dt, u)
-    fine = dict(effects)
-    if "delay" in fine:
-        fine["delay"] = {"samples": int(effects["delay"]["samples"]) * _OVERSAMPLE}
-    x = simulate_extended(params, set_of(fine), u_fine, fine_dt)[::_OVERSAMPLE]
-    return np.ascontiguousarray(x)
+    return simulate_oversampled(params, set_of(effects), u, dt, _OVERSAMPLE)
 
 
 def make_suite_record(

@@ -4,7 +4,7 @@ The input (:func:`test_input`) repeats a pattern three times with random levels:
 steps followed by holds, a full-range slow sweep, minor loops, sine bursts at
 2–60 Hz. Every part of a record thus holds the same kinds of motion.
 
-Records are simulated with :func:`boucwen.simulate_extended` on a grid 8× finer than
+Records are simulated with :func:`boucwen.plant.simulate_oversampled` on a grid 8× finer than
 the sampling (the input interpolated linearly) and then sampled, with creep time
 constants (0.01, 0.1, 1, 10 s) that differ from the ones the diagnosis uses, so
 the diagnosis never sees its own discretisation. Effect sizes are drawn from the
@@ -21,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from .._core import EffectSet, Params, simulate_extended
+from .._core import EffectSet, Params
 from ..checks import FloatArray
+from ..plant import simulate_oversampled
 
 __all__ = [
     "DT",
@@ -162,13 +163,7 @@ def make_record(
     kw = _draw_effect(effect, rng)
     u = test_input(dt, seed)
     params = PARAM_SETS[param_set]
-    fine_dt = dt / _OVERSAMPLE
-    t_fine = np.arange((u.size - 1) * _OVERSAMPLE + 1) * fine_dt
-    u_fine = np.interp(t_fine, np.arange(u.size) * dt, u)
-    fine_kw = dict(kw)
-    if "delay" in fine_kw:
-        fine_kw["delay"] = {"samples": kw["delay"]["samples"] * _OVERSAMPLE}
-    x_true = simulate_extended(params, EffectSet(**fine_kw), u_fine, fine_dt)[::_OVERSAMPLE]
+    x_true = simulate_oversampled(params, EffectSet(**kw), u, dt, _OVERSAMPLE)
     x = x_true + rng.normal(0.0, noise_um, x_true.size)
     label = f"{effect} {param_set} σ={noise_um * 1e3:g}nm seed={seed}"
     return UndeclaredRecord(
