@@ -65,6 +65,23 @@ def median_time(fn: Callable[[], Any], repeats: int) -> float:
     return statistics.median(times)
 
 
+def page_faults() -> int:
+    """Page faults of this process so far (first touches of fresh memory), or -1 where
+    the platform does not count them."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not on Unix
+        return -1
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_minflt)
+
+
+def fault_note(faults: list[int]) -> str:
+    """The median page faults per call, for a note ("" where not counted)."""
+    if not faults or min(faults) < 0:
+        return ""
+    return f", {int(statistics.median(faults)):,} page faults"
+
+
 def machine() -> str:
     cpu = platform.processor() or platform.machine()
     try:
@@ -293,25 +310,28 @@ def main(argv: list[str] | None = None) -> int:
         xf = x_clean[:m] + 2e-3 * np.random.default_rng(1).standard_normal(m)
         fits = {}
         for method in ("lm", "trf"):
-            times = []
+            times, faults = [], []
             for _ in range(max(reps, 5)):
+                before = page_faults()
                 start = time.perf_counter()
                 result = fit_module.fit(uf, xf, DT, method=method)
                 times.append(time.perf_counter() - start)
-            fits[method] = (float(np.median(times)), min(times), result)
-        t_fit, t_min, result = fits["lm"]
-        t_trf, trf_min, trf = fits["trf"]
+                faults.append(page_faults() - before)
+            fits[method] = (float(np.median(times)), min(times), result, faults)
+        t_fit, t_min, result, faults = fits["lm"]
+        t_trf, trf_min, trf, trf_faults = fits["trf"]
         table.add(
             f"`boucwen.fit`, {m} samples, 2 nm noise",
             f"{t_fit * 1e3:.0f} ms",
             note=f"median of {max(reps, 5)} (min {t_min * 1e3:.0f} ms); {result.nfev} simulations and passes, "
-            f"rms error {result.rms_um:.4g} µm; target ≤ 40 ms",
+            f"rms error {result.rms_um:.4g} µm{fault_note(faults)}; target ≤ 40 ms",
         )
         table.add(
             'same fit, SciPy `trf` local solver (`method="trf"`)',
             f"{t_trf * 1e3:.0f} ms",
             f"{t_trf / t_fit:.1f}× `boucwen.fit`",
-            f"min {trf_min * 1e3:.0f} ms; {trf.nfev} simulations and passes, rms error {trf.rms_um:.4g} µm",
+            f"min {trf_min * 1e3:.0f} ms; {trf.nfev} simulations and passes, rms error {trf.rms_um:.4g} µm"
+            f"{fault_note(trf_faults)}",
         )
 
     caption = f"Measured with `python benches/compare.py` on {machine()}; boucwen {boucwen.__version__}."

@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from boucwen.experiments import report
+from boucwen.experiments import diagnosis_suite, report
 
 ROOT = Path(__file__).resolve().parents[1]
 FREQS = ("1", "10", "100", "200")
@@ -50,7 +50,7 @@ def _track() -> dict[str, Any]:
 
 
 def test_every_marker_of_the_documents_names_a_table_the_runs_write() -> None:
-    for name in ("README.md", "docs/results.md"):
+    for name in ("README.md", "docs/results.md", "docs/diagnosis.md"):
         text = (ROOT / name).read_text(encoding="utf-8")
         found = report.blocks_in(text)
         assert found, f"{name} has no report block"
@@ -76,6 +76,22 @@ def test_a_table_holds_the_runs_figures() -> None:
     table = report.render("compare", {"compare": compare})
     assert table is not None and table.startswith("Measured on a host.\n\n| what | figure | ratio | note |")
     assert table.endswith("| `simulate` (Rust) | 70 ns/sample |  | paper input |")
+
+
+def test_the_suite_table_is_the_full_suites_report() -> None:
+    rows = [
+        {"half": h, "kind": "clean", "inside": [], "outside": [], "named": [], "flagged": False, "right": True}
+        | {"confident": [], "confident_wrong": [], "wrong_name": False, "cut": 1.0}
+        | {"truth_rms_before_um": 0.01, "truth_rms_after_um": 0.01}
+        for h in ("development", "held_out")
+    ]
+    text, checks = diagnosis_suite.report(rows, 12.0)
+    assert all(ok for _, ok in checks) and "2 records in 12 s" in text
+    run = {"quick": False, "half": None, "records": 2, "wall_s": 12.0, "table": text}
+    table = report.render("diagnosis_suite", {"diagnosis_suite": run})
+    assert table is not None and "2 records, 12 s" in table.splitlines()[0] and table.endswith(text)
+    with pytest.raises(ValueError, match="partial run"):
+        report.render("diagnosis_suite", {"diagnosis_suite": run | {"quick": True}})
 
 
 def test_blocks_are_rewritten_and_the_prose_is_kept() -> None:

@@ -50,6 +50,7 @@ import numpy as np
 
 from ._core import InvalidConfig, InvalidRecord, Params, simulate, simulate_extended_with_jacobian, simulate_many
 from .checks import FloatArray, check_finite, check_int
+from .levenberg import STATISTICAL_MARGIN
 from .lsq import (
     Method,
     OutputErrorProblem,
@@ -77,6 +78,14 @@ _COARSE_DU = 0.03
 
 #: Two local runs whose costs agree to this relative tolerance found the same optimum.
 _SAME_COST = 1e-4
+#: The local runs on the decimated record stop where the remaining step is within half a
+#: standard error of that record's fit (the full record's stage: a tenth of its own,
+#: :data:`~boucwen.levenberg.STATISTICAL_MARGIN`). The decimated record's optimum lies
+#: about one such standard error from the full record's, which the full-record stage
+#: reaches from it, so refining it further buys nothing. At most _SAME_COST·(N − p): a
+#: run stopped there is above its optimum by at most margin/(N − p) of the cost, so two
+#: runs to one optimum still agree within _SAME_COST.
+_COARSE_MARGIN = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,8 +206,11 @@ class _Hysteresis:
             return None
         h, jac = out
         self._remember(z, h)
-        # Columns kv, x0, A, β, γ, n, δ, h0 of the core; z = θ / scale.
-        return h, jac[:, 2 : 2 + self.nvar] * self.scale[: self.nvar]
+        # Columns kv, x0, A, β, γ, n, δ, h0 of the core; z = θ / scale (scaled in place:
+        # no second array of the record's length).
+        ds = jac[:, 2 : 2 + self.nvar]
+        ds *= self.scale[: self.nvar]
+        return h, ds
 
 
 def _problem(record: Record, scale: FloatArray, fixed_h0: float | None) -> tuple[OutputErrorProblem, _Hysteresis]:
@@ -287,15 +299,19 @@ def _local(
     max_nfev: int,
     tol: float,
     method: Method,
+    margin: float = STATISTICAL_MARGIN,
 ) -> Solution:
     """The local solver ``method`` from ``z0`` (n kept in :data:`N_BOUNDS`); with
-    ``"lm"``, a Jacobian is kept while it predicts the steps (:mod:`boucwen.levenberg`)."""
+    ``"lm"``, a Jacobian is kept while it predicts the steps and the run stops where the
+    remaining step is within ``margin`` squared standard errors (:mod:`boucwen.levenberg`)."""
     lb = np.full(nvar, -np.inf)
     ub = np.full(nvar, np.inf)
     lb[3], ub[3] = N_BOUNDS
     z0 = z0[:nvar].copy()
     z0[3] = min(max(z0[3], N_BOUNDS[0] + 1e-9), N_BOUNDS[1] - 1e-9)
-    return problem.solve(z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev, method=method, reuse_jacobian=True)
+    return problem.solve(
+        z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev, method=method, margin=margin, reuse_jacobian=True
+    )
 
 
 def fit(
@@ -424,13 +440,14 @@ def fit_record(
         # not depend on the number of workers. Stops early once a second start lands on
         # the best cost found so far.
         batch = worker_count(workers)
+        margin = min(_COARSE_MARGIN, _SAME_COST * (coarse_u_size - nvar)) if coarse is not full else STATISTICAL_MARGIN
         best: Solution | None = None
         confirmed = False
         for first in range(0, len(starts), batch):
             group = starts[first : first + batch]
 
             def local(z0: FloatArray) -> Solution:
-                return _local(coarse, nvar, z0, max_nfev, 1e-8, method)
+                return _local(coarse, nvar, z0, max_nfev, 1e-8, method, margin)
 
             results = list(pool.map(local, group)) if pool is not None and len(group) > 1 else [local(z) for z in group]
             for k, res in enumerate(results, start=first):

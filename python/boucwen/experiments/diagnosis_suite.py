@@ -74,6 +74,7 @@ __all__ = [
     "figures_by_half",
     "half_of",
     "main",
+    "report",
     "run_case",
     "run_suite",
 ]
@@ -364,22 +365,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     started = time.perf_counter()
     rows = run_suite(args.quick, half=args.half)
     wall = time.perf_counter() - started
-    by_half = figures_by_half(rows)
-    table = confusion_table(rows)
-    lines = [table, "", f"{len(rows)} records in {wall:.0f} s", "", "| figure | " + " | ".join(HALVES) + " |"]
-    lines.append("|---|" + "---|" * len(HALVES))
-    for name in next(iter(by_half.values())):
-        lines.append(f"| {name} | " + " | ".join(f"{by_half[h][name]:.3g}" for h in HALVES) + " |")
-    results = checks(by_half)
-    lines += ["", *(line for line, _ in results)]
-    text = "\n".join(lines)
+    text, results = report(rows, wall)
     print(text)
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "rows.json").write_text(json.dumps(rows, indent=1, default=float), encoding="utf-8")
         (out / "table.md").write_text(text + "\n", encoding="utf-8")
+        run = {"quick": args.quick, "half": args.half, "records": len(rows), "wall_s": wall, "table": text}
+        (out / "results.json").write_text(json.dumps(run, indent=1), encoding="utf-8")
     return 0 if all(ok for _, ok in results) else 1
+
+
+def report(rows: list[dict[str, Any]], wall_s: float) -> tuple[str, list[tuple[str, bool]]]:
+    """The printed report of a run (markdown: the confusion table, the figures of each
+    half side by side, each check and whether it holds) and the checks."""
+    by_half = figures_by_half(rows)
+    lines = [confusion_table(rows), "", f"{len(rows)} records in {wall_s:.0f} s", ""]
+    lines += ["| figure | " + " | ".join(HALVES) + " |", "|---|" + "---|" * len(HALVES)]
+    for name in next(iter(by_half.values())):
+        lines.append(f"| {name} | " + " | ".join(f"{by_half[h][name]:.3g}" for h in HALVES) + " |")
+    results = checks(by_half)
+    lines += ["", *(line for line, _ in results)]
+    return "\n".join(lines), results
 
 
 if __name__ == "__main__":

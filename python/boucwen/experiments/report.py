@@ -1,4 +1,5 @@
-"""The tables of ``README.md`` and ``docs/results.md``, written from the runs.
+"""The tables of ``README.md``, ``docs/results.md`` and ``docs/diagnosis.md``, written
+from the runs.
 
 Every table those documents show of the main job's runs sits between two markers::
 
@@ -9,12 +10,14 @@ Every table those documents show of the main job's runs sits between two markers
 and is written by this module from the JSON the runs leave in ``out/`` (``bash
 scripts/main.sh``): ``out/reproduce/results.json`` (Tables 1 and 1b), ``out/measured/
 results.json`` (the measured records), ``out/track/results.json`` (closed-loop
-tracking) and ``out/compare/results.json`` (``python benches/compare.py --out
-out/compare``: the speed of the core beside NumPy/SciPy). Nothing between the markers
-is written by hand; the prose around them is.
+tracking), ``out/compare/results.json`` (``python benches/compare.py --out
+out/compare``: the speed of the core beside NumPy/SciPy) and
+``out/diagnosis_suite/results.json`` (``python -m boucwen.experiments.diagnosis_suite
+--out out/diagnosis_suite``: the diagnosis's evaluation suite). Nothing between the
+markers is written by hand; the prose around them is.
 
 Run as ``python -m boucwen.experiments.report [--runs out] [FILE ...]`` (default files:
-``README.md`` and ``docs/results.md``): each block whose run is present is rewritten;
+``README.md``, ``docs/results.md`` and ``docs/diagnosis.md``): each block whose run is present is rewritten;
 a block whose run is missing is left as it is and named; a marker with an
 unknown name is an error (exit status 1, nothing written).
 """
@@ -159,7 +162,23 @@ BLOCKS: dict[str, Block] = {
     "track_off": Block("track", lambda r: _track(r, "vibration_off", None, rms=True)),
     "track_on": Block("track", lambda r: _track(r, "vibration_on", None, rms=True)),
     "compare": Block("compare", lambda r: _compare(r)),
+    "diagnosis_suite": Block("diagnosis_suite", lambda r: _suite(r)),
 }
+
+
+def _suite(r: Mapping[str, Any]) -> str:
+    """The report of ``python -m boucwen.experiments.diagnosis_suite --out
+    out/diagnosis_suite`` (the full suite, both halves), with its caption."""
+    if r["quick"] or r["half"] is not None:
+        raise ValueError(
+            "out/diagnosis_suite holds a partial run (--quick or --half); the document shows the full suite"
+        )
+    caption = (
+        "`python -m boucwen.experiments.diagnosis_suite --out out/diagnosis_suite`: "
+        f"{r['records']} records, {r['wall_s']:.0f} s. Each cell: records, the effect sets named "
+        "(count), how many were flagged as unexplained."
+    )
+    return f"{caption}\n\n{r['table']}"
 
 
 def _compare(r: Mapping[str, Any]) -> str:
@@ -229,7 +248,9 @@ def update_text(text: str, runs: Runs) -> tuple[str, list[str], list[str]]:
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m boucwen.experiments.report", description=__doc__.split("\n")[0])
     ap.add_argument("--runs", default="out", help="folder holding the runs' results (default: out)")
-    ap.add_argument("files", nargs="*", default=["README.md", "docs/results.md"], help="documents to update")
+    ap.add_argument(
+        "files", nargs="*", default=["README.md", "docs/results.md", "docs/diagnosis.md"], help="documents to update"
+    )
     args = ap.parse_args(argv)
     runs = load_runs(args.runs)
     if not runs:
