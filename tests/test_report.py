@@ -138,3 +138,19 @@ def test_the_command_writes_the_files_from_the_runs(tmp_path: Path, capsys: pyte
     assert report.main(["--runs", str(runs), str(doc), str(bad)]) == 1
     assert doc.read_text(encoding="utf-8") == text
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_the_plant_family_table_counts_the_plants_beside_the_traditional_fit() -> None:
+    cell = {"ratio_oracle": {"median": 0.9, "worst": 1.5}, "below_traditional": 3, "within_1_05_traditional": 4}
+    cell |= {"traditional_ratio_oracle_median": 1.2}
+    summary = {m: {f: cell for f in ("1", "10", "100", "200")} for m in ("horizon", "rpem")}
+    run = {"summary": summary, "count": 5, "seed": 1, "wall_s": 9.0}
+    table = report.render("plant_family", {"plant_family": run})
+    assert table is not None and table.startswith("5 plants (generator seed 1), 9 s.")
+    rows = {line.split(" | ")[0]: line for line in table.splitlines() if line.startswith("| ")}
+    # At 1 Hz the count is of plants within 1.05× of the traditional fit, else below it.
+    assert rows["| online `horizon` (library default)"].endswith(
+        "| 0.90 (1.50); 4/5 | 0.90 (1.50); 3/5 | 0.90 (1.50); 3/5 | 0.90 (1.50); 3/5 |"
+    )
+    assert "| online `rpem`" in rows and not any("paper" in k for k in rows)
+    assert rows["| traditional (offline fit at 1 Hz, then fixed), median"].endswith("| 1.20 | 1.20 | 1.20 | 1.20 |")
