@@ -244,6 +244,14 @@ def test_result_fields_and_json():
     )
     assert doc["evidence"]["rounds"][0]["most_likely"] == "drift"
     assert d.x_base.shape == d.x_extended.shape == rec.u.shape
+    # Errors on unseen data, close calls and parameters on a bound, typed; the report
+    # holds the same as dicts.
+    assert d.unseen is not None and d.unseen.folds == doc["evidence"]["folds"]
+    assert doc["unseen"] == d.unseen.to_dict() and d.unseen.cv_rms_after_um < d.unseen.cv_rms_before_um
+    assert doc["close_calls"] == [c.to_dict() for c in d.close_calls]
+    assert all(c.kind in ("answer", "path") for c in d.close_calls)
+    assert doc["at_bounds"] == [b.to_dict() for b in d.at_bounds]
+    assert all(b.side in ("lower", "upper") and b.parameter for b in d.at_bounds)
 
 
 def test_evidence_points_the_right_way():

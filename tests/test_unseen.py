@@ -86,10 +86,12 @@ def test_a_diagnosis_reports_its_errors_on_unseen_data_and_on_a_validation_recor
     d = diagnose(u1, x1, DT, validate=(u2, x2, DT), seed=1)
     assert d.effects == ["input_lag"]
     unseen = d.unseen
-    assert unseen["cv_rms_after_um"] < 0.5 * unseen["cv_rms_before_um"]
-    val = unseen["validation"]
-    assert val["samples"] == 6000
-    assert val["after"]["rms_um"] < 0.5 * val["before"]["rms_um"]
-    assert math.isclose(val["after"]["offset_um"], 0.2, abs_tol=0.02)
+    assert unseen is not None and unseen.cv_rms_after_um < 0.5 * unseen.cv_rms_before_um
+    val = unseen.validation
+    assert val is not None and val.samples == 6000
+    assert val.before is not None and val.after is not None
+    assert val.after.rms_um < 0.5 * val.before.rms_um
+    assert math.isclose(val.after.offset_um, 0.2, abs_tol=0.02)
     assert "validation record RMS" in d.summary() and "unseen" in d.summary()
-    assert d.to_dict()["unseen"] == unseen
+    doc = d.to_dict()["unseen"]
+    assert doc == unseen.to_dict() and doc["validation"]["after"]["rms_um"] == val.after.rms_um

@@ -282,23 +282,23 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     after = f"with {', '.join(result.effects)}" if result.effects else "base model only, nothing added"
     print(f"error after ({after}): rms {result.rms_after_um:.4g} um, max {result.max_after_um:.4g} um")
     unseen = result.unseen
-    if unseen:
+    if unseen is not None:
         print(
-            f"unseen data ({unseen['folds']}-fold blocked cross-validation): rms {unseen['cv_rms_before_um']:.4g} um "
-            f"(base model) -> {unseen['cv_rms_after_um']:.4g} um (returned model)"
+            f"unseen data ({unseen.folds}-fold blocked cross-validation): rms {unseen.cv_rms_before_um:.4g} um "
+            f"(base model) -> {unseen.cv_rms_after_um:.4g} um (returned model)"
         )
-        on_val = unseen.get("validation")
-        if on_val and on_val["before"] and on_val["after"]:
+        on_val = unseen.validation
+        if on_val is not None and on_val.before is not None and on_val.after is not None:
             print(
-                f"validation record {args.validate} ({on_val['samples']} samples, "
+                f"validation record {args.validate} ({on_val.samples} samples, "
                 "offset and initial state re-estimated): "
-                f"rms {on_val['before']['rms_um']:.4g} um (base model) -> {on_val['after']['rms_um']:.4g} um"
+                f"rms {on_val.before.rms_um:.4g} um (base model) -> {on_val.after.rms_um:.4g} um"
             )
     for b in result.at_bounds:
-        print(f"on a bound of the fit: {b['parameter']} = {b['value']:.4g} ({b['side']} bound {b['bound']:.4g})")
-    on_answer = [c for c in result.close_calls if c["kind"] == "answer"]
+        print(f"on a bound of the fit: {b.parameter} = {b.value:.4g} ({b.side} bound {b.bound:.4g})")
+    on_answer = [c for c in result.close_calls if c.kind == "answer"]
     if on_answer:
-        print(f"close calls, decided by the margin rule: {', '.join(c['decision'] for c in on_answer)}")
+        print(f"close calls, decided by the margin rule: {', '.join(c.decision for c in on_answer)}")
     if result.unexplained is not None:
         print(result.unexplained.summary())
     if args.json:

@@ -150,21 +150,28 @@ figure is :func:`boucwen.plots.plot_diagnosis`.
 
 from .evidence import residual_evidence, residual_evidence_record
 from .lookalike import lookalike_tests
+from .margins import CloseCall
 from .policy import DiagnosisPolicy
 from .report import Diagnosis, ModelFit, NamedEffect, write_predictions, write_report
+from .scoring import AtBound
 from .search import FOLDS, MAX_DELAY_SAMPLES, MIN_GAIN, TRIAL_NFEV, diagnose, diagnose_record
 from .unexplained import Unexplained, noise_level, unexplained
+from .unseen import OnValidation, Unseen
 
 __all__ = [
     "FOLDS",
     "MAX_DELAY_SAMPLES",
     "MIN_GAIN",
     "TRIAL_NFEV",
+    "AtBound",
+    "CloseCall",
     "Diagnosis",
     "DiagnosisPolicy",
     "ModelFit",
     "NamedEffect",
+    "OnValidation",
     "Unexplained",
+    "Unseen",
     "diagnose",
     "diagnose_record",
     "lookalike_tests",

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
 from typing import Any, TypeVar
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
     "CLOSE_GAIN",
     "CLOSE_REL",
     "PATH",
+    "CloseCall",
     "CloseCalls",
     "Compare",
     "at_least",
@@ -62,26 +64,48 @@ ANSWER = "answer"
 PATH = "path"
 
 
+@dataclass(frozen=True)
+class CloseCall:
+    """A choice closer than its margin, decided by the margin rule.
+
+    Attributes:
+        decision: what was decided.
+        value, against: the two numbers compared (in the decision's unit).
+        chose: what the rule chose.
+        kind: :data:`ANSWER` (what the answer holds) or :data:`PATH` (a trial's way there).
+    """
+
+    decision: str
+    value: float
+    against: float
+    chose: str
+    kind: str = ANSWER
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"decision", "value", "against", "chose", "kind"}`` (JSON-ready)."""
+        return asdict(self)
+
+
 class CloseCalls:
     """The close calls of one diagnosis (thread-safe: the trials of a round run side by
-    side). Each is ``{"decision", "value", "against", "chose", "kind"}``: what was
-    decided, the two numbers compared, what the rule chose, and whether it was on the
-    answer (:data:`ANSWER`) or on a trial's way there (:data:`PATH`)."""
+    side): each a :class:`CloseCall`."""
 
     def __init__(self) -> None:
-        self._items: list[dict[str, Any]] = []
+        self._items: list[CloseCall] = []
         self._lock = threading.Lock()
 
     def note(self, decision: str, value: float, against: float, chose: str, kind: str = ANSWER) -> None:
         """Records one close call."""
-        call = {"decision": decision, "value": float(value), "against": float(against), "chose": chose, "kind": kind}
+        call = CloseCall(decision, float(value), float(against), chose, kind)
         with self._lock:
             self._items.append(call)
 
     def to_list(self) -> list[dict[str, Any]]:
-        """The calls so far, sorted by decision (the order of threads is not the record's)."""
+        """The calls so far as dicts (:meth:`CloseCall.to_dict`), sorted by decision (the
+        order of threads is not the record's)."""
         with self._lock:
-            return sorted(self._items, key=lambda c: (c["decision"], c["value"], c["against"]))
+            calls = sorted(self._items, key=lambda c: (c.decision, c.value, c.against))
+        return [c.to_dict() for c in calls]
 
     def __len__(self) -> int:
         with self._lock:

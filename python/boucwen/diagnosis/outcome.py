@@ -21,7 +21,7 @@ from .report import Diagnosis, ModelFit
 from .scoring import base_fit, cv_rms, on_bounds
 from .starts import null_effort
 from .unexplained import unexplained
-from .unseen import judged_on, prediction_error
+from .unseen import OnValidation, Unseen, judged_on, prediction_error
 
 __all__ = ["final_refit", "outcome"]
 
@@ -86,19 +86,18 @@ def outcome(
     plain = base_fit(base)
     final = ext if added else plain
     cv_before = cv_rms(record, plain, policy.folds)
-    unseen: dict[str, Any] = {
-        "folds": policy.folds,
-        "cv_rms_before_um": cv_before,
-        "cv_rms_after_um": cv_rms(record, final, policy.folds) if added else cv_before,
-    }
-    if validate is not None:
-        on_val_base, on_val = prediction_error(plain, validate), prediction_error(final, validate)
-        unseen["validation"] = {
-            "samples": len(validate),
-            "before": None if on_val_base is None else on_val_base.to_dict(),
-            "after": None if on_val is None else on_val.to_dict(),
-        }
-    evidence["unseen"] = unseen
+    on_validation = (
+        OnValidation(len(validate), prediction_error(plain, validate), prediction_error(final, validate))
+        if validate is not None
+        else None
+    )
+    unseen = Unseen(
+        folds=policy.folds,
+        cv_rms_before_um=cv_before,
+        cv_rms_after_um=cv_rms(record, final, policy.folds) if added else cv_before,
+        validation=on_validation,
+    )
+    evidence["unseen"] = unseen.to_dict()
     err_b, err_e = x - x_base, x - x_ext
     say(left.summary())
     evidence["close_calls"] = calls.to_list()
@@ -128,6 +127,7 @@ def outcome(
             earns=lambda trial: earns(Credit.from_dict(trial), policy),
         ),
         at_bounds=on_bounds(final, record, policy),
+        unseen=unseen,
     )
     say(result.summary())
     return result

@@ -13,7 +13,10 @@ from .._core import EffectSet, Params
 from ..checks import FloatArray
 from ..effects import Effect, effects_of
 from ..io import jsonable, write_csv
+from .margins import ANSWER, CloseCall
+from .scoring import AtBound
 from .unexplained import Unexplained
+from .unseen import Unseen
 
 __all__ = ["Diagnosis", "ModelFit", "NamedEffect", "jsonable", "write_predictions", "write_report"]
 
@@ -93,8 +96,11 @@ class Diagnosis:
         confidence: per effect named, ``{"level": "confident" | "tentative", "why",
             "competing"}`` (:mod:`~boucwen.diagnosis.confidence`; typed:
             :attr:`named_effects`).
-        at_bounds: the returned model's unknowns that ended on a bound of the fit:
-            ``{"parameter", "value", "bound", "side"}`` each.
+        at_bounds: the returned model's unknowns that ended on a bound of the fit
+            (:class:`~boucwen.diagnosis.scoring.AtBound`).
+        unseen: errors on data the fits did not see [µm]: blocked cross-validation of the
+            base and returned models and, with a validation record, both carried to it
+            (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
     """
 
     effects: list[str]
@@ -111,7 +117,8 @@ class Diagnosis:
     effect_set: EffectSet = field(default_factory=EffectSet)
     unexplained: Unexplained | None = None
     confidence: dict[str, dict[str, Any]] = field(default_factory=dict)
-    at_bounds: list[dict[str, Any]] = field(default_factory=list)
+    at_bounds: list[AtBound] = field(default_factory=list)
+    unseen: Unseen | None = None
 
     @property
     def model(self) -> ModelFit:
@@ -129,22 +136,11 @@ class Diagnosis:
         )
 
     @property
-    def close_calls(self) -> list[dict[str, Any]]:
+    def close_calls(self) -> list[CloseCall]:
         """The choices closer than the margin of :mod:`~boucwen.diagnosis.margins`,
-        decided by its stated rule: ``{"decision", "value", "against", "chose", "kind"}``
-        each (``kind``: ``"answer"`` for what the answer holds, ``"path"`` for a trial's
-        way there; the summary counts the first)."""
-        calls: list[dict[str, Any]] = self.evidence.get("close_calls", [])
-        return calls
-
-    @property
-    def unseen(self) -> dict[str, Any]:
-        """Errors on data the fits did not see [µm]: ``cv_rms_before_um`` and
-        ``cv_rms_after_um`` (blocked cross-validation over ``folds`` contiguous folds,
-        base model and returned model) and, with a validation record, ``validation``:
-        ``{"samples", "before", "after"}`` (RMS, max and re-estimated offset of each)."""
-        unseen: dict[str, Any] = self.evidence.get("unseen", {})
-        return unseen
+        decided by its stated rule (``kind``: ``"answer"`` for what the answer holds,
+        ``"path"`` for a trial's way there; the summary counts the first)."""
+        return [CloseCall(**c) for c in self.evidence.get("close_calls", [])]
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON report (without the arrays)."""
@@ -158,9 +154,9 @@ class Diagnosis:
             "evidence": self.evidence,
             "unexplained": None if self.unexplained is None else jsonable(self.unexplained.to_dict()),
             "confidence": self.confidence,
-            "close_calls": self.close_calls,
-            "unseen": self.unseen,
-            "at_bounds": self.at_bounds,
+            "close_calls": [c.to_dict() for c in self.close_calls],
+            "unseen": {} if self.unseen is None else self.unseen.to_dict(),
+            "at_bounds": [b.to_dict() for b in self.at_bounds],
         }
 
     def summary(self) -> str:
@@ -170,19 +166,18 @@ class Diagnosis:
             if self.effects
             else "none"
         )
-        on_answer = [c for c in self.close_calls if c.get("kind") == "answer"]
+        on_answer = [c for c in self.close_calls if c.kind == ANSWER]
         close = f"; {len(on_answer)} close call(s)" if on_answer else ""
         unseen = self.unseen
         cv = (
-            f"; unseen ({unseen['folds']}-fold CV) RMS {unseen['cv_rms_before_um']:.4g} → "
-            f"{unseen['cv_rms_after_um']:.4g} µm"
-            if unseen.get("cv_rms_before_um") is not None and unseen.get("cv_rms_after_um") is not None
+            f"; unseen ({unseen.folds}-fold CV) RMS {unseen.cv_rms_before_um:.4g} → {unseen.cv_rms_after_um:.4g} µm"
+            if unseen is not None
             else ""
         )
-        val = unseen.get("validation")
-        if val and val.get("before") and val.get("after"):
-            cv += f"; validation record RMS {val['before']['rms_um']:.4g} → {val['after']['rms_um']:.4g} µm"
-        bounds = "".join(f"; {b['parameter']} = {b['value']:.4g} on its {b['side']} bound" for b in self.at_bounds)
+        val = unseen.validation if unseen is not None else None
+        if val is not None and val.before is not None and val.after is not None:
+            cv += f"; validation record RMS {val.before.rms_um:.4g} → {val.after.rms_um:.4g} µm"
+        bounds = "".join(f"; {b.parameter} = {b.value:.4g} on its {b.side} bound" for b in self.at_bounds)
         return (
             f"effects: {named}; RMS {self.rms_before_um:.4g} → {self.rms_after_um:.4g} µm, "
             f"max {self.max_before_um:.4g} → {self.max_after_um:.4g} µm{cv}{bounds}{close}"

@@ -4,7 +4,7 @@ and the first-order refit the starts of a trial are ranked by."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -18,7 +18,7 @@ from ..record import Record
 from .policy import DiagnosisPolicy
 from .validation import CrossValidation, blocked_cv
 
-__all__ = ["Scored", "base_fit", "cost", "cv_rms", "on_bounds", "refit_basis", "score", "solved_at"]
+__all__ = ["AtBound", "Scored", "base_fit", "cost", "cv_rms", "on_bounds", "refit_basis", "score", "solved_at"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,17 +97,37 @@ def base_fit(base: FitResult) -> ExtendedFit:
     return ExtendedFit(base.params, EffectSet(), base.h0, base.rms_um, base.max_um, base.nfev, base.success)
 
 
-def on_bounds(fit: ExtendedFit, record: Record, policy: DiagnosisPolicy | None = None) -> list[dict[str, Any]]:
+@dataclass(frozen=True)
+class AtBound:
+    """An unknown of a fit that ended on a bound of the fit.
+
+    Attributes:
+        parameter: its name (:meth:`boucwen.effects.Layout.labels`, e.g. ``"creep.g1"``).
+        value: its value, in its unit.
+        bound: the bound it is on, same unit.
+        side: ``"lower"`` or ``"upper"``.
+    """
+
+    parameter: str
+    value: float
+    bound: float
+    side: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"parameter", "value", "bound", "side"}`` (JSON-ready)."""
+        return asdict(self)
+
+
+def on_bounds(fit: ExtendedFit, record: Record, policy: DiagnosisPolicy | None = None) -> list[AtBound]:
     """The unknowns of ``fit`` that ended on a bound of the fit over ``record`` (within
-    the policy's ``bound_tolerance`` of its size, at least 1): ``{"parameter", "value",
-    "bound", "side"}`` each."""
+    the policy's ``bound_tolerance`` of its size, at least 1)."""
     tol = (policy or DiagnosisPolicy()).bound_tolerance
     layout = Layout.of(fit.effects, record.dt, record.dt * max(len(record) - 1, 1))
     z = layout.pack(fit.params, fit.effects, fit.h0)
     lo, hi = layout.bounds()
-    out = []
+    out: list[AtBound] = []
     for label, v, a, b in zip(layout.labels(), z, lo, hi):
         for bound, side in ((a, "lower"), (b, "upper")):
             if math.isfinite(bound) and abs(v - bound) <= tol * max(1.0, abs(bound)):
-                out.append({"parameter": label, "value": float(v), "bound": float(bound), "side": side})
+                out.append(AtBound(label, float(v), float(bound), side))
     return out

@@ -38,7 +38,16 @@ from ..effects.base import without
 from ..metrics import max_abs, rms
 from ..record import Record
 
-__all__ = ["RECORD_EFFECTS", "ValidationError", "carried", "judged_on", "prediction_error", "sampling_margin"]
+__all__ = [
+    "RECORD_EFFECTS",
+    "OnValidation",
+    "Unseen",
+    "ValidationError",
+    "carried",
+    "judged_on",
+    "prediction_error",
+    "sampling_margin",
+]
 
 #: Effects of the record rather than of the device: not carried to another record.
 RECORD_EFFECTS = ("drift", "pickup")
@@ -58,6 +67,57 @@ class ValidationError:
 
     def to_dict(self) -> dict[str, float]:
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class OnValidation:
+    """The base and returned models carried to the validation record.
+
+    Attributes:
+        samples: its number of samples.
+        before, after: the base and returned models' errors there (None where one
+            cannot be simulated over it).
+    """
+
+    samples: int
+    before: ValidationError | None
+    after: ValidationError | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"samples", "before", "after"}`` (JSON-ready)."""
+        return {
+            "samples": self.samples,
+            "before": None if self.before is None else self.before.to_dict(),
+            "after": None if self.after is None else self.after.to_dict(),
+        }
+
+
+@dataclass(frozen=True)
+class Unseen:
+    """Errors [µm] on data the fits did not see.
+
+    Attributes:
+        folds: contiguous folds of the blocked cross-validation.
+        cv_rms_before_um, cv_rms_after_um: its RMS error, base and returned models [µm].
+        validation: with a validation record, both models carried to it; else None.
+    """
+
+    folds: int
+    cv_rms_before_um: float
+    cv_rms_after_um: float
+    validation: OnValidation | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"folds", "cv_rms_before_um", "cv_rms_after_um"}`` and, with a validation
+        record, ``"validation"`` (JSON-ready)."""
+        out: dict[str, Any] = {
+            "folds": self.folds,
+            "cv_rms_before_um": self.cv_rms_before_um,
+            "cv_rms_after_um": self.cv_rms_after_um,
+        }
+        if self.validation is not None:
+            out["validation"] = self.validation.to_dict()
+        return out
 
 
 def device_part(effects: EffectSet) -> EffectSet:
