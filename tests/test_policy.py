@@ -231,7 +231,7 @@ def test_bound_tolerance_reports_a_parameter_on_its_bound():
     record = validate_record(np.sin(np.arange(500) * 0.05), np.zeros(500), 1e-3)
     p = Params.paper_1hz().replace(n=6.0)  # the base fit's upper bound on n
     on = on_bounds(ExtendedFit(p, EffectSet(), 0.0, 0.0, 0.0, 0, True), record)
-    assert [(b["parameter"], b["side"]) for b in on] == [("n", "upper")]
+    assert [(b.parameter, b.side) for b in on] == [("n", "upper")]
     near = ExtendedFit(p.replace(n=6.0 - 1e-3), EffectSet(), 0.0, 0.0, 0.0, 0, True)
     assert on_bounds(near, record) == []
     assert on_bounds(near, record, POLICY.replace(bound_tolerance=1e-3)) != []
