@@ -101,7 +101,7 @@ def outcome(
     err_b, err_e = x - x_base, x - x_ext
     say(left.summary())
     evidence["close_calls"] = calls.to_list()
-    on_answer = sorted({c["decision"] for c in calls.to_list() if c["kind"] != PATH})
+    on_answer = sorted({c["decision"] for c in evidence["close_calls"] if c["kind"] != PATH})
     if on_answer:
         say(f"close call(s) on the answer, decided by the margin rule: {', '.join(on_answer)}")
     evidence["elapsed_s"] = time.perf_counter() - started
