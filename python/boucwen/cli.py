@@ -275,9 +275,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     )
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
     print(f"effects: {', '.join(result.effects) if result.effects else 'none (base model only)'}")
-    for name, c in result.confidence.items():
-        rival = f"; competing: {c['competing']}" if c["competing"] else ""
-        print(f"  {name}: {c['level']} ({c['why']}{rival})")
+    for e in result.named_effects:
+        rival = f"; the record does not tell it from {e.competing}" if e.competing else ""
+        print(f"  {e.name}: {e.level} ({e.why}{rival})")
     print(f"error before (base model): rms {result.rms_before_um:.4g} um, max {result.max_before_um:.4g} um")
     after = f"with {', '.join(result.effects)}" if result.effects else "base model only, nothing added"
     print(f"error after ({after}): rms {result.rms_after_um:.4g} um, max {result.max_after_um:.4g} um")
@@ -296,9 +296,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             )
     for b in result.at_bounds:
         print(f"on a bound of the fit: {b.parameter} = {b.value:.4g} ({b.side} bound {b.bound:.4g})")
-    on_answer = [c for c in result.close_calls if c.kind == "answer"]
-    if on_answer:
-        print(f"close calls, decided by the margin rule: {', '.join(c.decision for c in on_answer)}")
+    taken = [x for x in result.decisions if x.accepted]
+    print(f"moves judged: {len(result.decisions)}, taken: {', '.join(x.label for x in taken) or 'none'}")
     if result.unexplained is not None:
         print(result.unexplained.summary())
     if args.json:
@@ -317,10 +316,11 @@ def _add_diagnose(sub: _Subparsers) -> None:
     p = sub.add_parser(
         "diagnose",
         help="find which effect the base model misses in a record",
-        description="Fits the base model, analyses the residual, adds the effects "
-        "of the vocabulary that earn their parameters under blocked "
-        "cross-validation over the whole record, and reports the error before "
-        "and after [um].",
+        description="Fits the base model, then adds, drops and swaps effects of the "
+        "vocabulary while a move improves the error on held-out blocks of the record "
+        "(blocked cross-validation, every fit converged) by more than its sampling "
+        "error; reports the error before and after [um], the rivals the record cannot "
+        "tell apart, and what is left unexplained.",
     )
     p.add_argument("data", nargs="?", default=None, help=_DATA_HELP)
     _add_record_options(p)

@@ -1,170 +1,83 @@
-"""Diagnosis: what is left after the base model, and which effect explains it.
+"""Diagnosis: which effects a record holds beyond the base model, judged on unseen data.
 
 :func:`diagnose` takes a record (voltage u [V], displacement x [µm], interval dt [s]),
-not told what it contains, and:
+not told what it contains, and selects a model by one loop under one judge:
 
-1. fits the base asymmetric Bouc–Wen model on the whole record (:func:`boucwen.fit`);
-2. analyses the residual and records evidence a person can check
-   (:func:`residual_evidence`): how the residual moves during holds of the voltage
-   (creep), its size relative to the signal per frequency band and its regression on
-   the model's rate ẋ (input lag), the peak of its spectrum (resonance), its trend
-   in time (drift), the whole-sample lag that best aligns model and data (delay);
-3. tries each effect of the vocabulary (:data:`boucwen.effects.VOCABULARY`, read from
-   the registry at run time) not yet in the model: adds it and refits everything on
-   the whole record with a small iteration budget (a *trial*), from the start of the
-   effect's that fits best once the current model's unknowns are refitted to first
-   order (the current fit has bent itself to follow what the effect describes: a
-   delay starts from the model refitted to the record shifted by whole samples, a
-   drift from it refitted to the record less a trend, an input lag whose best start
-   is almost none, on a record not screened, from it refitted to u lagged at each
-   corner of its grid; a resonance also starts at the peak of the residual's spectrum
-   over the record and over the 20 ms stretch where its energy is largest, where a
-   mode rings after a step or a sharp start); a trial no better than the null trial
-   (step 5) after a third of its budget stops there, unless that first-order refit
-   promised a cut of at least 3 %, and one whose second stage left less than half the
-   error of its first, without converging, gets a third (it is judged where it
-   converges, not where its budget happened to end); a second resonance mode is
-   tried beside a first, and while the model has none its
-   trial adds both at once (two peaks close together, or one double peak, which a
-   lone mode cannot fit), kept over the lone mode only when it beats it by
-   ``min_gain``;
-4. scores every model by **blocked cross-validation** over the whole record
-   (:mod:`~boucwen.diagnosis.validation`): the record is cut into ``folds`` contiguous
-   blocks (4 by default), each held out in turn from a refit on the others, so that
-   evidence anywhere in the record — a step and its hold, a burst, the end of a
-   drift — is scored where it is; the refit without a block is one Gauss–Newton step
-   from the whole-record fit, *simulated* (line-searched on the other blocks), not
-   extrapolated along the Jacobian: a mode's frequency or a lag's corner is too
-   nonlinear for the straight line;
-5. compares each trial with the *null trial*, the current model refitted with the same
-   effort and nothing added: an effect is credited only with the cut of the
-   cross-validated RMS error beyond the better of the two, capped by the cut of the
-   in-sample error (``gain_over_null``), so that the extra iterations of a trial are
-   not taken for the effect, nor are block refits that extrapolate better with one
-   more unknown beside them. It earns its
-   parameters when that cut is at least ``min_gain`` (10 %), or — for evidence that is
-   local — when it cuts the cross-validated error by at least 30 % on the 10 % of
-   samples it changes most and by at least 3 % overall, or — near the noise, where the
-   RMS error cannot fall by 10 % — when it removes 9/10 of the in-sample mean-square
-   error beyond the record's noise, cuts the error by at least 3 % and gains in every
-   fold;
-6. of the effects that earn their parameters the one of largest credit is
-   kept; when the first two belong to one group of look-alikes (creep / drift / gain
-   drift; delay / input lag / resonance) and their credits differ by less than
-   1 point, the group's test decides (:mod:`~boucwen.diagnosis.lookalike`: creep
-   follows u, a drift follows time; a delay has a flat group delay, a lag does not —
-   told apart only where one fits the phase 10 % better: below its corner a lag turns
-   the phase as a delay does).
-   Once creep, drift or gain drift is in the model, another of the three is kept only
-   when that test on the current residual names it. Then it repeats from 3 until
-   nothing earns its parameters, or what the effects kept leave is consistent with
-   noise (step 8's test). When nothing more earns its parameters but the effects kept
-   would not be named (step 8: too little of the error explained), they are refitted
-   once from a base model fitted afresh to the record less what they add (the base
-   model, fitted without them, may sit in a basin where its hysteresis imitates them;
-   ``evidence["rebased"]``); if that fits better, the search goes on from there.
-   Last, a backward step: each effect kept is taken out and the others refitted with
-   the null trial's effort; one that the model with it does not earn against that
-   refit (same rule) was a passenger — a look-alike kept first whose work a later
-   effect does, or an effect credited with what those kept before it had not yet
-   converged to — and is dropped (``evidence["pruned"]``); a kept creep, drift or gain
-   drift (or delay or input lag) whose residual without it the group's test attributes
-   to another member is swapped for that one where it earns as much, within 1 point
-   (on a record short enough not to be screened every other member is tried, and one
-   the test does not name is swapped in where it earns more);
-7. refits the base model and the kept effects on the whole record and reports the
-   errors, before (base model) and after (with the effects);
-8. tests what the final model leaves against the noise estimated from the record and
-   against what could explain it (:func:`~boucwen.diagnosis.unexplained.unexplained`):
-   ``Diagnosis.unexplained`` says whether the residual is consistent with noise and,
-   if not, which signals, spectral lines and time spans it follows — also when no
-   effect of the vocabulary accounts for it. The returned model holds every effect
-   that earned its parameters on unseen data, whatever stays unexplained: the residual
-   is reported beside the names, never instead of them;
-9. reports how sure it is and what the model predicts of data it did not see: each
-   named effect is ``confident`` or ``tentative`` with the reason and the competing
-   explanation (:mod:`~boucwen.diagnosis.confidence`; tentative, among other reasons,
-   where the effects leave a residual not consistent with noise and remove less than
-   9/10 of the base model's mean-square error beyond it: they may stand in for
-   something the vocabulary does not hold, ``evidence["partial"]``); the blocked
-   cross-validated error of the base model and of the returned one, and, given a
-   second record of the same device (``validate``), both models' errors on it, where
-   each effect must also earn its place (:mod:`~boucwen.diagnosis.unseen`); the
-   parameters that ended on a bound of the fit (``at_bounds``).
+1. **Fit the base model** to convergence (:func:`boucwen.fit`'s global search of
+   starts, then Levenberg–Marquardt on the core's exact Jacobian to the statistical
+   stop: :mod:`~boucwen.diagnosis.fits`).
+2. **Score it on unseen data**: blocked cross-validation over ``folds`` contiguous
+   blocks, each held out from a refit on the others (:mod:`~boucwen.diagnosis.judge`).
+3. **Propose every move** from the current model: add an effect of the vocabulary
+   (:data:`boucwen.effects.VOCABULARY`; a second mode with the first where the model
+   has none), drop one, swap one for a rival (:mod:`~boucwen.diagnosis.search`). Fit
+   each candidate to convergence from the effect's physical starts (several where it has
+   local optima).
+4. **Judge each move** by the same rule: the fold-paired held-out gain
+   d_i = r_ref,i² − r_cand,i² must exceed t₁₋α/m times its batch-means standard error
+   (a real improvement at level α over the round's m moves), and remove at least
+   ``min_share`` of the reference's held-out error beyond the record's noise (an effect,
+   not a reshaping of the base model's misfit). A drop is accepted where the effect no
+   longer passes that rule against the model without it.
+5. **Take one move**: an accepted drop first; else the accepted add or swap of largest
+   gain — through its **ambiguity set**, the candidates the record cannot tell from it
+   (neither's gain over the other passes the rule's first condition): the model takes
+   the accepted member with the fewest unknowns, then the first in the vocabulary; the
+   others are its rivals, reported with their held-out errors and tried as swaps later.
+6. **Repeat** from 3 until no move is accepted or the residual is consistent with the
+   record's noise (:func:`boucwen.residual.unexplained`). A model already held is never
+   proposed again.
+7. **Report**: the returned model's errors before and after, what it leaves
+   (``unexplained``), the held-out errors of the base and returned models (``unseen``),
+   each name ``confident`` only where it has no rival and the model explains at least
+   ``confident_share`` of the error beyond the noise (else ``tentative``, with the rivals),
+   every decision typed (``decisions``), and the parameters on a bound.
 
-Every comparison behind a decision is made with a margin
-(:mod:`~boucwen.diagnosis.margins`): where two choices are closer than the arithmetic
-can tell (a credit within 1e-4 of its threshold or of another credit, two errors
-within 1e-4 of each other), the simpler side is taken by a stated rule, and the report
-lists the call (``close_calls``), so that the answer does not depend on the machine's
-BLAS kernel, its number of threads or the last bits of the record.
+With a second record of the device (``validate``), each effect of the device must also
+earn its place there by the same judge (:mod:`~boucwen.diagnosis.unseen`).
 
-Long records (more than 50 000 samples) sampled faster than 5 kHz are *screened* (for
-speed): the trials of step 3 run on a copy holding every q-th sample (about 2.5 kHz),
-and the best screened effect
-— with the second when its cross-validated error is within 25 % of the best's —
-is tried again, with its own null trial, on the full record, where the decision is
-taken; so are ``delay`` (whole samples of the full rate; the refits that compare its
-shifts run on the shifted record's screened copy) and, when the residual's spectrum
-peaks above what the copy can hold, ``resonance``. Once the model holds what the copy
-cannot (a resonance above its Nyquist frequency, or a delay, whose whole samples are the
-full rate's), the rounds and the backward step run on the full record.
-
-The null trial and the trials of a round are independent: they run side by side on
-``workers`` threads (the simulations release the GIL), each printing its progress line
-when it ends; the result does not depend on the order they end in.
-
-Each round of the report (``evidence["rounds"]``) lists the competing explanations with
-their scores (overall, per fold, where they act), the null trial, the look-alike
-tests' outcomes and, when screened, the screening round.
-
-With no effect in the data, every trial fails step 5 and the result says so
-(``effects == []``).
-
-Every threshold of the procedure is a field of a
-:class:`~boucwen.diagnosis.policy.DiagnosisPolicy` (``diagnose(..., policy=...)``), and
-what is particular to one effect (its starts, its partner, what makes it no candidate,
-its look-alikes) is declared on its class (:class:`boucwen.effects.Effect`): the search
-names no effect.
-
-Modules: :mod:`~boucwen.diagnosis.policy` (the thresholds),
-:mod:`~boucwen.diagnosis.search` (the procedure above, its loop of rounds),
-:mod:`~boucwen.diagnosis.rounds` (one round: its trials, the one kept),
-:mod:`~boucwen.diagnosis.trial` (a trial's stages), :mod:`~boucwen.diagnosis.starts`
-(where a trial starts), :mod:`~boucwen.diagnosis.credit` (what a trial is credited with,
-and when that earns its parameters), :mod:`~boucwen.diagnosis.pairs` (effects that
-explain only together), :mod:`~boucwen.diagnosis.backward` (the backward step),
-:mod:`~boucwen.diagnosis.screening` (long records), :mod:`~boucwen.diagnosis.scoring`
-(a fit scored), :mod:`~boucwen.diagnosis.outcome` (the end: final refit, unseen data,
-confidence), :mod:`~boucwen.diagnosis.evidence` (the residual statistics),
-:mod:`~boucwen.diagnosis.validation` (blocked cross-validation),
-:mod:`~boucwen.diagnosis.lookalike` (the tests that tell look-alikes apart),
-:mod:`~boucwen.diagnosis.unexplained` (what the final model leaves, step 8, with
-:mod:`~boucwen.diagnosis.noise`, :mod:`~boucwen.diagnosis.lines` and
-:mod:`~boucwen.diagnosis.spans`), :mod:`~boucwen.diagnosis.margins` (decisions with
-margins), :mod:`~boucwen.diagnosis.confidence` (how sure each name is),
-:mod:`~boucwen.diagnosis.unseen` (errors on unseen data),
-:mod:`~boucwen.diagnosis.report` (:class:`Diagnosis`, its JSON and CSV files); the
-figure is :func:`boucwen.plots.plot_diagnosis`.
+Every number is a field of :class:`~boucwen.diagnosis.policy.DiagnosisPolicy`; what
+describes one effect is on its class. What the residual follows (spectral lines, spans,
+the look-alike tests of :mod:`boucwen.residual`) is evidence reported beside the answer;
+it never accepts or rejects. Modules: :mod:`~boucwen.diagnosis.policy` (the numbers),
+:mod:`~boucwen.diagnosis.judge` (held-out errors and the rule),
+:mod:`~boucwen.diagnosis.fits` (converged fits of candidates),
+:mod:`~boucwen.diagnosis.search` (the moves and their loop),
+:mod:`~boucwen.diagnosis.unseen` (errors on unseen data, the validation record),
+:mod:`~boucwen.diagnosis.report` (:class:`Diagnosis`, its files).
 """
 
-from .evidence import residual_evidence, residual_evidence_record
-from .lookalike import lookalike_tests
-from .margins import CloseCall
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._core import EffectSet
+from ..checks import check_int
+from ..effects import VOCABULARY, effects_of
+from ..effects.base import without
+from ..fit import fit_record
+from ..io import jsonable
+from ..metrics import max_abs, rms
+from ..progress import Progress, reporter
+from ..record import Record, validate_record
+from ..residual import Unexplained, fit_evidence, lookalike_tests, noise_level, residual_evidence, unexplained
+from ..residual import residual_evidence_record as residual_evidence_record
+from . import fits
+from .fits import Convergence, Scored
+from .judge import Decision
 from .policy import DiagnosisPolicy
-from .report import Diagnosis, ModelFit, NamedEffect, write_predictions, write_report
-from .scoring import AtBound
-from .search import FOLDS, MAX_DELAY_SAMPLES, MIN_GAIN, TRIAL_NFEV, diagnose, diagnose_record
-from .unexplained import Unexplained, noise_level, unexplained
-from .unseen import OnValidation, Unseen
+from .report import AtBound, Diagnosis, ModelFit, NamedEffect, write_predictions, write_report
+from .search import Search, search
+from .unseen import OnValidation, Unseen, judged_on, prediction_error
 
 __all__ = [
-    "FOLDS",
-    "MAX_DELAY_SAMPLES",
-    "MIN_GAIN",
-    "TRIAL_NFEV",
     "AtBound",
-    "CloseCall",
+    "Convergence",
+    "Decision",
     "Diagnosis",
     "DiagnosisPolicy",
     "ModelFit",
@@ -182,3 +95,223 @@ __all__ = [
     "write_predictions",
     "write_report",
 ]
+
+
+def diagnose(
+    u: ArrayLike,
+    x: ArrayLike,
+    dt: float,
+    *,
+    progress: Progress = False,
+    folds: int | None = None,
+    max_effects: int | None = None,
+    seed: int = 0,
+    workers: int | None = None,
+    validate: tuple[ArrayLike, ArrayLike, float] | None = None,
+    policy: DiagnosisPolicy | None = None,
+    convergence: Convergence | None = None,
+) -> Diagnosis:
+    """Finds which effects of the vocabulary the record holds beyond the base model.
+
+    Args:
+        u: voltage [V], 1-D, finite, not constant, uniformly sampled.
+        x: measured displacement [µm], same length.
+        dt: sampling interval [s] (> 0).
+        progress: ``True`` prints progress lines to stderr; or a callable taking a str.
+        folds: contiguous blocks of the cross-validation (2 … 10); overrides the
+            policy's.
+        max_effects: most effects in the returned model (0 … 8); overrides the policy's.
+        seed: seed of :func:`boucwen.fit`'s random starts.
+        workers: threads for the candidates of a round (default: the number of CPUs; 1
+            runs everything in turn).
+        validate: a second record of the same device, ``(u [V], x [µm], dt [s])``: each
+            effect must also earn its place there (:mod:`~boucwen.diagnosis.unseen`),
+            and the report gives both models' errors on it.
+        policy: the numbers (:class:`~boucwen.diagnosis.policy.DiagnosisPolicy`; the
+            default instance when None).
+        convergence: how the fits are converged (:class:`~boucwen.diagnosis.fits.Convergence`;
+            Levenberg–Marquardt to a tenth of a standard error when None).
+
+    Returns:
+        A :class:`~boucwen.diagnosis.Diagnosis`; the procedure is described in
+        :mod:`boucwen.diagnosis`.
+
+    Raises:
+        TypeError, ValueError: bad data or options (precise message).
+    """
+    return diagnose_record(
+        validate_record(u, x, dt),
+        progress=progress,
+        folds=folds,
+        max_effects=max_effects,
+        seed=seed,
+        workers=workers,
+        validate=None if validate is None else validate_record(*validate),
+        policy=policy,
+        convergence=convergence,
+    )
+
+
+def _policy_of(policy: DiagnosisPolicy | None, folds: int | None, max_effects: int | None) -> DiagnosisPolicy:
+    """``policy`` (the default when None) with the options given beside it."""
+    if policy is not None and not isinstance(policy, DiagnosisPolicy):
+        raise TypeError(f"policy must be a DiagnosisPolicy, got {type(policy).__name__}")
+    chosen = policy if policy is not None else DiagnosisPolicy()
+    changes: dict[str, Any] = {}
+    if folds is not None:
+        changes["folds"] = folds
+    if max_effects is not None:
+        changes["max_effects"] = check_int("max_effects", max_effects, 0, 8)
+    return chosen.replace(**changes) if changes else chosen
+
+
+def diagnose_record(
+    record: Record,
+    *,
+    progress: Progress = False,
+    folds: int | None = None,
+    max_effects: int | None = None,
+    seed: int = 0,
+    workers: int | None = None,
+    validate: Record | None = None,
+    policy: DiagnosisPolicy | None = None,
+    convergence: Convergence | None = None,
+) -> Diagnosis:
+    """:func:`diagnose` on a checked :class:`~boucwen.record.Record` (same options, same
+    result; ``validate`` a checked record too)."""
+    started = time.perf_counter()
+    say = reporter(progress, "diagnose", started)
+    policy = _policy_of(policy, folds, max_effects)
+    conv = convergence if convergence is not None else Convergence()
+    if not isinstance(conv, Convergence):
+        raise TypeError(f"convergence must be a Convergence, got {type(conv).__name__}")
+    n = len(record)
+    if n < 100:
+        raise ValueError(f"diagnose needs at least 100 samples, got {n}")
+    if not np.ptp(record.u) > 0:
+        raise ValueError("u is constant; the diagnosis needs a varying voltage")
+    noise_um = noise_level(record.x).sigma_um
+
+    say(f"fitting the base model on {n} samples")
+    offline = fit_record(record, seed=seed, workers=workers, method=conv.method)
+    base = fits.base(record, offline, conv, policy.folds)
+    say(f"base model: RMS {base.fit.rms_um:.4g} µm, held-out {base.cv.rms_um:.4g} µm ({policy.folds} folds)")
+    state = search(record, base, noise_um=noise_um, policy=policy, conv=conv, workers=workers, say=say)
+    say(f"search ended: {state.stopped}")
+    return _outcome(record, base, state, validate, policy, conv, noise_um, say, started)
+
+
+def _outcome(
+    record: Record,
+    base: Scored,
+    state: Search,
+    validate: Record | None,
+    policy: DiagnosisPolicy,
+    conv: Convergence,
+    noise_um: float,
+    say: Any,
+    started: float,
+) -> Diagnosis:
+    """The :class:`Diagnosis` of the search ``state``: the model judged on the validation
+    record, its errors, what it leaves, how sure each name is."""
+    decisions = [d for r in state.rounds for d in r.decisions]
+    final = state.current
+    on_validation: list[Decision] = []
+    if validate is not None and final.names:
+        say(f"judging {', '.join(final.names)} on the validation record ({len(validate)} samples)")
+        kept, on_validation = judged_on(
+            validate,
+            final.fit,
+            lambda model, name: fits.refit(record, model, without(model.effects, name), conv),
+            policy,
+            noise_level(validate.x).sigma_um,
+            say,
+        )
+        if kept.effects.names != final.fit.effects.names:
+            final = fits.scored(record, fits.solved_at(record, kept), policy.folds, conv)
+    x = record.x
+    err_b, err_e = x - base.x, x - final.x
+    left = unexplained(record, final.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
+    beyond_before = max(float(np.mean(err_b**2)) - noise_um**2, 0.0)
+    beyond_after = max(float(np.mean(err_e**2)) - noise_um**2, 0.0)
+    share = 1.0 - beyond_after / beyond_before if beyond_before > 0 else 1.0
+    added = _order_added(state, final.names)
+    named = tuple(
+        _named(e, state, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
+    )
+    named = tuple(sorted(named, key=lambda e: added.index(e.name)))
+    unseen = Unseen(
+        folds=policy.folds,
+        cv_rms_before_um=base.cv.rms_um,
+        cv_rms_after_um=final.cv.rms_um,
+        validation=(
+            OnValidation(len(validate), prediction_error(base.fit, validate), prediction_error(final.fit, validate))
+            if validate is not None
+            else None
+        ),
+    )
+    evidence: dict[str, Any] = {
+        "policy": policy.to_dict(),
+        "convergence": {"method": conv.method, "margin": conv.margin, "tol": conv.tol},
+        "noise_um": noise_um,
+        "residual": fit_evidence(record, base.fit, base.x, policy.max_delay_samples),
+        "rounds": [r.to_dict() for r in state.rounds],
+        "stopped": state.stopped,
+        "validation": [d.to_dict() for d in on_validation],
+        "explained_share": share,
+        "unseen": unseen.to_dict(),
+        "lookalike": lookalike_tests(record, final.x),
+        "elapsed_s": time.perf_counter() - started,
+    }
+    say(left.summary())
+    result = Diagnosis(
+        effects=list(added),
+        rms_before_um=rms(err_b),
+        max_before_um=max_abs(err_b),
+        rms_after_um=rms(err_e),
+        max_after_um=max_abs(err_e),
+        params=final.fit.params,
+        h0_um=final.fit.h0,
+        base_only=ModelFit(base.fit.params, base.fit.h0),
+        evidence=jsonable(evidence),
+        x_base=base.x,
+        x_extended=final.x,
+        effect_set=final.fit.effects if final.names else EffectSet(),
+        unexplained=left,
+        named_effects=named,
+        decisions=(*decisions, *on_validation),
+        at_bounds=fits.on_bounds(final.fit, record, policy.bound_tolerance),
+        unseen=unseen,
+    )
+    say(result.summary())
+    return result
+
+
+def _order_added(state: Search, names: tuple[str, ...]) -> list[str]:
+    """``names`` in the order the search added them."""
+    order: list[str] = []
+    for r in state.rounds:
+        if r.taken is not None and r.taken.move != "drop":
+            order += [k for k in r.taken.effects if k not in order]
+    return [k for k in order if k in names] + [k for k in names if k not in order]
+
+
+def _named(
+    effect: Any, state: Search, final: Scored, left: Unexplained, share: float, policy: DiagnosisPolicy
+) -> NamedEffect:
+    """An effect of the returned model with its confidence (module docs, step 7)."""
+    rivals = tuple(sorted(state.rivals.get(effect.name, set()) - set(final.names), key=VOCABULARY.index))
+    if rivals:
+        return NamedEffect(
+            effect, "tentative", "the record does not tell it from its rivals (within the judge's margin)", rivals
+        )
+    if not final.converged:
+        return NamedEffect(effect, "tentative", "the returned model's fit did not converge")
+    if not left.consistent_with_noise and share < policy.confident_share:
+        return NamedEffect(
+            effect,
+            "tentative",
+            f"the model explains {share:.0%} of the error beyond the noise and leaves a residual that is not "
+            "noise: the effects may stand in for something outside the vocabulary",
+        )
+    return NamedEffect(effect, "confident", "no rival within the judge's margin; the model explains the record")

@@ -4,21 +4,41 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet, Params
 from ..checks import FloatArray
-from ..effects import Effect, effects_of
+from ..effects import Effect
 from ..io import jsonable, write_csv
-from .margins import ANSWER, CloseCall
-from .scoring import AtBound
-from .unexplained import Unexplained
+from ..residual import Unexplained
+from .judge import Decision
 from .unseen import Unseen
 
-__all__ = ["Diagnosis", "ModelFit", "NamedEffect", "jsonable", "write_predictions", "write_report"]
+__all__ = ["AtBound", "Diagnosis", "ModelFit", "NamedEffect", "jsonable", "write_predictions", "write_report"]
+
+
+@dataclass(frozen=True)
+class AtBound:
+    """An unknown of a fit that ended on a bound of the fit.
+
+    Attributes:
+        parameter: its name (:meth:`boucwen.effects.Layout.labels`, e.g. ``"creep.g1"``).
+        value: its value, in its unit.
+        bound: the bound it is on, same unit.
+        side: ``"lower"`` or ``"upper"``.
+    """
+
+    parameter: str
+    value: float
+    bound: float
+    side: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"parameter", "value", "bound", "side"}`` (JSON-ready)."""
+        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -44,15 +64,22 @@ class NamedEffect:
 
     Attributes:
         effect: the typed effect (:mod:`boucwen.effects`), with its fitted parameters.
-        level: ``"confident"`` or ``"tentative"`` (:mod:`~boucwen.diagnosis.confidence`).
+        level: ``"confident"`` or ``"tentative"``: confident only where no other
+            candidate lay within the judge's margin of it (its rivals) and the model
+            explains what the record holds beyond its noise.
         why: the reason for the level.
-        competing: the competing explanation named, or None.
+        rivals: the effects the record did not tell it from, in the vocabulary's order.
     """
 
     effect: Effect
     level: str
     why: str
-    competing: str | None = None
+    rivals: tuple[str, ...] = ()
+
+    @property
+    def competing(self) -> str | None:
+        """The rivals in words (``"creep or drift"``), or None."""
+        return " or ".join(self.rivals) if self.rivals else None
 
     @property
     def name(self) -> str:
@@ -60,12 +87,13 @@ class NamedEffect:
         return self.effect.name
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"effect": name, "params": {…}, "level", "why", "competing"}`` (JSON-ready)."""
+        """``{"effect": name, "params": {…}, "level", "why", "rivals", "competing"}`` (JSON-ready)."""
         return {
             "effect": self.name,
             "params": self.effect.to_dict(),
             "level": self.level,
             "why": self.why,
+            "rivals": list(self.rivals),
             "competing": self.competing,
         }
 
@@ -86,18 +114,20 @@ class Diagnosis:
             their fitted parameters (empty when none was added).
         base_only: the base model alone, fitted on the whole record
             (:class:`ModelFit`).
-        evidence: what the decision rests on (see :mod:`boucwen.diagnosis`).
+        evidence: what the residual showed and the search's rounds (JSON-ready; the
+            decisions themselves, typed, are :attr:`decisions`).
         x_base, x_extended: displacement [µm] of the base and returned models over the
             record.
         unexplained: what the returned model leaves unexplained: its residual against the
             noise estimated from the record, the signals, spectral lines and time spans
             it follows, and whether it is consistent with noise
             (:class:`~boucwen.diagnosis.unexplained.Unexplained`; None if not computed).
-        confidence: per effect named, ``{"level": "confident" | "tentative", "why",
-            "competing"}`` (:mod:`~boucwen.diagnosis.confidence`; typed:
-            :attr:`named_effects`).
+        named_effects: the effects of the returned model, typed, each with its
+            confidence and rivals (:class:`NamedEffect`), in the order added.
+        decisions: every move the search judged, in order
+            (:class:`~boucwen.diagnosis.judge.Decision`).
         at_bounds: the returned model's unknowns that ended on a bound of the fit
-            (:class:`~boucwen.diagnosis.scoring.AtBound`).
+            (:class:`AtBound`).
         unseen: errors on data the fits did not see [µm]: blocked cross-validation of the
             base and returned models and, with a validation record, both carried to it
             (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
@@ -116,7 +146,8 @@ class Diagnosis:
     x_extended: FloatArray
     effect_set: EffectSet = field(default_factory=EffectSet)
     unexplained: Unexplained | None = None
-    confidence: dict[str, dict[str, Any]] = field(default_factory=dict)
+    named_effects: tuple[NamedEffect, ...] = ()
+    decisions: tuple[Decision, ...] = ()
     at_bounds: list[AtBound] = field(default_factory=list)
     unseen: Unseen | None = None
 
@@ -126,21 +157,12 @@ class Diagnosis:
         return ModelFit(self.params, self.h0_um)
 
     @property
-    def named_effects(self) -> tuple[NamedEffect, ...]:
-        """The effects of the returned model, typed (:func:`boucwen.effects_of`), in the
-        order added, each with its confidence."""
-        typed = {e.name: e for e in effects_of(self.effect_set)}
-        levels = self.confidence
-        return tuple(
-            NamedEffect(typed[k], levels[k]["level"], levels[k]["why"], levels[k]["competing"]) for k in self.effects
-        )
-
-    @property
-    def close_calls(self) -> list[CloseCall]:
-        """The choices closer than the margin of :mod:`~boucwen.diagnosis.margins`,
-        decided by its stated rule (``kind``: ``"answer"`` for what the answer holds,
-        ``"path"`` for a trial's way there; the summary counts the first)."""
-        return [CloseCall(**c) for c in self.evidence.get("close_calls", [])]
+    def confidence(self) -> dict[str, dict[str, Any]]:
+        """Per effect named, ``{"level", "why", "competing", "rivals"}`` (JSON-ready)."""
+        return {
+            e.name: {"level": e.level, "why": e.why, "competing": e.competing, "rivals": list(e.rivals)}
+            for e in self.named_effects
+        }
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON report (without the arrays)."""
@@ -154,7 +176,7 @@ class Diagnosis:
             "evidence": self.evidence,
             "unexplained": None if self.unexplained is None else jsonable(self.unexplained.to_dict()),
             "confidence": self.confidence,
-            "close_calls": [c.to_dict() for c in self.close_calls],
+            "decisions": [d.to_dict() for d in self.decisions],
             "unseen": {} if self.unseen is None else self.unseen.to_dict(),
             "at_bounds": [b.to_dict() for b in self.at_bounds],
         }
@@ -166,8 +188,6 @@ class Diagnosis:
             if self.effects
             else "none"
         )
-        on_answer = [c for c in self.close_calls if c.kind == ANSWER]
-        close = f"; {len(on_answer)} close call(s)" if on_answer else ""
         unseen = self.unseen
         cv = (
             f"; unseen ({unseen.folds}-fold CV) RMS {unseen.cv_rms_before_um:.4g} → {unseen.cv_rms_after_um:.4g} µm"
@@ -180,7 +200,7 @@ class Diagnosis:
         bounds = "".join(f"; {b.parameter} = {b.value:.4g} on its {b.side} bound" for b in self.at_bounds)
         return (
             f"effects: {named}; RMS {self.rms_before_um:.4g} → {self.rms_after_um:.4g} µm, "
-            f"max {self.max_before_um:.4g} → {self.max_after_um:.4g} µm{cv}{bounds}{close}"
+            f"max {self.max_before_um:.4g} → {self.max_after_um:.4g} µm{cv}{bounds}"
         )
 
     def __repr__(self) -> str:

@@ -1,262 +1,432 @@
-"""The greedy search of the diagnosis: add the effect that best explains the record's
-error under blocked cross-validation, while it earns its parameters (procedure in
-:mod:`boucwen.diagnosis`; every threshold from a
-:class:`~boucwen.diagnosis.policy.DiagnosisPolicy`)."""
+"""The loop of moves: floating selection under one judge.
+
+Each round proposes every move from the current model — **add** an effect of the
+vocabulary it lacks (two effects that physics ties together, a second mode beside a
+first, are added at once: ``add_tied``), **drop** one it holds, **swap** one it holds for
+a rival the record could not tell it from — fits every candidate to convergence
+(:mod:`~boucwen.diagnosis.fits`) and judges each against the current model
+(:func:`~boucwen.diagnosis.judge.judge`). Then:
+
+* an accepted drop is taken first (the model is simpler and predicts no worse): of
+  several, the effect that earns least;
+* else the accepted add or swap of largest held-out gain, through its **ambiguity set**:
+  the candidates of the round that the record does not tell apart from it
+  (:func:`~boucwen.diagnosis.judge.apart`). The model takes the accepted member with the
+  fewest unknowns, then the first in the vocabulary; the others are its rivals, reported
+  with their held-out errors, and proposed as swaps in the rounds that follow;
+* nothing accepted, or a residual consistent with the record's noise
+  (:func:`boucwen.residual.unexplained`), ends the search.
+
+A model the search has already held is never proposed again (floating selection cannot
+cycle). What the residual follows (the look-alike tests of
+:mod:`boucwen.residual.lookalike`) is reported beside each set; it never decides.
+
+**Screening** (records of more than :data:`SCREEN_MIN_SAMPLES` samples sampled faster
+than :data:`SCREEN_RATE_HZ`) wraps the fits; it never decides. Every move is first fitted
+on a copy of the record holding every q-th sample, against the current model refitted
+there; the move the copy ranks best (least held-out error), every move the copy cannot
+tell from it, and every move the copy accepts are then fitted on the full record as without
+screening (from the full record's own starts: an effect's starts may depend on the
+sampling interval, a creep's shortest time constant), and the judge decides there. Moves the copy cannot hold —
+an effect of whole samples of the record's rate (:attr:`boucwen.effects.Effect.full_rate_only`),
+a mode where the residual's spectral peak lies above what the copy can hold, any move
+from a model the copy cannot simulate — are fitted on the full record directly.
+"""
 
 from __future__ import annotations
 
-import time
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-from numpy.typing import ArrayLike
-
-from ..checks import check_int
-from ..effects import DIAGNOSIS_METHOD, VOCABULARY, ExtendedFit, effect_class, simulate_chain
-from ..fit import fit_record
-from ..progress import Progress, reporter
-from ..record import Record, validate_record
-from .backward import backward_step
-from .credit import partial
-from .evidence import fit_evidence
-from .margins import CloseCalls
-from .outcome import outcome
-from .pairs import pair_round, pairs_wanted
+from ..effects import FN_MAX_NYQUIST_FRACTION, VOCABULARY, effect_class, simulate_chain
+from ..lsq import thread_map
+from ..record import Record
+from ..residual import lookalike_tests, unexplained
+from ..residual.evidence import spectral_peak
+from ..residual.lookalike import named
+from .fits import Convergence, Scored, add, drop, refit, scored, solved_at
+from .judge import Decision, apart, gain, judge, threshold
 from .policy import DiagnosisPolicy
-from .rebase import fits_better, rebased
-from .report import Diagnosis
-from .rounds import Round, candidates, score_round
-from .scoring import Scored, base_fit, solved_at
-from .screening import hopeless_direction, peak_beyond, screen_copy, screenable, to_confirm
-from .unexplained import Unexplained, noise_level, unexplained
-from .validation import FOLDS
 
-__all__ = ["FOLDS", "MAX_DELAY_SAMPLES", "MIN_GAIN", "TRIAL_NFEV", "diagnose", "diagnose_record"]
+__all__ = [
+    "SCREEN_MIN_SAMPLES",
+    "SCREEN_RATE_HZ",
+    "Move",
+    "Round",
+    "Search",
+    "proposals",
+    "screen_copy",
+    "search",
+    "vocabulary_order",
+]
 
-#: The default policy's least gain, iteration limit of a trial and largest delay
-#: [samples] (:class:`~boucwen.diagnosis.policy.DiagnosisPolicy`).
-MIN_GAIN = DiagnosisPolicy().min_gain
-TRIAL_NFEV = DiagnosisPolicy().trial_nfev
-MAX_DELAY_SAMPLES = DiagnosisPolicy().max_delay_samples
+#: Records longer than this [samples] are screened: a shorter one fits fast enough.
+SCREEN_MIN_SAMPLES = 50_000
+#: The screened copy's rate [Hz]: above every effect of the vocabulary but a delay and a
+#: high mode (which the copy does not hold: module docs), ten times the bandwidth of the
+#: fastest actuator drive the records are made with.
+SCREEN_RATE_HZ = 2500.0
 
 
-def diagnose(
-    u: ArrayLike,
-    x: ArrayLike,
-    dt: float,
-    *,
-    progress: Progress = False,
-    folds: int | None = None,
-    min_gain: float | None = None,
-    max_effects: int = 3,
-    seed: int = 0,
-    workers: int | None = None,
-    validate: tuple[ArrayLike, ArrayLike, float] | None = None,
-    policy: DiagnosisPolicy | None = None,
-) -> Diagnosis:
-    """Finds which effects of the vocabulary the record holds beyond the base model.
+@dataclass(frozen=True)
+class Move:
+    """A move from the current model.
 
-    Args:
-        u: voltage [V], 1-D, finite, not constant, uniformly sampled.
-        x: measured displacement [µm], same length.
-        dt: sampling interval [s] (> 0).
-        progress: ``True`` prints progress lines to stderr; or a callable taking a str
-            (the trials' lines come from the threads that run them, one at a time).
-        folds: contiguous blocks of the cross-validation (2 … 10); overrides the
-            policy's.
-        min_gain: least relative cut of the cross-validated RMS error an effect must
-            bring to be kept (0 … 1); overrides the policy's.
-        max_effects: most effects added (0 … 5).
-        seed: seed of :func:`boucwen.fit`'s random starts.
-        workers: threads for the trials of a round and for each fit's Jacobian
-            (default: the number of CPUs; 1 runs everything in turn).
-        validate: a second record of the same device, ``(u [V], x [µm], dt [s])``: each
-            effect must also predict it better (:mod:`~boucwen.diagnosis.unseen`), and the
-            report gives both models' errors on it.
-        policy: the thresholds (:class:`~boucwen.diagnosis.policy.DiagnosisPolicy`;
-            the default instance when None).
-
-    Returns:
-        A :class:`~boucwen.diagnosis.Diagnosis`; the procedure is described in
-        :mod:`boucwen.diagnosis`.
-
-    Raises:
-        TypeError, ValueError: bad data or options (precise message).
+    Attributes:
+        kind: ``"add"``, ``"add_tied"``, ``"drop"`` or ``"swap"``.
+        adds: effects it adds (a tied pair: the partner first).
+        drops: the effect it takes out, or None.
     """
-    return diagnose_record(
-        validate_record(u, x, dt),
-        progress=progress,
-        folds=folds,
-        min_gain=min_gain,
-        max_effects=max_effects,
-        seed=seed,
-        workers=workers,
-        validate=None if validate is None else validate_record(*validate),
-        policy=policy,
+
+    kind: str
+    adds: tuple[str, ...] = ()
+    drops: str | None = None
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """What the move concerns, as :attr:`Decision.effects` lists it."""
+        return ((self.drops,) if self.drops else ()) + self.adds
+
+
+@dataclass(frozen=True)
+class Round:
+    """One round of the search.
+
+    Attributes:
+        decisions: every move judged, in the order proposed.
+        taken: the decision taken, or None (the search ends).
+        ambiguity: the moves the record did not tell apart from the best one (the
+            taken move among them), each with the candidate's held-out RMS [µm].
+        rejected: moves with no candidate, and why (no start simulated, the fitted
+            effect not what its name says).
+        signatures: what the look-alike tests name on the current model's residual.
+        screened: with screening, the decisions on the copy (which only choose what is
+            fitted on the full record).
+    """
+
+    decisions: tuple[Decision, ...]
+    taken: Decision | None
+    ambiguity: tuple[tuple[Decision, float], ...]
+    rejected: dict[str, str]
+    signatures: tuple[str, ...]
+    screened: tuple[Decision, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "decisions": [d.to_dict() for d in self.decisions],
+            "taken": None if self.taken is None else self.taken.label,
+            "ambiguity": [{"move": d.label, "cv_rms_um": e} for d, e in self.ambiguity],
+            "rejected": dict(self.rejected),
+            "signatures": list(self.signatures),
+            "screened": [d.to_dict() for d in self.screened],
+        }
+
+
+@dataclass
+class Search:
+    """The state and history of the search.
+
+    Attributes:
+        current: the current model.
+        rounds: every round so far.
+        rivals: per effect of the model, the effects the record did not tell it from.
+        stopped: why the search ended.
+    """
+
+    current: Scored
+    rounds: list[Round] = field(default_factory=list)
+    rivals: dict[str, set[str]] = field(default_factory=dict)
+    stopped: str = ""
+
+
+def vocabulary_order(names: tuple[str, ...]) -> tuple[int, ...]:
+    """Sort key: each name's place in the vocabulary."""
+    return tuple(VOCABULARY.index(k) for k in names)
+
+
+def proposals(names: tuple[str, ...], rivals: dict[str, set[str]], max_effects: int) -> list[Move]:
+    """Every move from a model holding ``names`` (module docs)."""
+    moves: list[Move] = []
+    if len(names) < max_effects:
+        for name in VOCABULARY:
+            if name in names:
+                continue
+            partner = effect_class(name).partner
+            if partner is None or partner in names:
+                moves.append(Move("add", (name,)))
+            elif len(names) + 2 <= max_effects:
+                moves.append(Move("add_tied", (partner, name)))
+    tied_to = {effect_class(k).partner for k in names}
+    moves += [Move("drop", drops=k) for k in names if k not in tied_to]
+    for k in names:
+        for f in sorted(rivals.get(k, ()), key=VOCABULARY.index):
+            partner = effect_class(f).partner
+            if f not in names and k not in tied_to and (partner is None or partner in names):
+                moves.append(Move("swap", (f,), k))
+    return moves
+
+
+def _candidate(record: Record, current: Scored, move: Move, conv: Convergence, policy: DiagnosisPolicy) -> Scored | str:
+    if move.kind == "drop":
+        assert move.drops is not None
+        return drop(record, current, move.drops, conv, policy.folds)
+    return add(record, current, move.adds, conv, policy.folds, policy.max_delay_samples, dropped=move.drops)
+
+
+def _decide(
+    move: Move, fitted: Scored, current: Scored, t_min: float, noise_um: float, policy: DiagnosisPolicy
+) -> Decision:
+    """The judge's verdict on ``move``. A drop is judged the other way round: the effect
+    keeps its place only where the current model is accepted against the model without
+    it, so the drop is accepted where that fails."""
+    folds, batches = policy.folds, policy.batches
+    added = fitted.unknowns - current.unknowns
+    if move.kind != "drop":
+        g = gain(fitted.cv, current.cv, folds, batches)
+        return judge(
+            move.kind,
+            move.effects,
+            fitted.names,
+            current.names,
+            g,
+            t_min=t_min,
+            noise_um=noise_um,
+            min_share=policy.min_share,
+            unknowns=added,
+        )
+    keep = judge(
+        "add",
+        move.effects,
+        current.names,
+        fitted.names,
+        gain(current.cv, fitted.cv, folds, batches),
+        t_min=t_min,
+        noise_um=noise_um,
+        min_share=policy.min_share,
+        unknowns=-added,
+    )
+    reason = ("it no longer earns its place: " if not keep.accepted else "it earns its place: ") + keep.reason
+    g = gain(fitted.cv, current.cv, folds, batches)
+    return Decision(
+        "drop", move.effects, fitted.names, current.names, g, t_min, keep.needed_um2, not keep.accepted, reason, added
     )
 
 
-def _policy_of(policy: DiagnosisPolicy | None, folds: int | None, min_gain: float | None) -> DiagnosisPolicy:
-    """``policy`` (the default when None) with the options given beside it."""
-    if policy is not None and not isinstance(policy, DiagnosisPolicy):
-        raise TypeError(f"policy must be a DiagnosisPolicy, got {type(policy).__name__}")
-    chosen = policy if policy is not None else DiagnosisPolicy()
-    changes: dict[str, Any] = {}
-    if folds is not None:
-        changes["folds"] = folds
-    if min_gain is not None:
-        changes["min_gain"] = min_gain
-    return chosen.replace(**changes) if changes else chosen
+def screen_copy(record: Record) -> Record | None:
+    """The record's screened copy (every q-th sample, about :data:`SCREEN_RATE_HZ`), or
+    None where the record is not screened."""
+    q = int(1.0 / (record.dt * SCREEN_RATE_HZ))
+    return record.decimated(q) if len(record) > SCREEN_MIN_SAMPLES and q >= 2 else None
 
 
-def _screened_round(
+def _full_only(move: Move, record: Record, current: Scored, copy: Record) -> bool:
+    """The copy cannot hold ``move`` (module docs)."""
+    if any(effect_class(k).full_rate_only for k in move.adds):
+        return True
+    if any(effect_class(k).signature == "peak" for k in move.adds):
+        peak = spectral_peak(record.x - current.x, record.dt)["peak_hz"]
+        return bool(peak > FN_MAX_NYQUIST_FRACTION / copy.dt)
+    return False
+
+
+def _on_copy(copy: Record | None, current: Scored, conv: Convergence, folds: int) -> Scored | None:
+    """The current model refitted and scored on the copy, or None where the copy cannot
+    hold it."""
+    if copy is None or any(effect_class(k).full_rate_only for k in current.names):
+        return None
+    fit = current.fit
+    if simulate_chain(fit.params, fit.effects, copy.u, copy.dt, fit.h0) is None:
+        return None
+    moved = refit(copy, fit, fit.effects, conv)
+    return None if moved is None else scored(copy, solved_at(copy, moved), folds, conv)
+
+
+def _judged(
     record: Record,
-    screen: Record,
-    current: ExtendedFit,
-    current_jac: Any,
+    current: Scored,
+    moves: list[Move],
+    fitted: list[Scored | str],
+    t_min: float,
+    noise_um: float,
     policy: DiagnosisPolicy,
-    opts: dict[str, Any],
-) -> tuple[Round, Round, Any]:
-    """A round on a screened record: the trials on the copy, then the best (and the
-    runner-up within ``confirm_ratio``), the effects of whole samples of the full rate
-    and, where the residual peaks beyond the copy, the modes, on the full record.
-    Returns the round that decides, the screened round and the current Jacobian."""
-    say = opts["say"]
-    present = current.effects.names
-    names = tuple(k for k in candidates(present) if not effect_class(k).full_rate_only)
-    screened = score_round(screen, current, names=names, **opts)
-    scores = {k: float(t["cv_rms_um"]) for k, t in screened.evidence["trials"].items() if "cv_rms_um" in t}
-    fits = dict(screened.ranked)
-    confirm = {k: fits[k] for k in to_confirm([k for k, _ in screened.ranked], scores, policy)}
-    full_only = [k for k in candidates(present) if k not in names]
-    for k in list(full_only):
-        xs = simulate_chain(current.params, current.effects, record.u, record.dt, current.h0)
-        if xs is None or effect_class(k).direction(xs) is None:
+) -> tuple[list[tuple[Move, Decision, Scored]], dict[str, str]]:
+    decisions: list[tuple[Move, Decision, Scored]] = []
+    rejected: dict[str, str] = {}
+    for m, f in zip(moves, fitted):
+        if isinstance(f, str):
+            rejected[" ".join((m.kind, *m.effects))] = f
             continue
-        solved = solved_at(record, current, current_jac)
-        current_jac = solved.jacobian
-        if hopeless_direction(record, solved, k, policy.folds, policy):
-            say(f"  - {k:9s}: hopeless: its first-order change does not explain the residual")
-            full_only.remove(k)
-    modes = [k for k in VOCABULARY if effect_class(k).spectral_peak]
-    if modes and all(k in names for k in modes) and peak_beyond(record, current, screen.dt, policy):
-        full_only += modes
-    todo = tuple(k for k in VOCABULARY if k in confirm or k in full_only)
-    say(f"confirming {list(todo)} on the full record")
-    if not todo:
-        return screened, screened, current_jac
-    round_ = score_round(
-        record,
-        current,
-        names=todo,
-        starts=confirm,
-        trial_nfev=policy.confirm_nfev,
-        current_jacobian=current_jac,
-        **opts,
-    )
-    round_.evidence["screening"] = screened.evidence
-    return round_, screened, current_jac
+        d = _decide(m, f, current, t_min, noise_um, policy)
+        decisions.append((m, _unconverged(d) if not f.converged else d, f))
+    return decisions, rejected
 
 
-def diagnose_record(
+def _screened(
     record: Record,
+    copy: Record,
+    on_copy: Scored,
+    current: Scored,
+    moves: list[Move],
+    t_min: float,
+    noise_um: float,
+    conv: Convergence,
+    policy: DiagnosisPolicy,
+    workers: int | None,
+) -> tuple[list[Scored | str], list[Decision]]:
+    """The full-record candidates of ``moves`` after screening (module docs): a reason
+    for each move the copy leaves out, and the decisions on the copy."""
+    full = [_full_only(m, record, current, copy) for m in moves]
+    on = [m for m, f in zip(moves, full) if not f]
+    fitted = thread_map(lambda m: _candidate(copy, on_copy, m, conv, policy), on, workers)
+    decisions, _ = _judged(copy, on_copy, on, fitted, t_min, noise_um, policy)
+    chosen: set[int] = set()
+    growing = [(m, d, f) for m, d, f in decisions if m.kind != "drop"]
+    if growing:
+        best = min(growing, key=lambda t: _finite(t[2].cv.rms_um))
+        folds, batches = policy.folds, policy.batches
+        chosen |= {id(m) for m, _, f in growing if m is best[0] or not apart(f.cv, best[2].cv, folds, batches, t_min)}
+    chosen |= {id(m) for m, d, _ in decisions if d.accepted}
+
+    def on_full(k: int) -> Scored | str:
+        m = moves[k]
+        if full[k]:
+            return _candidate(record, current, m, conv, policy)
+        if id(m) not in chosen:
+            return "not among the moves the screened copy ranks first"
+        return _candidate(record, current, m, conv, policy)
+
+    return thread_map(on_full, list(range(len(moves))), workers), [d for _, d, _ in decisions]
+
+
+def search(
+    record: Record,
+    base: Scored,
     *,
-    progress: Progress = False,
-    folds: int | None = None,
-    min_gain: float | None = None,
-    max_effects: int = 3,
-    seed: int = 0,
-    workers: int | None = None,
-    validate: Record | None = None,
-    policy: DiagnosisPolicy | None = None,
-) -> Diagnosis:
-    """:func:`diagnose` on a checked :class:`~boucwen.record.Record` (same options, same
-    result; ``validate`` a checked record too)."""
-    started = time.perf_counter()
-    say = reporter(progress, "diagnose", started)
-    policy = _policy_of(policy, folds, min_gain)
-    max_effects_ = check_int("max_effects", max_effects, 0, 5)
-    u, x, dt = record.u, record.x, record.dt
-    n = u.size
-    if n < 100:
-        raise ValueError(f"diagnose needs at least 100 samples, got {n}")
-    if not np.ptp(u) > 0:
-        raise ValueError("u is constant; the diagnosis needs a varying voltage")
-    screen, q = screen_copy(record, policy)
-    noise_um = noise_level(x).sigma_um
-
-    say(f"fitting the base model on {n} samples")
-    base = fit_record(record, seed=seed, workers=workers, decimate=q if q > 1 else None, method=DIAGNOSIS_METHOD)
-    current = base_fit(base)
-    say(
-        f"base model: RMS {base.rms_um:.4g} µm; {policy.folds} folds"
-        + (f"; trials screened every {q}th sample" if q > 1 else "")
-    )
-    evidence: dict[str, Any] = {
-        "folds": policy.folds,
-        "screen_decimation": q,
-        "min_gain": policy.min_gain,
-        "local_min_gain": policy.local_min_gain,
-        "policy": policy.to_dict(),
-        "residual": fit_evidence(record, current, base.x_fit, policy.max_delay_samples),
-        "rounds": [],
-    }
-    added: list[str] = []
-    calls = CloseCalls()
-    opts: dict[str, Any] = {"policy": policy, "workers": workers, "say": say, "calls": calls}
-    # ∂x̂/∂z of the current model over the full record, once known.
-    current_jac: Any = None
-    # What the current model leaves, once an effect is kept.
-    left_now: Unexplained | None = None
-    last_null: Scored | None = None
-
-    while len(added) < max_effects_:
-        if left_now is not None and left_now.consistent_with_noise:
-            say("the residual is consistent with noise: nothing left to explain")
-            evidence["stopped"] = "the residual of the effects kept is consistent with noise"
+    noise_um: float,
+    policy: DiagnosisPolicy,
+    conv: Convergence,
+    workers: int | None,
+    say: Callable[[str], None],
+) -> Search:
+    """The loop of moves (module docs) from the base model ``base``."""
+    state = Search(base)
+    seen = {frozenset(base.names)}
+    copy = screen_copy(record)
+    for _ in range(2 * policy.max_effects + 2):
+        current = state.current
+        left = unexplained(record, current.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
+        if left.consistent_with_noise:
+            state.stopped = "the residual is consistent with the record's noise"
             break
-        say(f"round {len(added) + 1}: trying {list(candidates(current.effects.names))}")
-        screened: Round | None = None
-        if q == 1 or not screenable(current, screen):
-            round_ = score_round(record, current, current_jacobian=current_jac, **opts)
+        moves = [
+            m
+            for m in proposals(current.names, state.rivals, policy.max_effects)
+            if frozenset(_after(current.names, m)) not in seen
+        ]
+        if not moves:
+            state.stopped = "no move left to try"
+            break
+        t_min = threshold(policy.alpha, len(moves), policy.batches)
+        on_copy = _on_copy(copy, current, conv, policy.folds)
+        screened: list[Decision] = []
+        say(
+            f"round {len(state.rounds) + 1}: {len(moves)} moves from {list(current.names) or 'the base model'}"
+            + (f", screened on every {round(copy.dt / record.dt)}th sample" if on_copy is not None and copy else "")
+        )
+        if on_copy is not None and copy is not None:
+            fitted, screened = _screened(record, copy, on_copy, current, moves, t_min, noise_um, conv, policy, workers)
         else:
-            round_, screened, current_jac = _screened_round(record, screen, current, current_jac, policy, opts)
-        left_rms = round_.evidence["current"]["in_sample_rms_um"]
-        if round_.kept is None and pairs_wanted(left_rms, noise_um, q > 1, policy):
-            paired = pair_round(record, current, round_, noise_um=noise_um, **opts)
-            round_ = paired or round_
-        evidence["rounds"].append(round_.evidence)
-        if round_.kept is None:
-            fresh = None
-            if (
-                left_now is not None
-                and "rebased" not in evidence
-                and partial(base.rms_um, current.rms_um, left_now, policy)
-            ):
-                # The effects kept explain too little: refitted once from a fresh base
-                # model, the search goes on from there if that fits better.
-                fresh = rebased(record, current, seed=seed, workers=workers, q=q, policy=policy)
-                evidence["rebased"] = {"rms_um": current.rms_um, "fresh_rms_um": fresh.rms_um if fresh else None}
-                if fresh is not None and not fits_better(fresh, current, policy):
-                    fresh = None
-            if fresh is None:
-                say("nothing left that earns its parameters under cross-validation")
-                if round_ is screened or q == 1:
-                    last_null = round_.null
-                break
-            say(f"refitted from a fresh base model: RMS {current.rms_um:.4g} → {fresh.rms_um:.4g} µm")
-            current, current_jac = fresh, None
-        else:
-            new = [k for k in round_.kept.effects.names if k not in current.effects.names]
-            current = round_.kept
-            # The kept fit's Jacobian is over the full record unless the screened round is the result.
-            current_jac = None if round_ is screened else round_.kept_jacobian
-            added += new
-            say(f"kept {', '.join(new)}: RMS {current.rms_um:.4g} µm")
-        left_now = unexplained(record, current.simulate(u, dt), alpha=policy.alpha, tolerance=policy.tolerance)
+            fitted = thread_map(lambda m, at=current: _candidate(record, at, m, conv, policy), moves, workers)
+        decisions, rejected = _judged(record, current, moves, fitted, t_min, noise_um, policy)
+        for _, d, f in decisions:
+            verdict = "accepted" if d.accepted else "no"
+            say(f"  {d.label:28s} held-out RMS {f.cv.rms_um:.4g} µm: {verdict} ({d.reason})")
+        signatures = tuple(sorted(named(lookalike_tests(record, current.x))))
+        round_ = _take(decisions, current, t_min, policy, state, signatures, rejected, tuple(screened))
+        state.rounds.append(round_)
+        if round_.taken is None:
+            state.stopped = "no move is accepted"
+            break
+        chosen = next(f for m, d, f in decisions if d is round_.taken)
+        state.current = chosen
+        seen.add(frozenset(chosen.names))
+        say(f"took {round_.taken.label}: held-out RMS {current.cv.rms_um:.4g} → {chosen.cv.rms_um:.4g} µm")
+    else:
+        state.stopped = "the most rounds"
+    return state
 
-    if len(added) >= 2:
-        current, added = backward_step(record, screen, current, added, evidence, null=last_null, **opts)
-    return outcome(
-        record, base, current, added, evidence, validate=validate, policy=policy, say=say, calls=calls, started=started
+
+def _finite(value: float) -> float:
+    """``value``, or +∞ where it is nan (a model no block of which could be judged)."""
+    return value if math.isfinite(value) else math.inf
+
+
+def _after(names: tuple[str, ...], move: Move) -> set[str]:
+    out = set(names) - ({move.drops} if move.drops else set())
+    return out | set(move.adds)
+
+
+def _unconverged(d: Decision) -> Decision:
+    return Decision(
+        d.move,
+        d.effects,
+        d.candidate,
+        d.reference,
+        d.gain,
+        d.threshold,
+        d.needed_um2,
+        False,
+        "the candidate's fit did not converge",
+        d.unknowns,
     )
+
+
+def _take(
+    decisions: list[tuple[Move, Decision, Scored]],
+    current: Scored,
+    t_min: float,
+    policy: DiagnosisPolicy,
+    state: Search,
+    signatures: tuple[str, ...],
+    rejected: dict[str, str],
+    screened: tuple[Decision, ...] = (),
+) -> Round:
+    """The decision the round takes and its ambiguity set (module docs); updates the
+    rivals of the model's effects."""
+    folds, batches = policy.folds, policy.batches
+    all_decisions = tuple(d for _, d, _ in decisions)
+    # Swaps the record cannot tell from the current model keep the pair rivals; swaps it
+    # refutes (the current model clearly better) part them.
+    for m, d, _ in decisions:
+        if m.kind == "swap" and m.drops is not None:
+            (f,) = m.adds
+            if abs(d.gain.t) <= t_min:
+                state.rivals.setdefault(m.drops, set()).add(f)
+            elif d.gain.t < -t_min:
+                state.rivals.get(m.drops, set()).discard(f)
+    drops = [(m, d, f) for m, d, f in decisions if m.kind == "drop" and d.accepted]
+    if drops:
+        m, d, f = max(drops, key=lambda t: (t[1].gain.t, vocabulary_order(t[0].effects)))
+        assert m.drops is not None
+        state.rivals.pop(m.drops, None)
+        return Round(all_decisions, d, ((d, f.cv.rms_um),), rejected, signatures, screened)
+    growing = [(m, d, f) for m, d, f in decisions if m.kind != "drop"]
+    accepted = [t for t in growing if t[1].accepted]
+    if not accepted:
+        return Round(all_decisions, None, (), rejected, signatures, screened)
+    best = max(accepted, key=lambda t: t[1].gain.mean_um2)
+    tied = [t for t in growing if t is best or not apart(t[2].cv, best[2].cv, folds, batches, t_min)]
+    eligible = [t for t in tied if t[1].accepted]
+    m, d, f = min(eligible, key=lambda t: (t[2].unknowns, vocabulary_order(t[0].adds)))
+    added = set(m.adds)
+    others = {k for mm, _, _ in tied for k in mm.adds if k not in added}
+    if m.drops is not None:
+        # The effect swapped out stays a rival of the one swapped in.
+        others.add(m.drops)
+        state.rivals.pop(m.drops, None)
+    for k in m.adds:
+        state.rivals[k] = set(others)
+    ambiguity = tuple((t[1], t[2].cv.rms_um) for t in sorted(tied, key=lambda t: _finite(t[2].cv.rms_um)))
+    return Round(all_decisions, d, ambiguity, rejected, signatures, screened)

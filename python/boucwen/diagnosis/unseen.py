@@ -3,7 +3,7 @@
 Two kinds of unseen data judge the returned model:
 
 * **blocked cross-validation** over contiguous folds of the record itself
-  (:mod:`~boucwen.diagnosis.validation`: each block predicted by the model refitted
+  (:mod:`~boucwen.diagnosis.judge`: each block predicted by the model refitted
   without it), for every record;
 * a **second record of the same device** (``validate``), where the user has one: the
   model fitted on the first record carried to the second. What is carried is the
@@ -12,13 +12,16 @@ Two kinds of unseen data judge the returned model:
   model alike: the offset (a different mounting, a different zero), a linear trend
   (thermal and sensor drift depend on the day, not on the device), the initial
   hysteresis state h0 (it depends on what the voltage did before the record began,
-  which neither record holds); the record's own effects, :data:`RECORD_EFFECTS`
-  (a drift, a mains pickup whose phase is the record's), are left out.
+  which neither record holds); the record's own effects
+  (:attr:`boucwen.effects.Effect.of_record`: a drift, a mains pickup whose phase is the
+  record's) are left out.
 
-On the second record each effect of the device must earn its place: one whose removal
-(the others refitted without it on the first record) predicts the second record as
-well, within the sampling error of an RMS error over its samples, is dropped
-(:func:`judged_on`); the record's own effects are judged on the record itself.
+On the second record each effect of the device must earn its place by the same judge
+as on the first (:func:`~boucwen.diagnosis.judge.judge`, its held-out gain against its
+batch-means sampling error): the model with it against the model without it (the others
+refitted without it on the first record), both carried; one that does not earn its
+place there is dropped (:func:`judged_on`). The record's own effects are judged on the
+record itself.
 """
 
 from __future__ import annotations
@@ -33,24 +36,21 @@ from scipy.optimize import minimize_scalar
 
 from .._core import EffectSet
 from ..checks import FloatArray
-from ..effects import ExtendedFit, simulate_chain
+from ..effects import ExtendedFit, effect_class, simulate_chain
 from ..effects.base import without
 from ..metrics import max_abs, rms
 from ..record import Record
+from .judge import CrossValidation, Decision, gain, judge, threshold
+from .policy import DiagnosisPolicy
 
 __all__ = [
-    "RECORD_EFFECTS",
     "OnValidation",
     "Unseen",
     "ValidationError",
     "carried",
     "judged_on",
     "prediction_error",
-    "sampling_margin",
 ]
-
-#: Effects of the record rather than of the device: not carried to another record.
-RECORD_EFFECTS = ("drift", "pickup")
 
 
 @dataclass(frozen=True)
@@ -121,9 +121,9 @@ class Unseen:
 
 
 def device_part(effects: EffectSet) -> EffectSet:
-    """``effects`` less the record's own (:data:`RECORD_EFFECTS`)."""
-    for name in RECORD_EFFECTS:
-        if name in effects.names:
+    """``effects`` less the record's own (:attr:`boucwen.effects.Effect.of_record`)."""
+    for name in effects.names:
+        if effect_class(name).of_record:
             effects = without(effects, name)
     return effects
 
@@ -169,45 +169,70 @@ def prediction_error(fit: ExtendedFit, record: Record) -> ValidationError | None
     return None if out is None else out[1]
 
 
-def sampling_margin(samples: int) -> float:
-    """Relative sampling error of an RMS error estimated over ``samples`` samples
-    (1/√(2N) for Gaussian errors): two models whose RMS errors on the same record differ
-    by less than this fraction are not told apart by that record."""
-    return 1.0 / math.sqrt(2.0 * max(samples, 1))
-
-
 def judged_on(
     validation: Record,
     current: ExtendedFit,
-    added: list[str],
-    refit: Callable[[EffectSet], ExtendedFit],
+    refit_without: Callable[[ExtendedFit, str], ExtendedFit | None],
+    policy: DiagnosisPolicy,
+    noise_um: float,
     say: Callable[[str], None],
-) -> tuple[ExtendedFit, list[str], dict[str, Any]]:
-    """Each effect in ``added`` judged on the ``validation`` record: the model with
-    the others only (``refit``: the model refitted on the identification record with
-    the effects given) against ``current``; an effect whose removal does not raise the
-    validation error by more than :func:`sampling_margin` is dropped (the simpler model
-    predicts the unseen record as well). The record's own effects
-    (:data:`RECORD_EFFECTS`) are not judged there. Returns the model, the effects left
-    and the evidence (per effect: the validation RMS errors with and without it)."""
-    margin = sampling_margin(len(validation))
-    evidence: dict[str, Any] = {"margin": margin}
-    # The current model's error there changes only when an effect is dropped.
-    with_it = prediction_error(current, validation)
-    for name in list(added):
-        if name in RECORD_EFFECTS or (name == "resonance" and "resonance2" in current.effects.names):
+) -> tuple[ExtendedFit, list[Decision]]:
+    """Each effect of the device in ``current`` judged on the ``validation`` record
+    (module docs): ``refit_without(model, name)`` is ``model`` refitted on the identification
+    record without that effect (None where it cannot be); ``noise_um`` the validation
+    record's noise [µm]. Effects are judged in turn, the model updated after each drop.
+    Returns the model and the decisions (``"drop"``, accepted where the effect is
+    dropped)."""
+    names = [
+        k
+        for k in current.effects.names
+        if not effect_class(k).of_record and not any(effect_class(o).partner == k for o in current.effects.names)
+    ]
+    t_min = threshold(policy.alpha, max(len(names), 1), policy.batches)
+    decisions: list[Decision] = []
+    for name in names:
+        with_it = carried(current, validation)
+        rest = refit_without(current, name)
+        without_it = None if rest is None else carried(rest, validation)
+        if with_it is None or without_it is None or rest is None:
             continue
-        rest = refit(without(current.effects, name))
-        without_it = prediction_error(rest, validation)
-        if with_it is None or without_it is None:
-            continue
-        earns = without_it.rms_um > (1.0 + margin) * with_it.rms_um
-        evidence[name] = {"with_rms_um": with_it.rms_um, "without_rms_um": without_it.rms_um, "kept": earns}
-        say(
-            f"  validation {name:9s}: {with_it.rms_um:.4g} µm with it, {without_it.rms_um:.4g} µm without"
-            + ("" if earns else " — dropped")
+        keep_cv = CrossValidation.of(validation.x - with_it[0], validation.x - with_it[0], policy.folds)
+        rest_cv = CrossValidation.of(validation.x - without_it[0], validation.x - without_it[0], policy.folds)
+        keep = judge(
+            "add",
+            (name,),
+            tuple(current.effects.names),
+            tuple(rest.effects.names),
+            gain(keep_cv, rest_cv, policy.folds, policy.batches),
+            t_min=t_min,
+            noise_um=noise_um,
+            min_share=policy.min_share,
+            unknowns=0,
         )
-        if not earns:
-            current, with_it = rest, without_it
-            added = [k for k in added if k != name]
-    return current, added, evidence
+        reason = (
+            "on the validation record, "
+            + ("it earns its place: " if keep.accepted else "it does not earn its place: ")
+            + keep.reason
+        )
+        g = gain(rest_cv, keep_cv, policy.folds, policy.batches)
+        decisions.append(
+            Decision(
+                "drop",
+                (name,),
+                tuple(rest.effects.names),
+                tuple(current.effects.names),
+                g,
+                t_min,
+                keep.needed_um2,
+                not keep.accepted,
+                reason,
+                0,
+            )
+        )
+        say(
+            f"  validation {name:9s}: {with_it[1].rms_um:.4g} µm with it, {without_it[1].rms_um:.4g} µm without"
+            + ("" if keep.accepted else " — dropped")
+        )
+        if not keep.accepted:
+            current = rest
+    return current, decisions

@@ -41,7 +41,6 @@ from .delay import Delay, best_delay
 from .drift import Drift
 from .electrostriction import Electrostriction
 from .fit import (
-    DIAGNOSIS_METHOD,
     ExtendedFit,
     Layout,
     Solved,
@@ -60,7 +59,6 @@ from .resonance2 import Resonance2
 from .saturation import Saturation
 
 __all__ = [
-    "DIAGNOSIS_METHOD",
     "EFFECTS",
     "FN_MAX_NYQUIST_FRACTION",
     "LINE_FREQUENCIES_HZ",

@@ -22,11 +22,10 @@ and what the diagnosis needs to know about it when it tries the effect on a reco
   trial adds both while the model lacks the other (a second resonance mode);
 * :meth:`Effect.rejects`: a fitted value that makes the effect no candidate (a
   resonance without a peak);
-* :attr:`Effect.full_rate_only`, :meth:`Effect.direction`, :attr:`Effect.spectral_peak`:
-  how the effect fares on a record's screened (decimated) copy;
-* :attr:`Effect.bars_lookalikes`, :attr:`Effect.bars_when_undecided`,
-  :attr:`Effect.swappable`: the relations with its look-alikes (the groups and their
-  tests are :mod:`boucwen.diagnosis.lookalike`'s).
+* :attr:`Effect.signature`: what the look-alike tests call the residual it leaves
+  (evidence, reported; :mod:`boucwen.residual.lookalike`);
+* :attr:`Effect.of_record`: it belongs to the record, not to the device (not carried
+  to another record).
 
 The simulation itself is the Rust core's (:func:`boucwen.simulate_extended`), which
 also validates the parameters: building an effect checks it there, so that an effect
@@ -155,19 +154,18 @@ class Effect(ABC):
     #: the trial of this one adds both (:meth:`beside`), under the name ``joint``.
     partner: ClassVar[str | None] = None
     joint: ClassVar[str] = ""
-    #: Its parameters are whole samples of the record's rate: it is not tried on a
-    #: screened (decimated) copy, and a model holding it is not screened.
+    #: What the look-alike tests (:mod:`boucwen.residual.lookalike`) call the residual
+    #: this effect leaves behind when it is missing: a signal the residual follows
+    #: (``lowpass_u``, ``t``, ``t_x``) or a shape of its phase (``delay``, ``lag``,
+    #: ``peak``); None where no test speaks of it. Evidence only, reported beside the
+    #: diagnosis's answer.
+    signature: ClassVar[str | None] = None
+    #: Its parameters are whole samples of the record's rate (a delay): a decimated
+    #: copy of the record cannot hold it, so it is fitted on the full record only.
     full_rate_only: ClassVar[bool] = False
-    #: It describes a spectral peak (a mode): tried on the full record too when the
-    #: residual's spectrum peaks above what the screened copy can hold.
-    spectral_peak: ClassVar[bool] = False
-    #: In the model, it bars the other members of its look-alike group unless the
-    #: group's test on the current residual names them ...
-    bars_lookalikes: ClassVar[bool] = False
-    #: ... also when the test names none of them (it leaves a look-alike of its own).
-    bars_when_undecided: ClassVar[bool] = False
-    #: The backward step may swap it for a look-alike the group's test names.
-    swappable: ClassVar[bool] = False
+    #: It belongs to the record, not to the device (a drift, a mains pickup whose phase
+    #: is the record's): not carried to another record of the device.
+    of_record: ClassVar[bool] = False
     #: In the chain, it makes the core run every stage on
     #: :data:`boucwen._core.RESONANCE_SUBSTEPS` sub-intervals per sample (a mode), so a
     #: pass with it costs that many times one without.

@@ -48,11 +48,7 @@ class Creep(Effect):
     """
 
     name: ClassVar[str] = "creep"
-    bars_lookalikes: ClassVar[bool] = True
-    #: Its fixed time constants leave a slow relaxation of its own, which a drift or a
-    #: gain drift beside it would take up: it bars them also on an undecided test.
-    bars_when_undecided: ClassVar[bool] = True
-    swappable: ClassVar[bool] = True
+    signature: ClassVar[str | None] = "lowpass_u"
     tau_s: tuple[float, ...]
     gain_um_per_v: tuple[float, ...]
 

@@ -30,8 +30,8 @@ class Delay(Effect):
     """
 
     name: ClassVar[str] = "delay"
+    signature: ClassVar[str | None] = "delay"
     full_rate_only: ClassVar[bool] = True
-    swappable: ClassVar[bool] = True
     samples: int
 
     @classmethod

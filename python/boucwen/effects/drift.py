@@ -26,8 +26,8 @@ class Drift(Effect):
     """
 
     name: ClassVar[str] = "drift"
-    bars_lookalikes: ClassVar[bool] = True
-    swappable: ClassVar[bool] = True
+    signature: ClassVar[str | None] = "t"
+    of_record: ClassVar[bool] = True
     #: Multiples of the least-squares trend of x on (1, u, t) from which a trial's refit
     #: starts (:meth:`refit_starts`): around the trend, since the base model has taken
     #: up part of it, and beyond, since its hysteresis may lean against it.

@@ -31,14 +31,14 @@ from numpy.typing import ArrayLike
 from .._core import EffectSet, Params, simulate_extended, simulate_extended_with_jacobian
 from ..checks import FloatArray
 from ..fit import N_BOUNDS
-from ..lsq import Method, OutputErrorProblem, with_jacobian_or_none
+from ..levenberg import STATISTICAL_MARGIN
+from ..lsq import Method, OutputErrorProblem, Prior, with_jacobian_or_none
 from ..metrics import max_abs, rms
 from ..record import Record, validate_record
 from .base import Context, Effect, Start, simulate_chain, with_effect
 from .registry import effect_class, effect_set, effects_of
 
 __all__ = [
-    "DIAGNOSIS_METHOD",
     "ExtendedFit",
     "Layout",
     "Solved",
@@ -51,12 +51,6 @@ __all__ = [
 
 #: The base model's unknowns: the seven parameters and h0.
 _BASE = (*Params.names, "h0")
-
-#: The local solver of :func:`fit_extended` and of the diagnosis's base-model fits:
-#: SciPy's trust-region reflective method, the one the diagnosis's budgets and
-#: thresholds were validated with (a budget-limited fit ends where the solver's path
-#: takes it; ``docs/design.md``, *The offline fit's solver*).
-DIAGNOSIS_METHOD: Method = "trf"
 
 
 @dataclass(frozen=True)
@@ -221,6 +215,22 @@ class _Chain:
         return self.layout.simulate_with_jacobian(v, self.u, self.dt)
 
 
+class _Weighted(_Chain):
+    """:class:`_Chain` with each sample's output and Jacobian row scaled by its weight."""
+
+    def __init__(self, layout: Layout, u: FloatArray, dt: float, weights: FloatArray):
+        super().__init__(layout, u, dt)
+        self.weights = weights
+
+    def __call__(self, v: FloatArray) -> FloatArray | None:
+        xs = super().__call__(v)
+        return None if xs is None else xs * self.weights
+
+    def with_jacobian(self, v: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        out = super().with_jacobian(v)
+        return None if out is None else (out[0] * self.weights, out[1] * self.weights[:, None])
+
+
 def _typical(layout: Layout, v0: FloatArray, u: FloatArray, x: FloatArray) -> FloatArray:
     """Typical size of each unknown (the optimiser's scaling)."""
     span_u = max(float(np.ptp(u)), 1e-12)
@@ -236,8 +246,10 @@ def fit_extended(
     effects: EffectSet,
     h0: float = 0.0,
     *,
-    max_nfev: int = 40,
-    tol: float = 1e-8,
+    max_nfev: int = 100,
+    tol: float = 1e-10,
+    method: Method = "lm",
+    margin: float = STATISTICAL_MARGIN,
 ) -> ExtendedFit:
     """Fits the base parameters, h0 and the effects' parameters by output error.
 
@@ -246,8 +258,12 @@ def fit_extended(
         dt: sampling interval [s].
         params, effects, h0: starting point; ``effects`` also fixes which effects are
             present, the creep time constants and the delay (see the module docs).
-        max_nfev: iteration limit of ``least_squares``.
-        tol: ``xtol``/``ftol``/``gtol`` of ``least_squares``.
+        max_nfev: most trial points (a fit stopped there has ``success`` False).
+        tol: relative change of the cost or of the unknowns that stops (``"lm"``), or
+            ``xtol``/``ftol``/``gtol`` (``"trf"``).
+        method: ``"lm"`` (Levenberg–Marquardt, :mod:`boucwen.levenberg`) or ``"trf"``.
+        margin: the statistical stop of ``"lm"``: the remaining step at most √margin
+            standard errors of the unknowns.
 
     Returns:
         An :class:`ExtendedFit` (errors over the given record).
@@ -256,7 +272,7 @@ def fit_extended(
         ValueError: invalid data or a starting point that cannot be simulated.
     """
     record = validate_record(u, x, dt)
-    return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol)
+    return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, method=method, margin=margin)
 
 
 @dataclass(frozen=True, eq=False)
@@ -281,11 +297,15 @@ def fit_extended_record(
     effects: EffectSet,
     h0: float = 0.0,
     *,
-    max_nfev: int = 40,
-    tol: float = 1e-8,
+    max_nfev: int = 100,
+    tol: float = 1e-10,
+    method: Method = "lm",
+    margin: float = STATISTICAL_MARGIN,
 ) -> ExtendedFit:
     """:func:`fit_extended` on a checked :class:`~boucwen.record.Record`."""
-    return solve_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol).fit
+    return solve_extended_record(
+        record, params, effects, h0, max_nfev=max_nfev, tol=tol, method=method, margin=margin
+    ).fit
 
 
 def solve_extended_record(
@@ -294,26 +314,34 @@ def solve_extended_record(
     effects: EffectSet,
     h0: float = 0.0,
     *,
-    max_nfev: int = 40,
-    tol: float = 1e-8,
+    max_nfev: int = 100,
+    tol: float = 1e-10,
+    method: Method = "lm",
+    margin: float = STATISTICAL_MARGIN,
+    weights: FloatArray | None = None,
+    prior_weights: FloatArray | None = None,
 ) -> Solved:
     """:func:`fit_extended_record` with the fit's simulated displacement and the
-    optimiser's Jacobian at the solution (``least_squares`` computes one at every point
-    it accepts, the solution included), for the callers that score the fit."""
+    optimiser's Jacobian at the solution, for the callers that score the fit.
+    ``weights`` (one per sample, 0 or 1) leaves samples out of the cost (a refit without
+    a block of the record: the model still runs through them); the errors of the
+    result are over every sample. ``prior_weights`` (one per unknown, µm per unit of
+    it) pulls each unknown weakly towards its start (:class:`boucwen.lsq.Prior`)."""
     u, x, dt = record.u, record.x, record.dt
     layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
     v0 = layout.pack(params, effects, h0)
     lo, hi = layout.bounds()
     sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))
     lo, hi = np.maximum(lo, sign_lo), np.minimum(hi, sign_hi)
-    margin = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    v0 = np.clip(v0, lo + margin, hi - margin)
+    inside = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    v0 = np.clip(v0, lo + inside, hi - inside)
     typ = _typical(layout, v0, u, x)
-    chain = _Chain(layout, u, dt)
-    prob = OutputErrorProblem(chain, chain.with_jacobian, x)
+    chain: _Chain = _Chain(layout, u, dt) if weights is None else _Weighted(layout, u, dt, weights)
+    prior = None if prior_weights is None else Prior(v0.copy(), np.asarray(prior_weights, dtype=np.float64))
+    prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights, prior=prior)
     if prob.simulate(v0) is None:
         raise ValueError("the starting point of fit_extended cannot be simulated")
-    res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev, method=DIAGNOSIS_METHOD)
+    res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev, method=method, margin=margin)
     p, e, h = layout.unpack(res.x)
     xs = simulate_chain(p, e, u, dt, h)
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point

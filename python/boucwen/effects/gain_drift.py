@@ -26,8 +26,7 @@ class GainDrift(Effect):
     """
 
     name: ClassVar[str] = "gain_drift"
-    bars_lookalikes: ClassVar[bool] = True
-    swappable: ClassVar[bool] = True
+    signature: ClassVar[str | None] = "t_x"
     rate_per_s: float
 
     def unknowns(self) -> tuple[str, ...]:

@@ -30,7 +30,7 @@ class InputLag(Effect):
     """
 
     name: ClassVar[str] = "input_lag"
-    swappable: ClassVar[bool] = True
+    signature: ClassVar[str | None] = "lag"
     fc_hz: float
 
     def unknowns(self) -> tuple[str, ...]:

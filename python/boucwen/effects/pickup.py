@@ -42,6 +42,7 @@ class Pickup(Effect):
     """
 
     name: ClassVar[str] = "pickup"
+    of_record: ClassVar[bool] = True
     line_hz: float
     sin_um: tuple[float, ...]
     cos_um: tuple[float, ...]

@@ -102,7 +102,7 @@ class Resonance(Effect):
     """
 
     name: ClassVar[str] = "resonance"
-    spectral_peak: ClassVar[bool] = True
+    signature: ClassVar[str | None] = "peak"
     substepped: ClassVar[bool] = True
     #: A second-order low-pass has a peak only for ζ below 1/√2; without one it is a lag
     #: shape the other effects describe.

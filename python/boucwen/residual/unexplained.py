@@ -5,7 +5,7 @@ what could explain it.
 the residual r = x − x̂:
 
 * **noise level** σ̂ [µm], estimated from the record itself (not from the residual):
-  see :func:`~boucwen.diagnosis.noise.noise_level`;
+  see :func:`~boucwen.residual.noise.noise_level`;
 * **verdict**: is r consistent with white noise of level σ̂? Any fitted model leaves
   some structure (a record of thousands of samples reveals a misfit far below the
   noise), so the question asked is whether the structure beyond the noise is larger

@@ -1,36 +1,38 @@
 """The tests that tell look-alike effects apart, on the residual of a model.
 
-Two groups of effects leave residuals that look alike; each group has a test of
-what distinguishes its members:
+Effects that leave residuals alike are told apart by two tests, each naming a
+*signature* (an effect declares its own: :attr:`boucwen.effects.Effect.signature`).
+They are evidence, reported beside the diagnosis's answer; they never accept or reject
+an effect:
 
-* **what the residual follows** (``creep`` / ``drift`` / ``gain_drift``): creep follows
+* **what the residual follows** (signatures ``lowpass_u``, ``t``, ``t_x``): creep follows
   the voltage (a slow relaxation towards it after each change), a drift follows time, a
   gain drift follows time × the displacement. The residual r = x − x̂ is regressed on
   each signal — u through a first-order low-pass of a tenth of the record's length,
   t, t·(x̂ − mean x̂) — each taken beyond an affine map of x̂ (which the base model
   absorbs); the share of r's variance each explains (R²) is reported and the
   largest names what r follows.
-* **the shape of the phase** (``delay`` / ``input_lag`` / ``resonance``): the transfer
+* **the shape of the phase** (signatures ``delay``, ``lag``, ``peak``): the transfer
   H(f) from the model's x̂ to the measured x (Welch cross-spectrum, where x̂ has power
   and the coherence is high) is compared with a pure delay (phase −2πfτ, gain 1: the
   group delay is flat), a first-order lag (phase −atan(f/fc), gain falling: the group
   delay falls with f) and a resonance (gain rising above 1 towards a peak). The RMS
   misfit [rad] of the best delay and of the best lag to the measured phase, and the
-  largest gain, are reported; the shape named is ``resonance`` where the gain exceeds
+  largest gain, are reported; the shape named is ``peak`` where the gain exceeds
   1 by more than 5 % at bins of coherence above 0.99 where x̂ has power (neither a
   delay nor a lag amplifies), else the one of least phase misfit. Below its corner a
   lag turns the phase as a delay of 1/(2π·fc) does: where neither misfit undercuts the
   other by :data:`PHASE_MARGIN`, ``lag_or_delay_apart`` is False and the test does not
   choose between the two.
 
-:data:`GROUPS` lists the groups; :func:`lookalike_tests` runs both tests and returns
-their outcomes (JSON-ready); :func:`named` reads what an outcome names.
+:func:`lookalike_tests` runs both tests and returns their outcomes (JSON-ready);
+:func:`named` reads the signatures they name.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -39,13 +41,14 @@ from scipy.signal import coherence, csd, lfilter, welch
 from ..checks import FloatArray
 from ..record import Record
 
-__all__ = ["GROUPS", "TESTS", "lookalike_tests", "named", "phase_shape", "what_it_follows"]
+__all__ = ["SHAPES", "SIGNALS", "TESTS", "lookalike_tests", "named", "phase_shape", "what_it_follows"]
 
-#: The groups of look-alike effects and the test that separates each.
-GROUPS: dict[str, tuple[str, ...]] = {
-    "follows": ("creep", "drift", "gain_drift"),
-    "phase": ("delay", "input_lag", "resonance", "resonance2"),
-}
+#: The signals the first test regresses the residual on: u through a slow low-pass
+#: (creep), time (a drift), time × the displacement (a gain drift).
+SIGNALS = ("lowpass_u", "t", "t_x")
+#: The shapes of the phase the second test tells apart: a pure delay, a first-order
+#: lag, a gain peak (a mode).
+SHAPES = ("delay", "lag", "peak")
 #: Least coherence of a frequency bin used by the phase test.
 MIN_COHERENCE = 0.9
 #: The gain above 1 [-] at bins of at least this coherence that names a resonance.
@@ -68,7 +71,7 @@ def _beyond(v: FloatArray, basis: FloatArray) -> FloatArray:
 
 
 def what_it_follows(record: Record, x_model: FloatArray) -> dict[str, Any]:
-    """The first test (module docs): ``{"r2": {effect: R²}, "follows": effect or "none"}``."""
+    """The first test (module docs): ``{"r2": {signal: R²}, "follows": signal or "none"}``."""
     u, dt = record.u, record.dt
     n = u.size
     t = np.arange(n) * dt
@@ -78,7 +81,7 @@ def what_it_follows(record: Record, x_model: FloatArray) -> dict[str, Any]:
     basis = np.column_stack([x_model, np.ones(n)])
     r = _beyond(record.x - x_model, basis)
     var = float(r @ r)
-    signals = {"creep": slow_u, "drift": t, "gain_drift": t * (x_model - np.mean(x_model))}
+    signals = dict(zip(SIGNALS, (slow_u, t, t * (x_model - np.mean(x_model)))))
     r2: dict[str, float] = {}
     for name, s in signals.items():
         v = _beyond(s, basis)
@@ -130,27 +133,31 @@ def phase_shape(record: Record, x_model: FloatArray) -> dict[str, Any]:
     peak = float(np.max(np.abs(h[sure]))) if np.any(sure) else 0.0
     out["max_gain_coherent"] = peak
     if peak > 1.0 + RESONANCE_GAIN:
-        out["shape"] = "resonance"
+        out["shape"] = "peak"
     else:
-        out["shape"] = "delay" if delay_misfit <= misfits[k] else "input_lag"
+        out["shape"] = "delay" if delay_misfit <= misfits[k] else "lag"
         out["lag_or_delay_apart"] = min(delay_misfit, misfits[k]) <= (1.0 - PHASE_MARGIN) * max(
             delay_misfit, misfits[k]
         )
     return out
 
 
-def named(outcome: dict[str, Any], among: Collection[str] = ()) -> str:
-    """What a test's ``outcome`` (:func:`what_it_follows` or :func:`phase_shape`) names
-    when it is to choose ``among`` some effects: its ``follows`` or ``shape``, but
-    ``"none"`` where both a delay and an input lag are among them and the phase test
-    cannot tell the two apart (``lag_or_delay_apart`` False)."""
-    said: str = outcome.get("follows", outcome.get("shape", "none"))
-    if not outcome.get("lag_or_delay_apart", True) and {"delay", "input_lag"} <= set(among):
-        return "none"
-    return said
+def named(outcomes: dict[str, Any]) -> set[str]:
+    """The signatures the tests' ``outcomes`` (:func:`lookalike_tests`) name: what the
+    residual follows and the shape of its phase, the shape only where it is told apart
+    (a delay and a lag are not, where ``lag_or_delay_apart`` is False)."""
+    out = set()
+    follows = outcomes.get("follows", {}).get("follows", "none")
+    if follows != "none":
+        out.add(follows)
+    phase = outcomes.get("phase", {})
+    shape = phase.get("shape", "none")
+    if shape != "none" and phase.get("lag_or_delay_apart", True):
+        out.add(shape)
+    return out
 
 
-#: The test of each group of :data:`GROUPS`, by the group's name.
+#: The tests, by name.
 TESTS: dict[str, Callable[[Record, FloatArray], dict[str, Any]]] = {
     "follows": what_it_follows,
     "phase": phase_shape,

@@ -1,0 +1,126 @@
+"""Wall time of `boucwen.diagnose` on two long records, beside a baseline run.
+
+    python benches/diagnosis_speed.py [--out DIR] [--baseline FILE] [--repeat N]
+
+The records:
+
+* ``multisine_130k``: the record of ``python -m boucwen.experiments.diagnosis_suite
+  --speed`` — 130 000 samples at 20 kHz, a 6.5 s multisine, creep and an input lag of
+  0.1 µm each, 5 nm of noise (seed 7);
+* ``oscillator_40k``: 40 000 samples at 750 Hz of a force-driven hysteretic oscillator,
+  m·ÿ + c·ẏ + k·y + z = F, ż = α·ẏ − β·(γ·|ẏ|·|z|^(ν−1)·z + δ·ẏ·|z|^ν), with the
+  parameters of the Noël & Schoukens benchmark (m = 2 kg, c = 10 N·s/m, k = 5e4 N/m,
+  α = 5e4 N/m, β = 1e3 /m, γ = 0.8, δ = −1.1, ν = 1), F a random-phase multisine of
+  lines 5–150 Hz at 50 N RMS (seed 0), y integrated by SciPy's RK45 (rtol 1e-9) between
+  the samples and read in µm with 7 µm of white noise: a record the piezo base model
+  (u = F) fits at about 20× its noise.
+
+The script makes both records itself from NumPy, SciPy and the package's generator of
+the suite's records, so it runs against any version of the package: run it on the
+previous release with ``--out`` and give that file as ``--baseline`` to print both side
+by side (the ratio is baseline / this run). Times are the median of ``--repeat`` runs
+(default 1) on the release build installed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+import boucwen
+from boucwen.experiments.suite_records import make_suite_record
+
+#: The benchmark's oscillator: m [kg], c [N·s/m], k [N/m], α [N/m], β [1/m], γ, δ, ν.
+OSCILLATOR = {"m": 2.0, "c": 10.0, "k": 5e4, "alpha": 5e4, "beta": 1e3, "gamma": 0.8, "delta": -1.1, "nu": 1.0}
+
+
+def multisine_130k() -> tuple[np.ndarray, np.ndarray, float]:
+    rec = make_suite_record(
+        (("creep", 0.1), ("input_lag", 0.1)), "multisine", 7, fs_hz=20_000.0, noise_um=0.005, duration_s=6.5
+    )
+    return rec.u, rec.x, rec.dt
+
+
+def oscillator_40k(n: int = 40_000, fs_hz: float = 750.0, noise_um: float = 7.0) -> tuple[np.ndarray, np.ndarray, float]:
+    """The hysteretic oscillator's record (module docs): force [N] and displacement [µm]."""
+    rng = np.random.default_rng(0)
+    duration = n / fs_hz
+    lines = np.arange(np.ceil(5.0 * duration), np.floor(150.0 * duration) + 1) / duration
+    phases = rng.uniform(0.0, 2 * np.pi, lines.size)
+    amp = 50.0 * np.sqrt(2.0 / lines.size)
+    p = OSCILLATOR
+
+    def force(t: Any) -> Any:
+        return amp * np.sum(np.sin(2 * np.pi * lines[:, None] * np.atleast_1d(t)[None, :] + phases[:, None]), axis=0)
+
+    def rhs(t: float, s: np.ndarray) -> list[float]:
+        y, v, z = s
+        f = float(force(t)[0])
+        dz = p["alpha"] * v - p["beta"] * (
+            p["gamma"] * abs(v) * abs(z) ** (p["nu"] - 1) * z + p["delta"] * v * abs(z) ** p["nu"]
+        )
+        return [v, (f - p["c"] * v - p["k"] * y - z) / p["m"], dz]
+
+    t = np.arange(n) / fs_hz
+    sol = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0, 0.0], t_eval=t, rtol=1e-9, atol=1e-12, max_step=0.2 / fs_hz)
+    y_um = sol.y[0] * 1e6 + rng.normal(0.0, noise_um, n)
+    return force(t), y_um, 1.0 / fs_hz
+
+
+RECORDS = {"multisine_130k": multisine_130k, "oscillator_40k": oscillator_40k}
+
+
+def run(repeat: int) -> dict[str, Any]:
+    out: dict[str, Any] = {"version": getattr(boucwen, "__version__", "?"), "records": {}}
+    for name, make in RECORDS.items():
+        u, x, dt = make()
+        times, answer = [], ""
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            d = boucwen.diagnose(u, x, dt)
+            times.append(time.perf_counter() - t0)
+            answer = d.summary()
+        out["records"][name] = {"samples": int(u.size), "time_s": statistics.median(times), "answer": answer}
+        print(f"{name}: {u.size} samples, {statistics.median(times):.1f} s: {answer}", file=sys.stderr, flush=True)
+    return out
+
+
+def table(now: dict[str, Any], baseline: dict[str, Any] | None) -> str:
+    lines = [
+        "| record | samples | baseline [s] | this run [s] | ratio | answer (this run) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, row in now["records"].items():
+        base = (baseline or {}).get("records", {}).get(name)
+        before = f"{base['time_s']:.1f}" if base else "-"
+        ratio = f"{base['time_s'] / row['time_s']:.2f}×" if base else "-"
+        lines.append(f"| {name} | {row['samples']} | {before} | {row['time_s']:.1f} | {ratio} | {row['answer']} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    ap.add_argument("--out", help="folder for results.json")
+    ap.add_argument("--baseline", help="results.json of a baseline run, printed beside this one")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per record (the median is reported)")
+    args = ap.parse_args(argv)
+    baseline = json.loads(Path(args.baseline).read_text(encoding="utf-8")) if args.baseline else None
+    now = run(max(1, args.repeat))
+    now["table"] = table(now, baseline)
+    print(now["table"])
+    if args.out:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / "results.json").write_text(json.dumps(now, indent=1), encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
