@@ -285,3 +285,25 @@ def test_bad_model_file_in_a_real_process(files):
     )
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
     assert "newer.json: field 'version': 99 is newer" in proc.stderr
+
+
+def test_identify_cooperative_follows_its_schedule(tmp_path):
+    # refine("cooperative") runs the window pass in refine(COOPERATIVE_INTERVALS) after every push.
+    from boucwen.pacing import COOPERATIVE_INTERVALS
+
+    dt = 1e-3
+    u = 50.0 - 50.0 * np.cos(2.0 * np.pi * np.arange(3000) * dt)
+    x, _ = simulate(Params.paper_1hz(), u, dt)
+    write_csv(tmp_path / "rec.csv", {"t": np.arange(u.size) * dt, "u": u, "x": x})
+    start = boucwen.SavedModel(Params.paper_1hz().replace(kv=0.17), 0.0, dt)
+    start.save(tmp_path / "m.json")
+    argv = ["identify", str(tmp_path / "rec.csv"), "--init", str(tmp_path / "m.json"), "--refine", "cooperative"]
+    assert main([*argv, "--out", str(tmp_path / "trace.csv")]) == 0
+    rec = read_csv(tmp_path / "rec.csv")  # its dt: the mean step of the time column as written
+    ident = Identifier(rec.dt, start.params, 0.0, refine="cooperative")
+    expected = []
+    for a, b in zip(rec.u, rec.x):
+        expected.append(ident.push(a, b))
+        ident.refine(COOPERATIVE_INTERVALS)
+    np.testing.assert_array_equal(_table(tmp_path / "trace.csv")["x_pred_um"], _as_written(expected))
+    assert _table(tmp_path / "trace.csv")["kv"][-1] == _as_written([ident.params.kv])[0] != 0.17

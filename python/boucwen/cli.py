@@ -431,6 +431,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     print(f"{rec.name}: {n} samples, dt = {rec.dt:.6g} s")
     if args.init is not None:
         init = _load_model(args.init)
+        _check_rate(init, rec.dt)
         scored_from = 0
     else:
         from ._core import EffectSet
