@@ -427,3 +427,67 @@ def test_micromanipulator_compensated():
     assert 19 < np.abs(desired).max() < 21  # µm
     assert rec.u[0] == pytest.approx(1.830003) and rec.x[0] == pytest.approx(-121.662284)
     assert rec.meta["units"]["desired"] == "µm"
+
+
+# ----------------------------------------------------------------------------- files without a header line
+
+
+@pytest.mark.parametrize("delimiter", [" ", ",", "\t"])
+def test_headerless_file_read_by_position(tmp_path, delimiter):
+    t = np.arange(6) * 0.01
+    table = np.column_stack([np.zeros(6), t, -t * 10.0, t * 100.0])  # 0, time, x, u
+    path = tmp_path / "log.txt"
+    np.savetxt(path, table, delimiter=delimiter)
+    rec = read_csv(path, columns="2,4,3")
+    np.testing.assert_allclose(rec.t, t)
+    np.testing.assert_allclose(rec.u, t * 100.0)
+    np.testing.assert_allclose(rec.x, -t * 10.0)
+    assert rec.dt == pytest.approx(0.01)
+    assert rec.meta["read"] == {"t": "column 2", "u": "column 4", "x": "column 3"}
+    rec = read_csv(path, columns=("4", "3"), dt=0.5)
+    assert rec.dt == 0.5 and rec.meta["read"]["t"] is None
+
+
+def test_headerless_file_without_columns_says_so(tmp_path):
+    path = tmp_path / "log.txt"
+    np.savetxt(path, np.ones((4, 3)))
+    msg = _expect(path, "no header line", "--columns", "1-based position")
+    assert "3 number(s)" in msg
+
+
+@pytest.mark.parametrize(
+    "columns, dt, words",
+    [
+        ("t,u,x", None, ["no header line", "1-based positions"]),
+        ("1,2,9", None, ["position 9", "3 columns"]),
+        ("0,1,2", None, ["position 0"]),
+        ("1,1,2", None, ["one position twice"]),
+        ("2,3", None, ["name no time column", "--dt"]),
+    ],
+)
+def test_headerless_bad_positions(tmp_path, columns, dt, words):
+    path = tmp_path / "log.txt"
+    np.savetxt(path, np.column_stack([np.arange(4) * 0.1, np.ones(4), np.ones(4)]))
+    with pytest.raises(ValueError) as info:
+        read_csv(path, columns=columns, dt=dt)
+    for word in words:
+        assert word in str(info.value), (word, str(info.value))
+
+
+def test_positions_on_a_file_with_a_header(tmp_path):
+    path = _write(tmp_path, "stamp,cmd,gap\n" + "".join(f"{k * 0.5},{k},{-k}\n" for k in range(4)))
+    rec = read_csv(path, columns="1,2,3")
+    np.testing.assert_array_equal(rec.x, [0, -1, -2, -3])
+    assert rec.meta["read"] == {"t": "stamp", "u": "cmd", "x": "gap"}
+
+
+def test_read_signal_takes_one_quantity(tmp_path):
+    from boucwen.io import read_signal
+
+    path = _write(tmp_path, "t_s,x_um,other\n" + "".join(f"{k * 0.1},{k * 2.0},7\n" for k in range(5)))
+    t, x, dt, meta = read_signal(path, "x")
+    np.testing.assert_allclose(t, np.arange(5) * 0.1)
+    np.testing.assert_array_equal(x, [0, 2, 4, 6, 8])
+    assert dt == pytest.approx(0.1) and meta["read"] == {"t": "t_s", "x": "x_um"}
+    with pytest.raises(ValueError, match="missing column 'u'"):
+        read_signal(path, "u")

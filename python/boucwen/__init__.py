@@ -10,6 +10,8 @@ Precision Engineering 38 (2014) 921–927).
 - :class:`Identifier` identifies them online, one sample at a time (configured by
   :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
+- :class:`SavedModel` is a model as a file (:func:`load_model`, :meth:`SavedModel.save`,
+  one versioned JSON schema that the command line's ``--model`` writes and reads);
 - :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
   each effect is a typed object (:class:`Creep`, :class:`InputLag`, :class:`GainDrift`,
   :class:`Electrostriction`, :class:`Resonance`, :class:`Resonance2`, :class:`Drift`,
@@ -63,6 +65,7 @@ from .effects import (
     effects_of,
 )
 from .fit import FitResult, fit
+from .model_file import ModelSource, SavedModel, load_model
 
 __all__ = [
     "INVERSE_TOLERANCE_UM",
@@ -89,6 +92,7 @@ __all__ = [
     "LengthMismatch",
     "Model",
     "ModelFit",
+    "ModelSource",
     "NamedEffect",
     "PaperConfig",
     "Params",
@@ -97,12 +101,14 @@ __all__ = [
     "Resonance2",
     "RpemConfig",
     "Saturation",
+    "SavedModel",
     "__version__",
     "diagnose",
     "effect_set",
     "effects_of",
     "fit",
     "invert",
+    "load_model",
     "paper_input",
     "simulate",
     "simulate_extended",

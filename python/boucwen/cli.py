@@ -7,9 +7,22 @@ Subcommands:
   ``t_s,u_V,x_um``, ``time,voltage,displacement``, … any case, see
   :func:`boucwen.io.read_csv`; other columns ignored); prints the parameters and the
   output error in µm. Record options (``fit`` and ``diagnose``): ``--columns T,U,X``
-  names the columns (``U,X`` without time), ``--dt DT`` gives the sampling interval of a
+  names the columns (``U,X`` without time) or gives their 1-based positions (a file without
+  a header line: ``--columns 2,4,3``), ``--dt DT`` gives the sampling interval of a
   record without time, ``--resample DT`` puts non-uniform time stamps on a uniform grid.
   A file of :mod:`boucwen.datasets` (e.g. ``Model_Vi_Do.dat``) is read as that record.
+* ``boucwen identify DATA.csv [--method horizon|rpem|paper] [--refine sync|cooperative|background]
+  [--init M.json] --out TRACE.csv [--plot FIG.png] [--model M.json]``: replays a record
+  through the online identifier (:mod:`boucwen.replay`); writes each sample's prediction,
+  estimates and status; prints the block-ahead error of the identified model beside the
+  fixed starting model's.
+* ``boucwen invert --model M.json --target XD.csv --out U.csv [--u-min V] [--u-max V]``:
+  the feedforward voltage for a desired displacement, through the model's effects where
+  they have an inverse; prints the predicted tracking error, the limit hits and the
+  samples the model cannot reach (and why, where the model's branch slope says so).
+* ``boucwen simulate --model M.json U.csv --out X.csv``: a model file run open loop.
+* ``--model M.json`` of ``fit``, ``diagnose`` and ``identify`` writes the model file
+  (:mod:`boucwen.model_file`); ``boucwen --version`` prints the version.
 * ``boucwen reproduce [--out DIR] [--quick]``: the paper's experiment on the
   simulated bench (:mod:`boucwen.experiments.reproduce`).
 * ``boucwen diagnose (DATA.csv | --dataset NAME) [--json REPORT.json] [--predictions PRED.csv]
@@ -57,6 +70,11 @@ class _Parser(argparse.ArgumentParser):
 
 
 if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from .checks import FloatArray
+    from .model_file import SavedModel
     from .record import Record
 
     # What ``add_subparsers`` returns; each subcommand adds its parser to it.
@@ -67,21 +85,31 @@ if TYPE_CHECKING:
 
 _DATA_HELP = (
     "CSV file with a header line naming the time [s], voltage [V] and displacement [um] "
-    "(t_s,u_V,x_um; time,voltage,displacement; ... any case), or a file of boucwen.datasets"
+    "(t_s,u_V,x_um; time,voltage,displacement; ... any case), a file without a header read with --columns "
+    "by position, or a file of boucwen.datasets"
 )
 
 
-def _add_record_options(p: argparse.ArgumentParser) -> None:
+_MODEL_HELP = "also write the model file (boucwen.model JSON, read by --model and --init of the other commands)"
+
+
+def _add_signal_options(p: argparse.ArgumentParser, spelled: str = "T,U,X", what: str = "record") -> None:
+    """``--columns`` and ``--dt``: how a CSV file's columns are found."""
+    names = {"T,U,X": "time, voltage and displacement", "T,U": "time and voltage", "T,X": "time and displacement"}
     p.add_argument(
         "--columns",
-        metavar="T,U,X",
+        metavar=spelled,
         default=None,
-        help="names of the time, voltage and displacement columns (U,X for a record without time); "
-        "default: recognised from the header",
+        help=f"the {names[spelled]} columns, by header name or 1-based position ({spelled[2:]} without time); "
+        "positions are the only way to read a file without a header line; default: recognised from the header",
     )
     p.add_argument(
-        "--dt", type=float, metavar="DT", default=None, help="sampling interval [s] of a record without time"
+        "--dt", type=float, metavar="DT", default=None, help=f"sampling interval [s] of a {what} without time"
     )
+
+
+def _add_record_options(p: argparse.ArgumentParser) -> None:
+    _add_signal_options(p)
     p.add_argument(
         "--resample",
         type=float,
@@ -134,6 +162,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     from .fit import fit
 
     _prepare_output(args.json)
+    _prepare_output(args.model)
     rec = _read_record(args)
     result = fit(rec.u, rec.x, rec.dt, n_starts=args.starts, seed=args.seed, progress=args.progress)
     p = result.params
@@ -157,6 +186,15 @@ def _cmd_fit(args: argparse.Namespace) -> int:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=2)
         print(f"wrote {args.json}")
+    if args.model:
+        from ._core import EffectSet
+        from .model_file import ModelSource, SavedModel
+
+        model = SavedModel(
+            result.params, result.h0, rec.dt, EffectSet(), ModelSource.of_record(rec, "fit", result.x_fit)
+        )
+        model.save(args.model)
+        print(f"wrote {args.model} (the model file: boucwen invert/simulate/identify --model/--init read it)")
     return EXIT_OK if result.success else EXIT_NOT_CONVERGED
 
 
@@ -171,6 +209,7 @@ def _add_fit(sub: _Subparsers) -> None:
     p.add_argument("data", help=_DATA_HELP)
     _add_record_options(p)
     p.add_argument("--json", metavar="OUT.json", help="also write the result as JSON")
+    p.add_argument("--model", metavar="M.json", help=_MODEL_HELP)
     p.add_argument("--starts", type=int, default=4, help="local starts (default 4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random starts (default 0)")
     p.add_argument("--progress", action="store_true", help="print progress to stderr")
@@ -247,7 +286,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from .diagnosis import diagnose, write_predictions, write_report
     from .plots import plot_diagnosis
 
-    for path in (args.json, args.predictions, args.plot):
+    for path in (args.json, args.predictions, args.plot, args.model):
         _prepare_output(path)
 
     if (args.data is None) == (args.dataset is None):
@@ -309,6 +348,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.plot:
         plot_diagnosis(result, rec.t, rec.u, rec.x, args.plot, title=rec.name)
         print(f"wrote {args.plot}")
+    if args.model:
+        from .model_file import ModelSource, SavedModel
+
+        origin = ModelSource.of_record(rec, "diagnose", result.x_extended)
+        SavedModel(result.params, result.h0_um, rec.dt, result.effect_set, origin).save(args.model)
+        print(f"wrote {args.model} (the returned model, with its effects)")
     return EXIT_OK
 
 
@@ -334,6 +379,9 @@ def _add_diagnose(sub: _Subparsers) -> None:
     p.add_argument("--json", metavar="REPORT.json", default=None, help="also write the report here")
     p.add_argument("--predictions", metavar="PRED.csv", default=None, help="also write t,x,x_base,x_extended here")
     p.add_argument(
+        "--model", metavar="M.json", default=None, help=_MODEL_HELP + " (the returned model, its effects included)"
+    )
+    p.add_argument(
         "--plot", metavar="FIG.png", default=None, help="also draw the residual before and after, and the loops"
     )
     p.add_argument(
@@ -346,6 +394,333 @@ def _add_diagnose(sub: _Subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the base fit's starts (default 0)")
     p.add_argument("--progress", action="store_true", help="print progress to stderr")
     p.set_defaults(handler=_cmd_diagnose)
+
+
+# --------------------------------------------------------------------------- identify
+
+#: Share of a record fitted offline for the starting model of ``identify`` without ``--init``.
+IDENTIFY_INIT_SHARE = 0.2
+
+
+def _load_model(path: str) -> SavedModel:
+    from .model_file import load_model
+
+    model = load_model(path)
+    named = ", ".join(e.name for e in model.named_effects) or "none"
+    made = f", made by {model.source.made_by}" if model.source.made_by else ""
+    record = f" on {model.source.record}" if model.source.record else ""
+    print(f"{path}: model{made}{record}; effects: {named}; dt = {model.dt_s:.6g} s")
+    return model
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .io import write_csv
+    from .metrics import max_abs, rms
+    from .model_file import ModelSource, SavedModel
+    from .pacing import refine_mode
+    from .replay import check_options, replay
+
+    for path in (args.out, args.plot, args.model):
+        _prepare_output(path)
+    refine = refine_mode(args.refine)
+    check_options(args.method, refine, args.window)
+    rec = _read_record(args)
+    n = len(rec)
+    print(f"{rec.name}: {n} samples, dt = {rec.dt:.6g} s")
+    if args.init is not None:
+        init = _load_model(args.init)
+        _check_rate(init, rec.dt)
+        scored_from = 0
+    else:
+        from ._core import EffectSet
+        from .fit import fit
+
+        k = round(IDENTIFY_INIT_SHARE * n)
+        if k < 3 or k >= n:
+            raise ValueError(f"{n} samples are too few to fit a starting model on the first {IDENTIFY_INIT_SHARE:.0%}")
+        result = fit(rec.u[:k], rec.x[:k], rec.dt, seed=args.seed, progress=args.progress)
+        init = SavedModel(result.params, result.h0, rec.dt, EffectSet(), ModelSource.of_record(rec, "fit"))
+        print(
+            f"starting model: boucwen.fit on the first {k} samples ({IDENTIFY_INIT_SHARE:.0%}, "
+            f"{rec.t[0]:.6g} to {rec.t[k - 1]:.6g} s), output error rms {result.rms_um:.4g} µm there; "
+            "it is also the fixed model (give one with --init M.json)"
+        )
+        scored_from = k
+    if refine == "background":
+        print(f"background refine: the record is replayed at its own sample rate ({rec.duration_s:.1f} s)")
+    r, dropped = replay(rec, init, method=args.method, refine=refine, window=args.window, block=args.block)
+    if dropped:
+        print(
+            f"the {args.method} method does not identify {', '.join(dropped)}: left out of the online model, "
+            "which starts from parameters fitted with them (the fixed model keeps them)"
+        )
+    blocks = r.block_starts()
+    scored = blocks >= scored_from
+    if not np.any(scored):
+        scored = blocks >= 0
+    ident, fixed = r.block_errors[scored], r.fixed_block_errors[scored]
+    first = float(rec.t[blocks[scored][0]])
+    print(
+        f"block-ahead error [µm]: max |x - x̂| over each block of {r.block} samples ({r.block * rec.dt:.6g} s), "
+        f"the estimates and state frozen at its start and run open loop; {ident.size} blocks from t = {first:.6g} s"
+    )
+    label = f"identified ({args.method}{', ' + refine if args.method == 'horizon' else ''})"
+    width = max(len(label), len("fixed (starting model)"))
+    for name, e in ((label, ident), ("fixed (starting model)", fixed)):
+        print(f"  {name:<{width}}  median {np.median(e):.4g}  worst {np.max(e):.4g}  last block {e[-1]:.4g}")
+    better = float(np.mean(ident < fixed))
+    print(f"  the identified model is better on {100.0 * better:.0f} % of these blocks")
+    one = rec.x - r.one_step
+    print(f"one-step prediction (each sample before it is used): rms {rms(one):.4g} µm, max {max_abs(one):.4g} µm")
+    if r.late_samples:
+        print(f"{r.late_samples} samples were pushed more than one interval late (the host was busy)")
+    final = r.final
+    estimates = ", ".join(f"{k} = {v:.5g}" for k, v in final.params.to_dict().items())
+    lag = "".join(f"; {k} = {v[-1]:.5g}" for k, v in r.effects.items())
+    print(f"final estimates: {estimates}{lag}")
+
+    columns: dict[str, Any] = {
+        "t_s": rec.t,
+        "u_V": rec.u,
+        "x_um": rec.x,
+        "x_pred_um": r.one_step,
+        "x_block_um": r.block_ahead,
+        "x_fixed_um": r.fixed,
+    }
+    from ._core import Params
+
+    columns.update({name: r.params[:, i] for i, name in enumerate(Params.names)})
+    columns.update(r.effects)
+    columns.update({f"status.{k}": v for k, v in r.status.items()})
+    write_csv(args.out, columns)
+    print(f"wrote {args.out} (per sample: prediction, block-ahead run, fixed model, estimates, status)")
+    if args.plot:
+        from .plots import plot_identify
+
+        plot_identify(r, rec.t, rec.x, args.plot, title=f"{rec.name}, {args.method}")
+        print(f"wrote {args.plot}")
+    if args.model:
+        final.save(args.model)
+        print(f"wrote {args.model} (the final model; h0 the starting model's)")
+    return EXIT_OK
+
+
+def _add_identify(sub: _Subparsers) -> None:
+    from .replay import BLOCK_S, METHODS
+
+    p = sub.add_parser(
+        "identify",
+        help="replay a logged record through the online identifier",
+        description="Pushes the record sample by sample through an online identifier (as a control loop "
+        "would) and writes each sample's prediction, estimates and status. Prints the block-ahead error "
+        "of the identified model beside the fixed starting model's: at the start of each block the "
+        "estimates and state are frozen and run open loop over the block (the tables' metric).",
+    )
+    p.add_argument("data", help=_DATA_HELP)
+    _add_record_options(p)
+    p.add_argument("--method", choices=METHODS, default="horizon", help="online method (default horizon)")
+    p.add_argument(
+        "--refine",
+        choices=("sync", "cooperative", "background"),
+        default="sync",
+        help="where the horizon method's window pass runs (default sync; background replays the record "
+        "at its own sample rate)",
+    )
+    p.add_argument(
+        "--init",
+        metavar="M.json",
+        default=None,
+        help="starting (and fixed) model; default: boucwen.fit on the first "
+        f"{IDENTIFY_INIT_SHARE:.0%} of the record, which the scores then leave out",
+    )
+    p.add_argument("--out", required=True, metavar="TRACE.csv", help="per-sample trace (written)")
+    p.add_argument("--plot", metavar="FIG.png", default=None, help="also draw the estimates and the errors over time")
+    p.add_argument("--model", metavar="M.json", default=None, help="also write the final model as a model file")
+    p.add_argument(
+        "--block",
+        type=int,
+        metavar="N",
+        default=None,
+        help=f"samples per block of the block-ahead error (default {BLOCK_S:g} s of samples)",
+    )
+    p.add_argument(
+        "--window", type=int, metavar="N", default=None, help="the paper method's window [samples] (default 1 s)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the starting fit (default 0)")
+    p.add_argument("--progress", action="store_true", help="the starting fit's progress on stderr")
+    p.set_defaults(handler=_cmd_identify)
+
+
+# --------------------------------------------------------------------------- invert, simulate
+
+
+def _read_signal(args: argparse.Namespace, path: str, quantity: str) -> tuple[FloatArray, FloatArray, float]:
+    from .io import read_signal
+
+    t, values, dt, meta = read_signal(path, quantity, columns=args.columns, dt=args.dt)
+    read = meta["read"]
+    t_col = f"t = {read['t']!r} [s]" if read["t"] is not None else f"no time column, dt = {dt:.6g} s"
+    unit = "V" if quantity == "u" else "um"
+    print(f"{path}: {values.size} samples, {t_col}, {quantity} = {read[quantity]!r} [{unit}]")
+    return t, values, dt
+
+
+def _check_rate(model: SavedModel, dt: float) -> None:
+    import math
+
+    if not math.isclose(dt, model.dt_s, rel_tol=1e-6):
+        print(f"note: sampled every {dt:.6g} s; the model's record every {model.dt_s:.6g} s")
+
+
+def _cmd_invert(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ._core import invert
+    from .effects.base import params_of, set_of
+    from .io import write_csv
+    from .metrics import max_abs, rms
+
+    _prepare_output(args.out)
+    model = _load_model(args.model)
+    t, x_d, dt = _read_signal(args, args.target, "x")
+    _check_rate(model, dt)
+    present = params_of(model.effects)
+    no_inverse = [k for k in present if k in _NOT_INVERTED]
+    ignored = [k for k in present if k in _READING_ONLY]
+    if no_inverse:
+        print(f"{', '.join(no_inverse)}: no inverse; left out of the voltage (the predicted error includes it)")
+    if ignored:
+        print(f"{', '.join(ignored)}: in the reading only; the inverse ignores it (the predicted error includes it)")
+    inverted = set_of({k: v for k, v in present.items() if k not in _NOT_INVERTED})
+    u, _ = invert(model.params, x_d, dt, model.h0_um, u_min=args.u_min, u_max=args.u_max, effects=inverted)
+    x_model = model.simulate(u, dt)
+    err = x_model - x_d
+    print(f"voltage: {np.min(u):.4g} to {np.max(u):.4g} V over {u.size} samples")
+    print(f"predicted tracking error (the model run on this voltage): rms {rms(err):.4g} µm, max {max_abs(err):.4g} µm")
+    clipped = np.zeros(u.size, dtype=bool)
+    hits = []
+    for name, limit in (("u_min", args.u_min), ("u_max", args.u_max)):
+        if limit is not None:
+            hit = u <= limit if name == "u_min" else u >= limit
+            clipped |= hit
+            count = int(np.count_nonzero(hit))
+            hits.append(f"{name} = {limit:g} V on {count} samples ({100.0 * count / u.size:.3g} %)")
+    print(f"voltage limits hit: {'; '.join(hits) if hits else 'none given (--u-min, --u-max)'}")
+    missed = _missed(model, u, x_d, err, dt)
+    count = int(np.count_nonzero(missed))
+    on_limit = int(np.count_nonzero(missed & clipped))
+    print(
+        f"target reached on {u.size - count} of {u.size} samples"
+        + (f"; missed on {count} ({on_limit} of them with u on a limit)" if count else "")
+    )
+    if count > on_limit:
+        print(f"why the others are missed: {_why_missed(model, u, dt, no_inverse + ignored)}")
+    # Every digit of u: the model's rate term follows the sign of each step of u, however small.
+    write_csv(args.out, {"t_s": t, "u_V": u, "x_d_um": x_d, "x_model_um": x_model}, digits=17)
+    print(f"wrote {args.out} (t, u, the target and the model's displacement)")
+    return EXIT_OK
+
+
+def _missed(model: SavedModel, u: FloatArray, x_d: FloatArray, err: FloatArray, dt: float) -> NDArray[np.bool_]:
+    """Samples the model does not reach on ``u``: off the target by more than the inverse's
+    tolerance and the step |δ·u|·dt a reversal may leave (:class:`boucwen.Inverse`)."""
+    import numpy as np
+
+    from ._core import INVERSE_TOLERANCE_UM
+
+    allowed = INVERSE_TOLERANCE_UM * np.maximum(1.0, np.abs(x_d)) + np.abs(model.params.delta * u) * dt
+    return np.abs(err) > allowed + 1e-12
+
+
+def _why_missed(model: SavedModel, u: FloatArray, dt: float, left_out: list[str]) -> str:
+    """Why a model's inverse may miss: the effects it left out or, for the base model, the
+    samples where its branch slope kv + A − (β·sgn(u̇)·sgn(h) + γ)·|h|^n is not positive
+    (x does not rise with u)."""
+    import numpy as np
+
+    if left_out:
+        return f"the effects the inverse leaves out ({', '.join(left_out)}) move x off it"
+    if len(model.effects):
+        return "the model's x_model_um in the output shows where"
+    p = model.params
+    h = model.simulate(u, dt) - p.kv * u - p.x0
+    du = np.sign(np.diff(u, prepend=u[0]))
+    slope = p.kv + p.A - (p.beta * du * np.sign(h) + p.gamma) * np.abs(h) ** p.n
+    falling = int(np.count_nonzero((slope <= 0.0) & (du != 0.0)))
+    if not falling:
+        return "the model's x_model_um in the output shows where"
+    return (
+        f"its branch slope kv + A - (beta*sgn(du)*sgn(h) + gamma)*|h|^n is not positive on {falling} samples, "
+        "so x does not rise with u there (a base model standing in for a lag of the amplifier bends so; "
+        "boucwen diagnose --model gives a model with the lag, whose inverse leads the voltage)"
+    )
+
+
+#: Effects the inverse cannot invert, and those it ignores (in the sensor's reading only).
+_NOT_INVERTED = ("resonance", "resonance2")
+_READING_ONLY = ("pickup", "saturation")
+
+
+def _add_invert(sub: _Subparsers) -> None:
+    p = sub.add_parser(
+        "invert",
+        help="the feedforward voltage that makes the model follow a target displacement",
+        description="Inverts the model (its effects included where they have an inverse: input lag, creep, "
+        "gain drift, electrostriction, drift, delay) sample by sample for a desired displacement, "
+        "within the voltage limits; prints the model's predicted tracking error and the limit hits.",
+    )
+    p.add_argument("--model", required=True, metavar="M.json", help="model file (boucwen fit/diagnose --model)")
+    p.add_argument(
+        "--target",
+        required=True,
+        metavar="XD.csv",
+        help="desired displacement [um]: a CSV with time [s] and displacement columns (t,x; any name read by "
+        "boucwen fit), or named or positioned by --columns",
+    )
+    _add_signal_options(p, "T,X", "target")
+    p.add_argument(
+        "--out", required=True, metavar="U.csv", help="voltage to apply (written: t_s,u_V,x_d_um,x_model_um)"
+    )
+    p.add_argument("--u-min", type=float, metavar="V", default=None, help="lowest voltage [V]")
+    p.add_argument("--u-max", type=float, metavar="V", default=None, help="highest voltage [V]")
+    p.set_defaults(handler=_cmd_invert)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .io import write_csv
+
+    _prepare_output(args.out)
+    model = _load_model(args.model)
+    t, u, dt = _read_signal(args, args.data, "u")
+    _check_rate(model, dt)
+    x = model.simulate(u, dt)
+    print(f"displacement: {np.min(x):.4g} to {np.max(x):.4g} µm over {x.size} samples (open loop, from h0)")
+    write_csv(args.out, {"t_s": t, "u_V": u, "x_um": x})
+    print(f"wrote {args.out}")
+    return EXIT_OK
+
+
+def _add_simulate(sub: _Subparsers) -> None:
+    p = sub.add_parser(
+        "simulate",
+        help="run a model open loop on a voltage",
+        description="Runs the model of a model file, with its effects, open loop from its h0 on the voltage "
+        "of a CSV file; writes t_s,u_V,x_um.",
+    )
+    p.add_argument("--model", required=True, metavar="M.json", help="model file (boucwen fit/diagnose --model)")
+    p.add_argument(
+        "data",
+        metavar="U.csv",
+        help="voltage [V]: a CSV with time [s] and voltage columns (t,u; any name read by boucwen fit, e.g. "
+        "boucwen invert's output), or named or positioned by --columns",
+    )
+    _add_signal_options(p, "T,U", "voltage file")
+    p.add_argument("--out", required=True, metavar="X.csv", help="displacement (written: t_s,u_V,x_um)")
+    p.set_defaults(handler=_cmd_simulate)
 
 
 # --------------------------------------------------------------------------- batch
@@ -424,12 +799,24 @@ def _add_track(sub: _Subparsers) -> None:
 # --------------------------------------------------------------------------- main
 
 #: One registration function per subcommand, in help order.
-SUBCOMMANDS: list[Callable[[_Subparsers], None]] = [_add_fit, _add_reproduce, _add_diagnose, _add_batch, _add_track]
+SUBCOMMANDS: list[Callable[[_Subparsers], None]] = [
+    _add_fit,
+    _add_diagnose,
+    _add_identify,
+    _add_invert,
+    _add_simulate,
+    _add_reproduce,
+    _add_batch,
+    _add_track,
+]
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand of :data:`SUBCOMMANDS`."""
+    from ._core import __version__
+
     parser = _Parser(prog="boucwen", description="Asymmetric Bouc-Wen hysteresis of piezoelectric actuators.")
+    parser.add_argument("--version", action="version", version=f"boucwen {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for add in SUBCOMMANDS:

@@ -14,6 +14,11 @@ CSV format read by :func:`read_csv`:
   recognised name in another unit (``t_ms``, ``x_nm``) is an error, as are two columns
   for one quantity. ``columns=("T", "U", "X")`` (``--columns T,U,X``) names them
   instead, ``("U", "X")`` for a record without time. Other columns are ignored;
+* a file without a header line (``numpy.savetxt`` output, a logger's export: numbers
+  separated by commas, or by spaces or tabs) is read with ``columns`` as 1-based
+  positions, ``"2,4,3"`` (``--columns 2,4,3``: time, voltage, displacement), ``"4,3"``
+  with ``dt``; without ``columns`` it is an error that says so. Positions work on a file
+  with a header too;
 * a record without a time column takes its sampling interval from ``dt``;
 * every field of the columns read is a finite decimal number;
 * at least 3 rows, the time strictly increasing and uniformly sampled — or, with
@@ -34,17 +39,19 @@ column; a bad option (``dt``, ``resample``) raises :class:`boucwen.InvalidConfig
 from __future__ import annotations
 
 import csv
+import hashlib
 import math
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ._core import InvalidConfig, InvalidRecord
-from .checks import check_dt
+from .checks import FloatArray, check_dt
 from .record import Record, validate_samples
 
 # Record and validate_samples live in boucwen.record; they are importable from here too.
@@ -54,8 +61,10 @@ __all__ = [
     "Record",
     "jsonable",
     "read_csv",
+    "read_signal",
     "resample_samples",
     "sampling_interval",
+    "sha256_file",
     "validate_samples",
     "write_csv",
 ]
@@ -120,14 +129,47 @@ def _role(header_name: str) -> tuple[str | None, str | None]:
     return None, None
 
 
-def _given_columns(path: Path, header: list[str], columns: Any, header_no: int) -> dict[str, int]:
-    """Indices of the columns named by ``columns`` (``(T, U, X)`` or ``(U, X)``)."""
+def _positions(names: list[str]) -> list[int] | None:
+    """The 1-based column positions ``names`` spell, as 0-based indices; None if they are not all whole numbers."""
+    if not all(n.isdigit() for n in names):
+        return None
+    return [int(n) - 1 for n in names]
+
+
+def _column_list(path: Path, columns: Any, keys: tuple[str, ...]) -> list[str]:
+    """The entries of ``columns`` (``"T,U,X"`` or a sequence), one per key of ``keys``, or without time."""
     names = [c.strip() for c in columns.split(",")] if isinstance(columns, str) else [str(c).strip() for c in columns]
-    if len(names) not in (2, 3) or not all(names):
-        raise _fail(path, f"columns must name T,U,X (or U,X for a record without time), got {columns!r}")
+    if len(names) not in (len(keys) - 1, len(keys)) or not all(names):
+        spelled = ",".join(k.upper() for k in keys)
+        raise _fail(path, f"columns must name {spelled} (or {spelled[2:]} without time), got {columns!r}")
+    return names
+
+
+def _given_columns(
+    path: Path, header: list[str] | None, width: int, columns: Any, header_no: int, keys: tuple[str, ...]
+) -> dict[str, int]:
+    """Indices of the columns named by ``columns`` (``(T, U, X)`` or ``(U, X)``; generally
+    one per key of ``keys`` or one fewer, without time): header names, or 1-based positions
+    among the file's ``width`` columns (the only choice for a file without a header,
+    ``header`` None)."""
+    names = _column_list(path, columns, keys)
+    chosen = keys[len(keys) - len(names) :]
+    positions = _positions(names)
+    if header is None or (positions is not None and not any(n in header for n in names)):
+        if positions is None:
+            raise _fail(
+                path,
+                f"has no header line, so columns (--columns) are 1-based positions such as 2,4,3; got {columns!r}",
+            )
+        bad = [n for n, i in zip(names, positions) if not 0 <= i < width]
+        if bad:
+            raise _fail(path, f"column position {bad[0]} (--columns) is not within the file's {width} columns")
+        if len(set(positions)) != len(positions):
+            raise _fail(path, f"columns (--columns) {columns!r} name one position twice")
+        return dict(zip(chosen, positions))
     found = ", ".join(repr(h) for h in header)
     cols = {}
-    for key, name in zip(REQUIRED_COLUMNS[3 - len(names) :], names):
+    for key, name in zip(chosen, names):
         hits = [i for i, h in enumerate(header) if h == name] or [
             i for i, h in enumerate(header) if h.lower() == name.lower()
         ]
@@ -140,20 +182,28 @@ def _given_columns(path: Path, header: list[str], columns: Any, header_no: int) 
     return cols
 
 
-def _recognised_columns(path: Path, header: list[str], header_no: int) -> dict[str, int]:
-    """Indices of the time, voltage and displacement columns recognised in the header."""
-    hits: dict[str, list[int]] = {key: [] for key in REQUIRED_COLUMNS}
+def _spelled(keys: tuple[str, ...]) -> str:
+    """``T,U,X`` for the keys ``("t", "u", "x")``."""
+    return ",".join(k.upper() for k in keys)
+
+
+def _recognised_columns(
+    path: Path, header: list[str], header_no: int, keys: tuple[str, ...] = REQUIRED_COLUMNS
+) -> dict[str, int]:
+    """Indices of the columns of ``keys`` (time, voltage, displacement) recognised in the header."""
+    hits: dict[str, list[int]] = {key: [] for key in keys}
     for i, name in enumerate(header):
         key, unit = _role(name)
-        if key is not None and unit is not None:
+        if key not in hits:
+            continue
+        if unit is not None:
             raise _fail(
                 path,
                 f"column {name!r} is in {unit}; boucwen takes the {COLUMN_NAMES[key][2]}: convert it, "
-                "or name the columns with --columns T,U,X (Python: columns=)",
+                f"or name the columns with --columns {_spelled(keys)} (Python: columns=)",
                 header_no,
             )
-        if key is not None:
-            hits[key].append(i)
+        hits[key].append(i)
     for key, idx in hits.items():
         if len(idx) > 1:
             names = [header[i] for i in idx]
@@ -162,8 +212,8 @@ def _recognised_columns(path: Path, header: list[str], header_no: int) -> dict[s
                 if len(set(names)) == 1
                 else f"columns {', '.join(repr(n) for n in names)} all name the {COLUMN_NAMES[key][2]}"
             )
-            raise _fail(path, f"{what}; name the columns with --columns T,U,X (Python: columns=)", header_no)
-    missing = [key for key in ("u", "x") if not hits[key]]
+            raise _fail(path, f"{what}; name the columns with --columns {_spelled(keys)} (Python: columns=)", header_no)
+    missing = [key for key in keys if key != "t" and not hits[key]]
     if missing:
         found = ", ".join(repr(h) for h in header)
         spelled = "; ".join(f"{key}: {', '.join(COLUMN_NAMES[key][0])}" for key in missing)
@@ -171,7 +221,7 @@ def _recognised_columns(path: Path, header: list[str], header_no: int) -> dict[s
             path,
             f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} "
             f"(found: {found}; recognised, any case, with or without a unit: {spelled}; "
-            "or name the columns with --columns T,U,X)",
+            f"or name the columns with --columns {_spelled(keys)})",
             header_no,
         )
     return {key: idx[0] for key, idx in hits.items() if idx}
@@ -190,7 +240,9 @@ def read_csv(
         path: file to read.
         columns: the names of the time, voltage and displacement columns, ``(T, U, X)``
             or ``"T,U,X"``, or ``(U, X)`` for a record without time (exact names, else
-            any case); default: recognised from the header (:data:`COLUMN_NAMES`).
+            any case), or their 1-based positions (``"2,4,3"``; the only way to read a
+            file without a header line); default: recognised from the header
+            (:data:`COLUMN_NAMES`).
         dt: sampling interval [s] of a record without a time column.
         resample: step [s] of a uniform grid to put the record on (u held, x
             interpolated linearly), for non-uniform time stamps.
@@ -198,23 +250,97 @@ def read_csv(
     Returns:
         A :class:`Record` with ``t`` [s], ``u`` [V], ``x`` [µm], the mean step ``dt``
         [s], ``name`` = the file name without extension and ``meta`` =
-        ``{"path": ..., "columns": [...]}`` (the header), with ``"read": {"t": ..., "u":
-        ..., "x": ...}`` (the header names read, ``t`` None without a time column) and,
-        when resampled, ``"resampled"`` (:func:`resample`).
+        ``{"path": ..., "columns": [...]}`` (the header; None without one), with
+        ``"read": {"t": ..., "u": ..., "x": ...}`` (the header names read, or the
+        positions ``"column 2"`` of a file without a header; ``t`` None without a time
+        column) and, when resampled, ``"resampled"`` (:func:`resample`).
 
     Raises:
         InvalidRecord: for every problem with the file, naming the file and, where it
             applies, the line (1 = header) and column.
         InvalidConfig: for bad options (both are ``ValueError``).
     """
-    if dt is not None:
-        dt = check_dt(dt)
     if resample is not None:
         try:
             resample = check_dt(resample)
         except (TypeError, ValueError):
             raise InvalidConfig(f"resample must be a step in s, finite and > 0, got {resample!r}") from None
-    path = Path(path)
+    table = _read_table(Path(path), REQUIRED_COLUMNS, columns, dt)
+    path = table.path
+    u, x, meta = table.values["u"], table.values["x"], table.meta
+    if table.t is None:
+        return Record(
+            t=np.arange(u.size, dtype=np.float64) * table.dt, u=u, x=x, dt=table.dt, name=path.stem, meta=meta
+        )
+    t = table.t
+    step, problem = sampling_interval(t)
+    if problem is not None and (resample is None or step == 0.0):
+        k, message = problem
+        hint = "; put it on a uniform grid with --resample DT (Python: resample=DT) [s]" if step > 0.0 else ""
+        raise _fail(path, message + hint, table.line_nos[k])
+    if resample is not None:
+        try:
+            t, u, x, meta["resampled"] = resample_samples(t, u, x, resample)
+        except ValueError as exc:
+            raise _fail(path, str(exc)) from None
+        step = resample
+    return Record(t=t, u=u, x=x, dt=step, name=path.stem, meta=meta)
+
+
+def read_signal(
+    path: str | os.PathLike[str],
+    quantity: str,
+    *,
+    columns: str | tuple[str, ...] | list[str] | None = None,
+    dt: float | None = None,
+) -> tuple[FloatArray, FloatArray, float, dict[str, Any]]:
+    """Reads one signal with its time from a CSV file: a voltage ``u`` [V] to apply or a
+    desired displacement ``x`` [µm] to follow, read like :func:`read_csv` reads a record
+    (the same header names, units and checks; ``columns`` ``(T, U)``/``(T, X)`` by name or
+    1-based position, ``(U,)``/``(X,)`` with ``dt``; other columns ignored).
+
+    Args:
+        path: file to read.
+        quantity: ``"u"`` or ``"x"``.
+        columns: as for :func:`read_csv`, two entries (time, signal) or one (with ``dt``).
+        dt: sampling interval [s] of a file without a time column.
+
+    Returns:
+        ``(t, values, dt, meta)``: times [s] from the file (or ``k·dt``), the signal, the
+        sampling interval [s] and ``meta`` as :func:`read_csv`'s.
+
+    Raises:
+        InvalidRecord: every problem with the file; InvalidConfig: a bad ``dt``.
+    """
+    if quantity not in ("u", "x"):
+        raise InvalidConfig(f"quantity must be 'u' or 'x', got {quantity!r}")
+    table = _read_table(Path(path), ("t", quantity), columns, dt)
+    values = table.values[quantity]
+    if table.t is None:
+        return np.arange(values.size, dtype=np.float64) * table.dt, values, table.dt, table.meta
+    step, problem = sampling_interval(table.t)
+    if problem is not None:
+        raise _fail(table.path, problem[1], table.line_nos[problem[0]])
+    return table.t, values, step, table.meta
+
+
+@dataclass(frozen=True)
+class _Table:
+    """The columns read from a file: ``t`` (None without a time column, then ``dt``
+    given), the other quantities by key, the file line of each row and the meta."""
+
+    path: Path
+    t: FloatArray | None
+    values: dict[str, FloatArray]
+    dt: float
+    line_nos: list[int]
+    meta: dict[str, Any]
+
+
+def _read_table(path: Path, keys: tuple[str, ...], columns: Any, dt: float | None) -> _Table:
+    """The columns of ``keys`` (``"t"`` first) of the CSV file ``path``, checked as the module docs say."""
+    if dt is not None:
+        dt = check_dt(dt)
     if not path.exists():
         raise InvalidRecord(f"no such file: {path}")
     if path.is_dir():
@@ -229,61 +355,79 @@ def read_csv(
     lines = text.splitlines()
     first = next((i for i, s in enumerate(lines) if s.strip()), None)
     if first is None:
-        raise _fail(path, "empty file, expected a header line such as 't,u,x'")
+        raise _fail(path, f"empty file, expected a header line such as '{_spelled(keys).lower()}'")
     header_line = lines[first]
     header_no = first + 1
     numbers = re.split(r"[,;\s]+", header_line.strip())
-    if all(_is_number(h) for h in numbers):
-        raise _fail(
-            path,
-            f"no header line: line {header_no} holds {len(numbers)} number(s); add a first line naming "
-            "the comma-separated columns (e.g. t,u,x: s, V, µm)",
-            header_no,
-        )
-    if "," not in header_line:
-        for sep, label in ((";", "';'"), ("\t", "tabs")):
-            if sep in header_line:
-                raise _fail(
-                    path,
-                    f"header {header_line.strip()!r} is separated by {label}; columns must be separated by ','",
-                    header_no,
-                )
-        if len(header_line.split()) > 1:
+    headerless = all(_is_number(h) for h in numbers)
+    if headerless:
+        if columns is None:
             raise _fail(
                 path,
-                f"header {header_line.strip()!r} is separated by spaces; columns must be separated by ','",
+                f"no header line: line {header_no} holds {len(numbers)} number(s); name the columns by "
+                f"1-based position with --columns (e.g. --columns {','.join(str(i + 1) for i in range(len(keys)))} "
+                f"for {_spelled(keys)}; Python: columns=), or add a first line naming the comma-separated "
+                f"columns (e.g. {_spelled(keys).lower()})",
                 header_no,
             )
-
-    header = [name.strip() for name in next(csv.reader([header_line]))]
-    cols = (
-        _recognised_columns(path, header, header_no)
-        if columns is None
-        else _given_columns(path, header, columns, header_no)
-    )
+        if ";" in header_line:
+            raise _fail(path, "numbers are separated by ';'; columns must be separated by ',', spaces or tabs")
+        split = _comma_fields if "," in header_line else _blank_fields
+        width = len(split(header_line))
+        cols = _given_columns(path, None, width, columns, header_no, keys)
+        body = [(i + 1, s) for i, s in enumerate(lines) if i >= first and s.strip()]
+        header: list[str] = [f"column {i + 1}" for i in range(width)]
+        rows_fields: Iterable[tuple[int, list[str]]] = ((n, split(s)) for n, s in body)
+    else:
+        if "," not in header_line:
+            for sep, label in ((";", "';'"), ("\t", "tabs")):
+                if sep in header_line:
+                    raise _fail(
+                        path,
+                        f"header {header_line.strip()!r} is separated by {label}; columns must be separated by ','",
+                        header_no,
+                    )
+            if len(header_line.split()) > 1:
+                raise _fail(
+                    path,
+                    f"header {header_line.strip()!r} is separated by spaces; columns must be separated by ','",
+                    header_no,
+                )
+        header = [name.strip() for name in next(csv.reader([header_line]))]
+        width = len(header)
+        cols = (
+            _recognised_columns(path, header, header_no, keys)
+            if columns is None
+            else _given_columns(path, header, width, columns, header_no, keys)
+        )
+        body = [(i + 1, s) for i, s in enumerate(lines) if i > first and s.strip()]
+        rows_fields = zip((n for n, _ in body), csv.reader(s for _, s in body))
     if "t" in cols and dt is not None:
         raise _fail(path, f"has a time column {header[cols['t']]!r}; dt (--dt) is for a record without one", header_no)
     if "t" not in cols and dt is None:
+        if headerless:
+            raise _fail(
+                path,
+                f"columns (--columns) {columns!r} name no time column; "
+                "give the sampling interval with --dt DT (Python: dt=) [s]",
+            )
         raise _fail(
             path,
             "no time column (t, time, t_s, … in any case); give the sampling interval with --dt DT "
-            "(Python: dt=) [s], or name the columns with --columns T,U,X",
+            f"(Python: dt=) [s], or name the columns with --columns {_spelled(keys)}",
             header_no,
         )
-    read = [key for key in REQUIRED_COLUMNS if key in cols]
-    width = len(header)
+    read = [key for key in keys if key in cols]
+    sep_word = "fields as on the first line" if headerless else "comma-separated fields as in the header"
 
     rows: list[list[float]] = []
     line_nos: list[int] = []
-    body = [(i + 1, s) for i, s in enumerate(lines) if i > first and s.strip()]
-    for line_no, fields in zip((n for n, _ in body), csv.reader(s for _, s in body)):
+    for line_no, fields in rows_fields:
         if len(fields) != width:
             hint = ""
             if len(fields) == 1 and (";" in fields[0] or "\t" in fields[0]):
                 hint = " (the row seems to use ';' or tabs; columns must be separated by ',')"
-            raise _fail(
-                path, f"expected {width} comma-separated fields as in the header, found {len(fields)}{hint}", line_no
-            )
+            raise _fail(path, f"expected {width} {sep_word}, found {len(fields)}{hint}", line_no)
         values = []
         for key in read:
             name, raw = header[cols[key]], fields[cols[key]].strip()
@@ -303,27 +447,22 @@ def read_csv(
         raise _fail(path, f"only {len(rows)} data row{'s' if len(rows) > 1 else ''}, at least 3 are needed")
 
     data = np.array(rows, dtype=np.float64)
-    u, x = data[:, -2].copy(), data[:, -1].copy()
     meta: dict[str, Any] = {
         "path": str(path),
-        "columns": header,
-        "read": {key: header[cols[key]] if key in cols else None for key in REQUIRED_COLUMNS},
+        "columns": None if headerless else header,
+        "read": {key: header[cols[key]] if key in cols else None for key in keys},
     }
-    if dt is not None:
-        return Record(t=np.arange(u.size) * dt, u=u, x=x, dt=dt, name=path.stem, meta=meta)
-    t = data[:, 0].copy()
-    step, problem = sampling_interval(t)
-    if problem is not None and (resample is None or step == 0.0):
-        k, message = problem
-        hint = "; put it on a uniform grid with --resample DT (Python: resample=DT) [s]" if step > 0.0 else ""
-        raise _fail(path, message + hint, line_nos[k])
-    if resample is not None:
-        try:
-            t, u, x, meta["resampled"] = resample_samples(t, u, x, resample)
-        except ValueError as exc:
-            raise _fail(path, str(exc)) from None
-        step = resample
-    return Record(t=t, u=u, x=x, dt=step, name=path.stem, meta=meta)
+    by_key = {key: data[:, j].copy() for j, key in enumerate(read)}
+    t = by_key.pop("t", None)
+    return _Table(path, t, by_key, 0.0 if dt is None else dt, line_nos, meta)
+
+
+def _comma_fields(line: str) -> list[str]:
+    return line.split(",")
+
+
+def _blank_fields(line: str) -> list[str]:
+    return line.split()
 
 
 def _is_number(text: str) -> bool:
@@ -406,7 +545,7 @@ def sampling_interval(t: np.ndarray) -> tuple[float, tuple[int, str] | None]:
     return dt, None
 
 
-def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
+def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any], *, digits: int = 9) -> None:
     """Writes equal-length 1-D columns as CSV: a header line, then rows formatted ``%.9g``.
 
     Args:
@@ -414,6 +553,7 @@ def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
         columns: ``{name: values}`` in the order the columns should appear, e.g.
             ``{"t": t, "u": u, "x": x}``. Names must be non-empty and must not contain
             commas, quotes or line breaks.
+        digits: significant digits of each value (17 reads back every float64 exactly).
 
     Raises:
         ValueError: no columns, bad names, columns not 1-D or of different lengths.
@@ -441,7 +581,16 @@ def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
     table = np.column_stack(arrays)
     with open(path, "w", encoding="utf-8", newline="") as fh:
         fh.write(",".join(names) + "\n")
-        np.savetxt(fh, table, fmt="%.9g", delimiter=",")
+        np.savetxt(fh, table, fmt=f"%.{int(digits)}g", delimiter=",")
+
+
+def sha256_file(path: str | os.PathLike[str]) -> str:
+    """The SHA-256 of a file's bytes, as 64 hex digits (what a result records of the file it came from)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def jsonable(obj: Any) -> Any:

@@ -20,8 +20,9 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from .diagnosis.report import Diagnosis
+    from .replay import Replay
 
-__all__ = ["plot_diagnosis", "plot_loops", "plot_switch", "plot_tracking"]
+__all__ = ["plot_diagnosis", "plot_identify", "plot_loops", "plot_switch", "plot_tracking"]
 
 _MEASURED_STYLE: dict[str, Any] = {"color": "black", "linewidth": 1.4, "label": "measured"}
 
@@ -186,6 +187,54 @@ def plot_diagnosis(
         for line in left.unexplained_lines:
             ax_s.axvline(line["freq_hz"], color="tab:green", linewidth=0.6, linestyle="--")
         fig.suptitle(left.summary(), fontsize=8)
+    fig.savefig(path, dpi=110)
+
+
+def plot_identify(
+    result: Replay,
+    t: ArrayLike,
+    x: ArrayLike,
+    path: str | os.PathLike[str],
+    title: str = "",
+) -> None:
+    """The figure of a replay through an online identifier (:func:`boucwen.replay.replay`), as PNG.
+
+    One panel per parameter estimate (kv, x0, A, β, γ, n, δ, then the effects' values)
+    against time t [s], and below them (a) the error x − x̂ [µm] of the one-step
+    prediction, of the block-ahead run and of the fixed model, and (b) the block-ahead
+    error of each block, identified beside fixed.
+    """
+    from ._core import Params
+
+    t_arr, x_arr = np.asarray(t, dtype=np.float64), np.asarray(x, dtype=np.float64)
+    traces = {name: result.params[:, i] for i, name in enumerate(Params.names)} | result.effects
+    cols = 3
+    rows = -(-len(traces) // cols)
+    fig = _figure(11.0, 2.0 * rows + 5.0)
+    grid = fig.add_gridspec(rows + 2, cols, height_ratios=[1.0] * rows + [1.4, 1.4])
+    for i, (name, values) in enumerate(traces.items()):
+        ax = fig.add_subplot(grid[i // cols, i % cols])
+        ax.plot(t_arr, values, linewidth=0.9, color="tab:blue")
+        ax.set_title(name, fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3)
+    ax_e = fig.add_subplot(grid[rows, :])
+    ax_e.plot(t_arr, x_arr - result.one_step, linewidth=0.6, color="tab:grey", label="one-step prediction")
+    ax_e.plot(t_arr, x_arr - result.fixed, linewidth=0.7, color="tab:red", label="fixed model, open loop")
+    ax_e.plot(t_arr, x_arr - result.block_ahead, linewidth=0.7, color="tab:blue", label="identified, block-ahead")
+    ax_e.set_ylabel("error x − x̂ [µm]")
+    ax_e.set_title(f"(a) error over time{': ' + title if title else ''}")
+    ax_e.legend(loc="upper right", fontsize=8)
+    ax_e.grid(True, alpha=0.3)
+    ax_b = fig.add_subplot(grid[rows + 1, :], sharex=ax_e)
+    t_blocks = t_arr[result.block_starts()]
+    ax_b.step(t_blocks, result.fixed_block_errors, where="post", color="tab:red", linewidth=0.8, label="fixed model")
+    ax_b.step(t_blocks, result.block_errors, where="post", color="tab:blue", linewidth=0.8, label="identified")
+    ax_b.set_xlabel("time t [s]")
+    ax_b.set_ylabel("max |x − x̂| [µm]")
+    ax_b.set_title(f"(b) block-ahead error, blocks of {result.block} samples")
+    ax_b.legend(loc="upper right", fontsize=8)
+    ax_b.grid(True, alpha=0.3)
     fig.savefig(path, dpi=110)
 
 

@@ -40,7 +40,7 @@ from typing import Any, Union
 import numpy as np
 import pandas as pd
 
-from ..io import REQUIRED_COLUMNS, Record, read_csv, sampling_interval
+from ..io import REQUIRED_COLUMNS, Record, read_csv, sampling_interval, sha256_file
 
 __all__ = ["LAYOUT_COLUMNS", "TABLE_SUFFIXES", "RecordRef", "find_records", "load_record", "read_layout"]
 
@@ -93,14 +93,6 @@ def _has_channel_column(path: Path) -> bool:
     return False
 
 
-def _sha256_file(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def _file_refs(paths: list[Path], layout: dict[str, tuple[int, int]]) -> list[RecordRef]:
     seen: dict[str, Path] = {}
     refs = []
@@ -114,7 +106,7 @@ def _file_refs(paths: list[Path], layout: dict[str, tuple[int, int]]) -> list[Re
         row, col = layout.get(channel, (None, None))
         refs.append(
             RecordRef(
-                channel=channel, origin=str(path), content_hash=_sha256_file(path), path=str(path), row=row, col=col
+                channel=channel, origin=str(path), content_hash=sha256_file(path), path=str(path), row=row, col=col
             )
         )
     return refs
