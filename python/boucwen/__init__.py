@@ -8,7 +8,8 @@ Precision Engineering 38 (2014) 921–927).
 
 - :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
 - :class:`Identifier` identifies them online, one sample at a time (configured by
-  :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`); :class:`Bank` runs C channels per call;
+  :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`; what a push did is
+  :class:`HorizonStatus`, :class:`RpemStatus` or :class:`PaperStatus`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
   each effect is a typed object (:class:`Creep`, :class:`InputLag`, :class:`GainDrift`,
@@ -63,6 +64,7 @@ from .effects import (
     effects_of,
 )
 from .fit import FitResult, fit
+from .status import HorizonStatus, PaperStatus, RpemStatus, StepStatus
 
 __all__ = [
     "INVERSE_TOLERANCE_UM",
@@ -80,6 +82,7 @@ __all__ = [
     "FitResult",
     "GainDrift",
     "HorizonConfig",
+    "HorizonStatus",
     "Identifier",
     "InputLag",
     "InvalidConfig",
@@ -91,12 +94,15 @@ __all__ = [
     "ModelFit",
     "NamedEffect",
     "PaperConfig",
+    "PaperStatus",
     "Params",
     "Pickup",
     "Resonance",
     "Resonance2",
     "RpemConfig",
+    "RpemStatus",
     "Saturation",
+    "StepStatus",
     "__version__",
     "diagnose",
     "effect_set",
