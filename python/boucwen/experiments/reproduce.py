@@ -21,7 +21,9 @@ Steps of :func:`run`:
    printed beside two predictors with no model (persistence and the two-tap
    extrapolator), which a one-step figure must beat to mean anything.
    **Table 2**: the online estimates at the end of each frequency, beside the paper's.
-   Adaptation times after each switch, from the period-ahead errors.
+   Adaptation times after each switch, from the period-ahead errors. For the paper's
+   method, the share of pushes on which each of its five steps ran, per frequency, and
+   why it held (``paper_steps``, :func:`step_shares`).
 6. ``DIR/results.json``, ``DIR/predictions.npz`` (every signal the tables and
    figures are computed from) and the figures ``DIR/fig6_1_to_10hz.png``,
    ``fig7_10_to_100hz.png``, ``fig8_100_to_200hz.png``, ``fig9_loops.png``.
