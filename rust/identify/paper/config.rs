@@ -29,14 +29,19 @@ pub struct PaperConfig {
     /// (step 2) and are at most (|β|+|γ|)·0.075ⁿ ≈ 0.8 % of |A|. Default 0.05.
     pub h_zero_frac: f64,
     /// Points with |u̇| below this fraction of the window's rms(u̇) are left out of
-    /// steps 2–4. Default 0.2.
+    /// steps 2–4: steps 3–4 divide by u̇, so near the input's turning points the noise of
+    /// ẋ over a small u̇ swamps r, and step 2's rate term vanishes there. Default 0.2.
     pub rate_frac: f64,
-    /// Fewest points for a sub-fit. Default 8.
+    /// Fewest points for a sub-fit: below it a fit's scatter (and step 3's r²) says
+    /// nothing, and one bad point decides it. Default 8.
     pub min_points: usize,
     /// Step 2 fits both A + kv and δ only when 1 − corr²(u̇, u) over its points
-    /// exceeds this. Default 1e-3.
+    /// exceeds this: at one frequency the crossings sit at nearly the same (u, u̇), the
+    /// two columns are collinear and δ trades against A + kv (ran reduced). Default 1e-3.
     pub rank_tol: f64,
-    /// Step 3 fits n only when std(ln h) over its points exceeds this. Default 0.05.
+    /// Step 3 fits n only when std(ln h) over its points exceeds this: the slope n of a
+    /// log–log line over a narrow range of h is set by the noise (held, no spread).
+    /// Default 0.05.
     pub min_log_spread: f64,
     /// Steps 3–4 use a point only when |A − r| is at least this fraction of |A|:
     /// smaller values are a difference of two nearly equal numbers, dominated by
@@ -71,7 +76,8 @@ pub struct PaperConfig {
     /// its estimate (else it fits A + kv alone). Default 3.
     pub min_delta_t: f64,
     /// Step 3 fits n only when the log–log points lie on a line: squared
-    /// correlation of ln h and ln|A − r| at least this. Default 0.9.
+    /// correlation of ln h and ln|A − r| at least this; a cloud off a line has a slope
+    /// that is not n (held for noise). Default 0.9.
     pub min_r2: f64,
     /// Step 1 updates kv, x0 only when |kv| is at least this many standard errors
     /// of its window estimate. Default 10.
