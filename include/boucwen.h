@@ -110,6 +110,10 @@ typedef struct {
   double min_u_std_v;
   double n_min;
   double n_max;
+  // Phase span of the derivative stencil \[rad\].
+  double derivative_phase;
+  // Largest derivative half-width \[samples\].
+  size_t max_half_width;
 } BwPaperConfig;
 
 // Tuning of the horizon method (see `HorizonConfig` in the Rust docs for each value's
@@ -165,15 +169,35 @@ typedef struct {
   double trace;
 } BwRpemStatus;
 
-// What the last push of a paper identifier did; each sub-fit 0 = held, 1 = reduced, 2 = ran.
+// What one step of the paper's method did (see `StepStatus` in the Rust docs): `fit`
+// 0 = held, 1 = reduced, 2 = ran; `reason` 0 = none, 1 = window filling, 2 = no
+// excitation, 3 = too few points, 4 = no spread, 5 = noise, 6 = out of bounds, 7 =
+// upstream (step 5: steps 3 and 4 both held); `points` the window points it had;
+// `noise` their residual scatter about its fit (in the step's units).
+typedef struct {
+  uint32_t fit;
+  uint32_t reason;
+  uint32_t points;
+  double noise;
+} BwStepStatus;
+
+// What the last push of a paper identifier did (see `PaperStatus` in the Rust docs):
+// steps 1–5 in `line_fit`, `rate_fit`, `shape_fit`, `return_fit`, `split_fit`.
 typedef struct {
   uint64_t samples;
   bool window_full;
   bool refreshed;
-  uint32_t line_fit;
-  uint32_t rate_fit;
-  uint32_t shape_fit;
-  uint32_t return_fit;
+  // Half-width m of the derivative stencil \[samples\] (0: no point completed).
+  uint32_t half_width;
+  // Noise of x over the window \[µm\].
+  double x_noise_um;
+  // The noise it leaves on ẋ at half-width m \[µm/s\].
+  double xdot_noise_um_s;
+  BwStepStatus line_fit;
+  BwStepStatus rate_fit;
+  BwStepStatus shape_fit;
+  BwStepStatus return_fit;
+  BwStepStatus split_fit;
 } BwPaperStatus;
 
 // What the last push of an identifier did: `method` says which of `horizon`, `rpem`

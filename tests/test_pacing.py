@@ -46,7 +46,7 @@ def test_unpaced_sync_is_push_many_and_the_cooperative_schedule_is_a_refine_per_
         expected.append(by_hand.push(a, b))
         by_hand.refine(COOPERATIVE_INTERVALS)
     assert np.array_equal(fed_coop, np.array(expected))
-    assert by_hand.status["updates"] > 0
+    assert by_hand.status.updates > 0
     assert feed_for("sync", DT) is None
     background = feed_for("background", DT)
     assert background is not None and background.paced and background.refine_intervals == 0
@@ -67,7 +67,7 @@ def test_bad_arguments_are_value_errors():
         feed.push_many(ident, u[:10], bad)
     with pytest.raises(ValueError, match="same length"):
         feed.push_many(ident, u[:10], x[:9])
-    assert feed.samples == 0 and ident.status["samples"] == 0
+    assert feed.samples == 0 and ident.status.samples == 0
     with pytest.raises(ValueError, match="refine"):
         feed_for("later", DT)
 

@@ -141,7 +141,7 @@ def test_copy_and_deepcopy_are_independent(method: str) -> None:
     for clone in (copy.copy(original), copy.deepcopy(original)):
         assert clone is not original
         y1 = clone.push_many(u[1500:], x[1500:])
-        assert original.status["samples"] == 1500
+        assert original.status.samples == 1500
         y2 = copy.copy(original).push_many(u[1500:], x[1500:])
         np.testing.assert_array_equal(y1, y2)
 

@@ -173,7 +173,7 @@ def test_push_many_rejects_the_whole_call(method: str, u: Any, x: Any, exc: type
 def test_empty_push_many_is_a_no_op(method: str) -> None:
     ident = make_identifier(method, DT, 100, P)
     out = ident.push_many([], [])
-    assert out.shape == (0,) and ident.status["samples"] == 0
+    assert out.shape == (0,) and ident.status.samples == 0
 
 
 def test_fit_rejects_bad_records() -> None:

@@ -253,7 +253,7 @@ def test_identifies_input_lag_and_creep_online(fc, scale):
     rms = lambda p: float(np.sqrt(np.mean((x - p)[last] ** 2)))  # noqa: E731
     assert rms(pred_ext) < rms(pred_base), (rms(pred_ext), rms(pred_base))
     assert rms(pred_ext) < 0.004  # the 2 nm noise plus little
-    assert ext.status["samples"] == u.size
+    assert ext.status.samples == u.size
 
 
 def test_effects_option_errors_and_round_trip():

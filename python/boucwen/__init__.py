@@ -8,7 +8,8 @@ Precision Engineering 38 (2014) 921–927).
 
 - :class:`Params` the seven parameters; :func:`simulate` and :class:`Model` run the model;
 - :class:`Identifier` identifies them online, one sample at a time (configured by
-  :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`); :class:`Bank` runs C channels per call;
+  :class:`HorizonConfig`, :class:`RpemConfig` or :class:`PaperConfig`; what a push did is
+  :class:`HorizonStatus`, :class:`RpemStatus` or :class:`PaperStatus`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :class:`SavedModel` is a model as a file (:func:`load_model`, :meth:`SavedModel.save`,
   one versioned JSON schema that the command line's ``--model`` writes and reads);
@@ -66,6 +67,7 @@ from .effects import (
 )
 from .fit import FitResult, fit
 from .model_file import ModelSource, SavedModel, load_model
+from .status import HorizonStatus, PaperStatus, RpemStatus, StepStatus
 
 __all__ = [
     "INVERSE_TOLERANCE_UM",
@@ -83,6 +85,7 @@ __all__ = [
     "FitResult",
     "GainDrift",
     "HorizonConfig",
+    "HorizonStatus",
     "Identifier",
     "InputLag",
     "InvalidConfig",
@@ -95,13 +98,16 @@ __all__ = [
     "ModelSource",
     "NamedEffect",
     "PaperConfig",
+    "PaperStatus",
     "Params",
     "Pickup",
     "Resonance",
     "Resonance2",
     "RpemConfig",
+    "RpemStatus",
     "Saturation",
     "SavedModel",
+    "StepStatus",
     "__version__",
     "diagnose",
     "effect_set",

@@ -22,8 +22,9 @@ part is one new section (and one line in ``__all__``):
   ``CorruptSnapshot``, ``LengthMismatch``
 - parameters: ``Params``
 - simulation: ``simulate``, ``paper_input``, ``Model``
-- online identification: ``_IdentifierMethod``, ``_SubFitOutcome``, ``_PaperStatus`` and
-  ``_RpemStatus``, ``_HorizonStatus`` (type-only names, absent at run time), ``Identifier``
+- online identification: ``_IdentifierMethod`` (type-only, absent at run time), ``Identifier``
+  (its ``status`` a frozen ``PaperStatus``, ``RpemStatus`` or ``HorizonStatus`` of
+  :mod:`boucwen.status`)
 - effects: ``_CreepParams`` … ``_EffectParams`` (type-only: the dicts ``EffectSet``
   takes and gives), ``EffectSet``, ``ExtendedState``, ``simulate_extended``,
   ``simulate_extended_with_jacobian``
@@ -40,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:  # type-only: the compiled core does not import the config module
     from .config import HorizonConfig, PaperConfig, RpemConfig
+    from .status import HorizonStatus, PaperStatus, RpemStatus
 
 __all__ = [
     "INVERSE_TOLERANCE_UM",
@@ -241,79 +243,6 @@ _IdentifierMethod = Literal["horizon", "rpem", "paper"]
 _RefineMode = Literal["sync", "cooperative", "background"]
 """The online methods: ``Identifier.horizon`` (the default), ``Identifier.rpem`` and ``Identifier.paper``."""
 
-_SubFitOutcome = Literal["ran", "reduced", "held"]
-"""What a sub-fit did in the last push: ran in full, ran on fewer unknowns
-(rank-deficient data; the rest kept), or held the previous estimate."""
-
-class _PaperStatus(TypedDict):
-    """``Identifier.status`` of the paper's method: what the last push did."""
-
-    samples: int
-    """Samples pushed since construction or reset."""
-    window_full: bool
-    """The window holds its full N samples."""
-    refreshed: bool
-    """The window's running sums were recomputed exactly in this push."""
-    line_fit: _SubFitOutcome
-    """Step 1, kv and x0 (limited-memory RLS)."""
-    rate_fit: _SubFitOutcome
-    """Step 2, A and δ."""
-    shape_fit: _SubFitOutcome
-    """Step 3, n and β + γ."""
-    return_fit: _SubFitOutcome
-    """Step 4, γ − β."""
-
-class _RpemStatus(TypedDict):
-    """``Identifier.status`` of the rpem method: what the last push did."""
-
-    samples: int
-    """Samples pushed since construction or reset."""
-    updated: bool
-    """The estimates were updated (false on the first sample and after a dropped step)."""
-    step_limited: bool
-    """The trust region scaled the step down."""
-    projected: bool
-    """The projection onto the well-posed region moved n, β or γ."""
-    trace_capped: bool
-    """The bound on tr P scaled the covariance down."""
-    restarted: bool
-    """A non-finite step, covariance or sensitivity was dropped (P restarted)."""
-    innovation_um: float
-    """Prediction error e = x − x̂ of the sample [µm]."""
-    trace: float
-    """tr P after the push (scaled units)."""
-    noise_um2: float
-    """R in use: the learnt variance of the prediction error [µm²]."""
-
-class _HorizonStatus(TypedDict):
-    """``Identifier.status`` of the moving-horizon method: what the last push did."""
-
-    samples: int
-    """Samples pushed since construction or reset."""
-    updated: bool
-    """The estimates were updated in this push (sync: the push after a pass over the window
-    caught up; cooperative: in the ``refine`` calls since the push; background: adopted
-    in this push)."""
-    updates: int
-    """Updates since construction or reset."""
-    window_samples: int
-    """Samples in the window."""
-    window_travel_v: float
-    """Input travel over the window [V]."""
-    rms_um: float
-    """RMS output error of the last pass [µm]."""
-    damping: float
-    """Levenberg–Marquardt damping after the last update."""
-    step_limited: bool
-    """The trust region scaled the last update down."""
-    projected: bool
-    """The projection moved n, β or γ in the last update."""
-    behind_samples: int
-    """How far the estimates in use lag the newest sample: samples pushed after the last
-    one the pass of the last update ran over [samples]."""
-    behind_s: float
-    """The same in seconds [s]."""
-
 def _config_defaults(method: _IdentifierMethod) -> dict[str, Any]:
     """Default options of a method's config (``boucwen.config`` takes them from here)."""
 
@@ -448,8 +377,9 @@ class Identifier:
     def window(self) -> int | None:
         """The paper method's window N [samples]; None for the other methods."""
     @property
-    def status(self) -> _PaperStatus | _RpemStatus | _HorizonStatus:
-        """What the last push did, the method's own report (a new dict at each read)."""
+    def status(self) -> PaperStatus | RpemStatus | HorizonStatus:
+        """What the last push did, the method's own report: a frozen ``PaperStatus``,
+        ``RpemStatus`` or ``HorizonStatus`` of :mod:`boucwen.status` (a new one at each read)."""
     def __copy__(self) -> Identifier:
         """An independent copy that continues exactly like this one."""
     def __deepcopy__(self, _memo: dict[int, object], /) -> Identifier:

@@ -126,7 +126,8 @@ class PaperConfig:
     decomposition: Literal["model", "line"] = _PAPER["decomposition"]
     """How kv·u + x0 is separated from h in step 1: "model" (x − h_model) or "line" (the paper's)."""
     h_zero_frac: float = _PAPER["h_zero_frac"]
-    """|h| below this fraction of the window's std(x) counts as h ≈ 0."""
+    """|h| below this fraction of the starting model's saturation amplitude
+    (|A₀|/(|β₀|+|γ₀|))^(1/n₀) counts as h ≈ 0 (step 2), above it as h > 0 (steps 3–4)."""
     rate_frac: float = _PAPER["rate_frac"]
     """Points with |u̇| below this fraction of the window's rms(u̇) are left out of steps 2–4."""
     min_points: int = _PAPER["min_points"]
@@ -139,6 +140,11 @@ class PaperConfig:
     """Steps 3–4 use a point only when |A − r| ≥ this fraction of |A|."""
     noise_gate: float = _PAPER["noise_gate"]
     """Steps 3–4 use a point only when |A − r| ≥ this many standard deviations of r's noise."""
+    derivative_phase: float = _PAPER["derivative_phase"]
+    """u̇, ẋ are Savitzky–Golay derivatives over 2m + 1 samples, m spanning ± this much of
+    the input's phase (ω̂ = rms(u̇)/std(u) over the window), within 2 … max_half_width [rad]."""
+    max_half_width: int = _PAPER["max_half_width"]
+    """Largest derivative half-width m [samples] (a point enters the window m samples late)."""
     min_delta_t: float = _PAPER["min_delta_t"]
     """Step 2 updates δ only when |δ| ≥ this many standard errors."""
     min_r2: float = _PAPER["min_r2"]

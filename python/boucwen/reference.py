@@ -30,6 +30,7 @@ order.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from collections.abc import Mapping
@@ -41,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._core import Params
 from ._core import simulate as core_simulate
+from .status import PaperStatus, StepStatus
 
 __all__ = [
     "DEFAULT_SUBSTEPS",
@@ -303,6 +305,7 @@ def _parareal(
 # The paper's online identifier.
 
 _UNUSED, _CROSSING, _LOADING, _UNLOADING = "unused", "crossing", "loading", "unloading"
+_MIN_HALF_WIDTH = 2
 
 
 @dataclass(frozen=True)
@@ -315,7 +318,7 @@ class _Point:
     udot: float
     a: float  # ẋ (crossing) or ln h (loading / unloading)
     b: float  # ln|A − r| (loading / unloading)
-    dx_diff: float  # five-point minus three-point ẋ [µm/s]: mostly noise
+    noise2: float  # estimate of the variance of the noise of x from the local quadratic [µm²]
     kind: str = _UNUSED
     positive: bool = True  # sign of A − r (loading / unloading)
 
@@ -327,15 +330,20 @@ class _Raw:
     h_model: float
 
 
+def _step(outcome: str = "held", reason: str = "none", points: int = 0, noise: float = 0.0) -> StepStatus:
+    return StepStatus(outcome, reason, int(points), float(noise))  # type: ignore[arg-type]
+
+
 class PaperIdentifier:
     """The paper's online identifier, O(N) per sample (see the module docs).
 
     Mirrors ``boucwen.Identifier.paper``: ``push(u, x)`` predicts
     x̂ = kv·u + x0 + h [µm] with the estimates from before the sample and the
-    model's own simulated h, then completes the sample two back (five-point central
-    differences), lets it enter the window of the newest ``window`` points and
-    refits steps 1–5. Options and their defaults are those of the Rust
-    ``PaperConfig``.
+    model's own simulated h, then completes every sample whose Savitzky–Golay
+    derivative stencil of half-width m is held (m from the window: ``derivative_phase``
+    over the input's angular frequency), lets each enter the window of the newest
+    ``window`` points and refits steps 1–5. Options and their defaults are those of the
+    Rust ``PaperConfig``.
     """
 
     def __init__(
@@ -346,15 +354,17 @@ class PaperIdentifier:
         h0: float = 0.0,
         *,
         decomposition: str = "model",
-        h_zero_frac: float = 0.005,
+        h_zero_frac: float = 0.05,
         rate_frac: float = 0.2,
         min_points: int = 8,
         rank_tol: float = 1e-3,
         min_log_spread: float = 0.05,
         min_r2: float = 0.9,
-        min_arg_frac: float = 0.05,
+        min_arg_frac: float = 0.0,
         min_line_t: float = 10.0,
         noise_gate: float = 3.0,
+        derivative_phase: float = 0.1,
+        max_half_width: int = 500,
         min_delta_t: float = 3.0,
         min_u_std_v: float = 1e-6,
         n_bounds: tuple[float, float] = (0.5, 4.0),
@@ -373,6 +383,12 @@ class PaperIdentifier:
         if not 2 <= int(min_points) <= self.window_len:
             raise ValueError(f"invalid min_points = {min_points}: must be between 2 and the window length")
         self.min_points = int(min_points)
+        if not _MIN_HALF_WIDTH <= int(max_half_width) <= 100_000:
+            raise ValueError(f"invalid max_half_width = {max_half_width}: must be between 2 and 100 000 samples")
+        self.max_half_width = int(max_half_width)
+        if not (math.isfinite(derivative_phase) and derivative_phase > 0.0):
+            raise ValueError(f"invalid derivative_phase = {derivative_phase}: must be finite and > 0")
+        self.derivative_phase = float(derivative_phase)
         for name, v in [
             ("h_zero_frac", h_zero_frac),
             ("rate_frac", rate_frac),
@@ -415,16 +431,12 @@ class PaperIdentifier:
         """Back to the state right after construction."""
         self._params = self.init
         self._h = self.h0
-        self._raw: list[_Raw] = []  # the four raw samples before the newest, oldest first
+        self._raw: deque[_Raw] = deque(maxlen=2 * self.max_half_width + 1)  # newest raw samples
+        self._samples = 0
+        self._next = 0  # index of the next sample to complete
         self._window: deque[_Point] = deque(maxlen=self.window_len)
-        self._status: dict[str, Any] = {
-            "samples": 0,
-            "window_full": False,
-            "line_fit": "held",
-            "rate_fit": "held",
-            "shape_fit": "held",
-            "return_fit": "held",
-        }
+        held = _step()
+        self._status = PaperStatus(0, False, False, 0, 0.0, 0.0, held, held, held, held, held)
 
     @property
     def params(self) -> RefParams:
@@ -437,9 +449,10 @@ class PaperIdentifier:
         return self._h
 
     @property
-    def status(self) -> dict[str, Any]:
-        """What the last push did (the keys of ``Identifier.status`` but "refreshed")."""
-        return dict(self._status)
+    def status(self) -> PaperStatus:
+        """What the last push did, as ``Identifier.status`` (``refreshed`` always False:
+        this class keeps no running sums)."""
+        return self._status
 
     def push(self, u: float, x: float) -> float:
         """Takes u [V] and measured x [µm]; returns the prediction [µm] made before using x."""
@@ -452,15 +465,32 @@ class PaperIdentifier:
             # against :func:`simulate`).
             _, self._h = core_simulate(Params(*p), [u], self.dt, self._h, self._raw[-1].u)
         prediction = p.kv * u + p.x0 + self._h
-        newest = _Raw(u, x, self._h)
+        newest = self._samples
+        self._raw.append(_Raw(u, x, self._h))
+        self._samples += 1
 
-        self._status["samples"] += 1
-        if len(self._raw) == 4:
-            point = self._complete([*self._raw, newest])
-            self._window.append(point)  # the oldest leaves once N are held
-        self._status["window_full"] = len(self._window) == self.window_len
+        m = self._half_width()
+        first = self._samples - len(self._raw)
+        completed = False
+        while self._next + m <= newest:
+            j = self._next
+            self._next += 1
+            mj = min(m, j - first)
+            if j < first or mj < _MIN_HALF_WIDTH:
+                continue
+            self._window.append(self._complete(j - first, mj))  # the oldest leaves once N are held
+            completed = True
+        x_noise = math.sqrt(self._x_noise2())
+        s2 = m * (m + 1.0) * (2.0 * m + 1.0) / 3.0
+        self._status = dataclasses.replace(
+            self._status,
+            samples=self._samples,
+            window_full=len(self._window) == self.window_len,
+            half_width=m if completed else 0,
+            x_noise_um=x_noise,
+            xdot_noise_um_s=x_noise / (math.sqrt(s2) * self.dt),
+        )
         self._refit()
-        self._raw = [*self._raw, newest][-4:]
         return prediction
 
     def push_many(self, u: ArrayLike, x: ArrayLike) -> NDArray[np.float64]:
@@ -477,74 +507,111 @@ class PaperIdentifier:
         pts = list(self._window)
         cols: dict[str, NDArray[Any]] = {
             name: np.array([getattr(q, name) for q in pts], dtype=np.float64)
-            for name in ("u", "x", "y", "udot", "a", "b", "dx_diff")
+            for name in ("u", "x", "y", "udot", "a", "b", "noise2")
         }
         cols["kind"] = np.array([q.kind for q in pts], dtype=object)
         cols["positive"] = np.array([q.positive for q in pts], dtype=bool)
         return cols
 
-    def _complete(self, s: list[_Raw]) -> _Point:
-        """The window point of the middle one of five samples, classified with the current
-        estimates and the statistics of the window before it enters. Derivatives by the
-        five-point central difference."""
+    def _half_width(self) -> int:
+        """m = round(derivative_phase / (ω̂·Δt)) within 2 … max_half_width, ω̂ =
+        rms(u̇)/std(u) over the window; the largest until the window is full and where
+        undefined."""
+        if len(self._window) < self.window_len:
+            return self.max_half_width
+        w = self._window_columns()
+        var_u = float(np.mean(w["u"] ** 2)) - float(np.mean(w["u"])) ** 2
+        rms, sd = math.sqrt(float(np.mean(w["udot"] ** 2))), math.sqrt(max(var_u, 0.0))
+        omega = rms / sd if sd > 0.0 else (math.inf if rms > 0.0 else math.nan)
+        m = self.derivative_phase / (omega * self.dt) if omega > 0.0 else math.inf
+        m = math.floor(m + 0.5) if math.isfinite(m) else m
+        return max(int(m), _MIN_HALF_WIDTH) if math.isfinite(m) and m < self.max_half_width else self.max_half_width
+
+    def _x_noise2(self) -> float:
+        return max(float(np.mean([q.noise2 for q in self._window])), 0.0) if self._window else 0.0
+
+    def _ln_saturation(self) -> float | None:
+        """ln hₛ, hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀) of the starting model (None if undefined)."""
+        a0, s0 = abs(self.init.A), abs(self.init.beta) + abs(self.init.gamma)
+        return (math.log(a0) - math.log(s0)) / self.init.n if a0 > 0.0 and s0 > 0.0 else None
+
+    def _complete(self, c: int, m: int) -> _Point:
+        """The window point of raw sample ``c`` (position in the raw history) with a stencil
+        of half-width m, classified with the current estimates and the statistics of the
+        window before it enters. u̇, ẋ: the Savitzky–Golay first derivative; the noise of x
+        from the residual of the local quadratic at the centre."""
         p = self._params
-        mid = s[2]
-        udot = (s[0].u - 8.0 * s[1].u + 8.0 * s[3].u - s[4].u) / (12.0 * self.dt)
-        xdot = (s[0].x - 8.0 * s[1].x + 8.0 * s[3].x - s[4].x) / (12.0 * self.dt)
-        dxd = xdot - (s[3].x - s[1].x) / (2.0 * self.dt)
+        raw = list(self._raw)
+        mid = raw[c]
+        k = np.arange(1, m + 1, dtype=np.float64)
+        after, before = raw[c + 1 : c + m + 1], raw[c - m : c][::-1]
+        ua = np.array([r.u for r in after]) - np.array([r.u for r in before])
+        xa = np.array([r.x for r in after]) - np.array([r.x for r in before])
+        xs = np.array([r.x for r in after]) + np.array([r.x for r in before])
+        s2 = m * (m + 1.0) * (2.0 * m + 1.0) / 3.0
+        udot = float(np.sum(k * ua)) / (s2 * self.dt)
+        xdot = float(np.sum(k * xa)) / (s2 * self.dt)
+        c0 = 3.0 * (3.0 * m * m + 3.0 * m - 1.0)
+        den = (2.0 * m - 1.0) * (2.0 * m + 1.0) * (2.0 * m + 3.0)
+        smooth = (c0 * (float(np.sum(xs)) + mid.x) - 15.0 * float(np.sum(k * k * xs))) / den
+        noise2 = (mid.x - smooth) ** 2 / (1.0 - c0 / den)
         y = mid.x if self.decomposition == "line" else mid.x - mid.h_model
-        unused = _Point(mid.u, mid.x, y, udot, 0.0, 0.0, dxd)
-        if len(self._window) < 2:
+        unused = _Point(mid.u, mid.x, y, udot, 0.0, 0.0, noise2)
+        if len(self._window) < self.window_len:  # classified only once the window is full
             return unused
         w = self._window_columns()
         std_x = float(np.std(w["x"]))
         rms_rate = math.sqrt(float(np.mean(w["udot"] ** 2)))
-        h_tol = self.h_zero_frac * std_x
+        ln_hs = self._ln_saturation()
+        h_tol = self.h_zero_frac * (std_x if ln_hs is None else math.exp(ln_hs))
         if abs(udot) <= self.rate_frac * rms_rate or udot == 0.0 or h_tol == 0.0:
             return unused
         h = mid.x - p.kv * mid.u - p.x0
         hdot = xdot - p.kv * udot
-        if udot > 0.0 and abs(h) < h_tol:  # step 2 point: u̇ > 0, h ≈ 0
+        xdot_noise = math.sqrt(self._x_noise2() / (s2 * self.dt * self.dt))
+        if udot > 0.0 and abs(h) < h_tol:  # step 2 point: u̇ > 0, h ≈ 0, ẋ above its noise
+            if abs(xdot) < self.noise_gate * xdot_noise:
+                return unused
             # ẋ less the small |h|^n terms of eq. (5) at this h (current β, γ, n).
             hn = 0.0 if h == 0.0 else _pow(abs(h), p.n)
             xdot_c = xdot + (p.beta * abs(udot) * _sgn(h) + p.gamma * udot) * hn
-            return _Point(mid.u, mid.x, y, udot, xdot_c, 0.0, dxd, _CROSSING)
+            return _Point(mid.u, mid.x, y, udot, xdot_c, 0.0, noise2, _CROSSING)
         if h > h_tol:
             # Loading (u̇ > 0): r = (ḣ − δu)/u̇ = A − (β+γ)hⁿ.
             # Unloading (u̇ < 0): r = (ḣ + δu)/u̇ = A − (γ−β)hⁿ.
             r = (hdot - p.delta * mid.u) / udot if udot > 0.0 else (hdot + p.delta * mid.u) / udot
             arg = p.A - r
-            # |A − r| far below |A| is a difference of nearly equal numbers, and
-            # |A − r|·|u̇| below noise_gate noise standard deviations of ẋ is noise:
-            # left out. For white noise on x, var(ẋ₅) = 13·var(ẋ₅ − ẋ₃).
-            xdot_var = 13.0 * float(np.mean(w["dx_diff"] ** 2))
-            resolved = abs(arg) * abs(udot) >= self.noise_gate * math.sqrt(xdot_var)
+            # |A − r| below min_arg_frac·|A|, or |A − r|·|u̇| below noise_gate noise
+            # standard deviations of ẋ, is left out.
+            resolved = abs(arg) * abs(udot) >= self.noise_gate * xdot_noise
             if math.isfinite(arg) and arg != 0.0 and abs(arg) >= self.min_arg_frac * abs(p.A) and resolved:
                 kind = _LOADING if udot > 0.0 else _UNLOADING
-                return _Point(mid.u, mid.x, y, udot, math.log(h), math.log(abs(arg)), dxd, kind, arg > 0.0)
+                return _Point(mid.u, mid.x, y, udot, math.log(h), math.log(abs(arg)), noise2, kind, arg > 0.0)
         return unused
 
     def _hysteresis_bounded(self, beta: float, gamma: float, n: float) -> bool:
-        """(|β|+|γ|)·hₛⁿ ≤ max_hysteresis_gain·|A₀|, hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀) the starting
-        model's saturation amplitude, compared in logarithms (off when |A₀| or |β₀|+|γ₀| is 0)."""
-        a0, s0 = abs(self.init.A), abs(self.init.beta) + abs(self.init.gamma)
-        if math.isinf(self.max_hysteresis_gain) or a0 == 0.0 or s0 == 0.0:
+        """(|β|+|γ|)·hₛⁿ ≤ max_hysteresis_gain·|A₀|, hₛ the starting model's saturation
+        amplitude, compared in logarithms (off when hₛ is undefined)."""
+        ln_hs = self._ln_saturation()
+        if math.isinf(self.max_hysteresis_gain) or ln_hs is None:
             return True
-        ln_hs = (math.log(a0) - math.log(s0)) / self.init.n
         total = abs(beta) + abs(gamma)
         ln_total = math.log(total) if total > 0.0 else -math.inf
-        return ln_total + n * ln_hs <= math.log(self.max_hysteresis_gain * a0)
+        return ln_total + n * ln_hs <= math.log(self.max_hysteresis_gain * abs(self.init.A))
 
     def _refit(self) -> None:
         p = self._params._asdict()
-        st = self._status
         w = self._window_columns()
         count = len(self._window)
+        steps: dict[str, StepStatus] = {}
 
         # Step 1: kv, x0 = least squares of y on [u, 1] over the full window.
-        st["line_fit"] = "held"
         excited = count >= 2 and float(np.var(w["u"])) > self.min_u_std_v**2
-        if count == self.window_len and excited:
+        steps["line_fit"] = _step(reason="window_filling", points=count)
+        if count == self.window_len and not excited:
+            steps["line_fit"] = _step(reason="no_excitation", points=count)
+        elif count == self.window_len:
+            steps["line_fit"] = _step(reason="noise", points=count)
             gram = np.array([[np.sum(w["u"] ** 2), np.sum(w["u"])], [np.sum(w["u"]), count]])
             rhs = np.array([np.sum(w["u"] * w["y"]), np.sum(w["y"])])
             if np.linalg.det(gram) != 0.0:
@@ -556,86 +623,130 @@ class PaperIdentifier:
                 se_kv = math.sqrt(rss / (count - 2.0) / (count * var_u)) if count > 2 else math.inf
                 if np.all(np.isfinite(theta)) and abs(kv) >= self.min_line_t * se_kv:
                     p["kv"], p["x0"] = kv, x0
-                    st["line_fit"] = "ran"
+                    steps["line_fit"] = _step("ran", points=count, noise=math.sqrt(rss / (count - 2.0)))
 
+        if count < self.window_len:  # steps 2–5 wait for the window's N points
+            filling = _step(reason="window_filling")
+            steps.update(rate_fit=filling, shape_fit=filling, return_fit=filling, split_fit=filling)
+            self._finish(p, steps)
+            return
         kind = w["kind"]
 
         # Step 2 (eqs. 8–9): ẋ = (A + kv)·u̇ + δ·u on the crossing points.
-        st["rate_fit"] = "held"
         sel = kind == _CROSSING
+        npts = int(sel.sum())
         d, uu, xd = w["udot"][sel], w["u"][sel], w["a"][sel]
         c1, c2, c3 = float(np.sum(d * d)), float(np.sum(d * uu)), float(np.sum(uu * uu))
-        if sel.sum() >= self.min_points and c1 > 0.0:
+        if npts < self.min_points:
+            steps["rate_fit"] = _step(reason="too_few_points", points=npts)
+        elif c1 <= 0.0:
+            steps["rate_fit"] = _step(reason="no_spread", points=npts)
+        else:
             c4, c5, c6 = float(np.sum(d * xd)), float(np.sum(uu * xd)), float(np.sum(xd * xd))
             det = c1 * c3 - c2 * c2
             well_posed = c3 > 0.0 and det > self.rank_tol * c1 * c3
             full_a, full_delta = ((c4 * c3 - c2 * c5) / det, (c1 * c5 - c2 * c4) / det) if well_posed else (0.0, 0.0)
             # δ only where resolved: |δ| ≥ min_delta_t standard errors of the two-column fit,
+            # inflated by the stencil's span (neighbouring derivatives share their noise),
             # and δ·u not outweighing the rate term on the points (max_delta_ratio).
-            dof = sel.sum() - 2.0
+            span = 2.0 * self._half_width() + 1.0
+            # The residual variance floored at the derivative's own error, (θ²/10)·ẋ.
+            dof = npts - 2.0
             rss = max(c6 - full_a * c4 - full_delta * c5, 0.0)
-            se_delta = math.sqrt(rss / dof * c1 / det) if well_posed and dof > 0.0 else math.inf
-            # The rate term from the fit with δ held (well conditioned where u̇ and u are
-            # nearly collinear, when the two-column fit can trade one for the other).
-            reduced = (c4 - p["delta"] * c2) / c1
+            bias2 = (self.derivative_phase**2 / 10.0) ** 2 * c6 / npts
+            var = max(rss / dof, bias2) if dof > 0.0 else math.inf
+            se_delta = math.sqrt(span * var * c1 / det) if well_posed else math.inf
+            # The rate term from the fit with δ held.
+            suy = c4 - p["delta"] * c2
+            reduced = suy / c1
+            syy = c6 - 2.0 * p["delta"] * c5 + p["delta"] ** 2 * c3
+            reduced_noise = math.sqrt(max(syy - reduced * suy, 0.0) / max(npts - 1.0, 1.0))
             bounded = abs(full_delta) * math.sqrt(c3) <= self.max_delta_ratio * abs(reduced) * math.sqrt(c1)
-            if well_posed and math.isfinite(full_delta) and abs(full_delta) >= self.min_delta_t * se_delta and bounded:
+            if not well_posed:
+                why = "no_spread"
+            elif not (math.isfinite(full_delta) and abs(full_delta) >= self.min_delta_t * se_delta):
+                why = "noise"
+            elif not bounded:
+                why = "out_of_bounds"
+            else:
+                why = "none"
+            if why == "none":
                 a_plus_kv = full_a
-                p["delta"] = full_delta
-                st["rate_fit"] = "ran"
-            else:  # u̇ and u nearly collinear, or δ not resolved: fit A + kv alone, keep δ
+                steps["rate_fit"] = _step("ran", points=npts, noise=math.sqrt(rss / dof))
+                new_delta = full_delta
+            else:
                 a_plus_kv = reduced
-                st["rate_fit"] = "reduced"
+                steps["rate_fit"] = _step("reduced", why, npts, reduced_noise)
+                new_delta = p["delta"]
             if math.isfinite(a_plus_kv):
                 p["A"] = a_plus_kv - p["kv"]
+                p["delta"] = new_delta
             else:
-                st["rate_fit"] = "held"
+                steps["rate_fit"] = _step(reason="out_of_bounds", points=npts)
 
         # Step 3 (eqs. 10–12): ln|A − r| = ln|β+γ| + n·ln h on the loading points
         # of the larger sign group.
-        st["shape_fit"] = "held"
         sum_bg = p["beta"] + p["gamma"]
         pos = (kind == _LOADING) & w["positive"]
         neg = (kind == _LOADING) & ~w["positive"]
         sel, sign = (pos, 1.0) if pos.sum() >= neg.sum() else (neg, -1.0)
-        if sel.sum() >= self.min_points:
+        npts = int(sel.sum())
+        steps["shape_fit"] = _step(reason="too_few_points", points=npts)
+        if npts >= self.min_points:
             z, wv = w["a"][sel], w["b"][sel]
             var_z = float(np.var(z))
             var_w = float(np.var(wv))
             cov = float(np.mean((z - z.mean()) * (wv - wv.mean())))
             r2 = cov * cov / (var_z * var_w) if var_z > 0.0 and var_w > 0.0 else 0.0
-            if var_z > self.min_log_spread**2 and r2 >= self.min_r2:
-                n = cov / var_z
-                log_mag = min(max(float(wv.mean()) - n * float(z.mean()), -700.0), 700.0)
-                if self.n_bounds[0] <= n <= self.n_bounds[1] and math.isfinite(log_mag):
-                    p["n"] = n
-                    sum_bg = sign * math.exp(log_mag)
-                    st["shape_fit"] = "ran"
+            n = cov / var_z if var_z > 0.0 else 0.0
+            log_mag = min(max(float(wv.mean()) - n * float(z.mean()), -700.0), 700.0)
+            if var_z <= self.min_log_spread**2:
+                steps["shape_fit"] = _step(reason="no_spread", points=npts)
+            elif r2 < self.min_r2:
+                steps["shape_fit"] = _step(reason="noise", points=npts)
+            elif not (self.n_bounds[0] <= n <= self.n_bounds[1] and math.isfinite(log_mag)):
+                steps["shape_fit"] = _step(reason="out_of_bounds", points=npts)
+            else:
+                p["n"] = n
+                sum_bg = sign * math.exp(log_mag)
+                noise = math.sqrt(max(var_w - cov * cov / var_z, 0.0) * npts / max(npts - 2.0, 1.0))
+                steps["shape_fit"] = _step("ran", points=npts, noise=noise)
 
         # Step 4 (eqs. 13–14): ln|γ−β| = mean(ln|A − r| − n·ln h) on the unloading points.
-        st["return_fit"] = "held"
         diff_gb = p["gamma"] - p["beta"]
         pos = (kind == _UNLOADING) & w["positive"]
         neg = (kind == _UNLOADING) & ~w["positive"]
         sel, sign = (pos, 1.0) if pos.sum() >= neg.sum() else (neg, -1.0)
-        m = int(sel.sum())
-        if m >= self.min_points:
-            log_mag = (float(np.sum(w["b"][sel])) - p["n"] * float(np.sum(w["a"][sel]))) / m
-            log_mag = min(max(log_mag, -700.0), 700.0)
+        npts = int(sel.sum())
+        steps["return_fit"] = _step(reason="too_few_points", points=npts)
+        if npts >= self.min_points:
+            dd = w["b"][sel] - p["n"] * w["a"][sel]
+            log_mag = min(max(float(np.mean(dd)), -700.0), 700.0)
             if math.isfinite(log_mag):
                 diff_gb = sign * math.exp(log_mag)
-                st["return_fit"] = "ran"
+                noise = math.sqrt(float(np.var(dd)) * npts / max(npts - 1.0, 1.0))
+                steps["return_fit"] = _step("ran", points=npts, noise=noise)
+            else:
+                steps["return_fit"] = _step(reason="out_of_bounds", points=npts)
 
         # Step 5 (eqs. 15–16), accepted only where h stays bounded for every
         # input (β + γ > 0 and β − γ > 0) and the hysteresis terms stay physically
         # bounded (max_hysteresis_gain); otherwise β, γ and n are held.
         beta, gamma = 0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb)
-        if beta + gamma > 0.0 and beta - gamma > 0.0 and self._hysteresis_bounded(beta, gamma, p["n"]):
+        if steps["shape_fit"].outcome != "ran" and steps["return_fit"].outcome != "ran":
+            steps["split_fit"] = _step(reason="upstream")
+        elif beta + gamma > 0.0 and beta - gamma > 0.0 and self._hysteresis_bounded(beta, gamma, p["n"]):
             p["beta"], p["gamma"] = beta, gamma
+            steps["split_fit"] = _step("ran")
         else:
-            st["shape_fit"] = "held"
-            st["return_fit"] = "held"
+            steps["split_fit"] = _step(reason="out_of_bounds")
             p["n"] = self._params.n
+        self._finish(p, steps)
+
+    def _finish(self, p: dict[str, float], steps: dict[str, StepStatus]) -> None:
         new = RefParams(**p)
         if new.is_valid():
             self._params = new
+        else:
+            steps["split_fit"] = _step(reason="out_of_bounds")
+        self._status = dataclasses.replace(self._status, **steps)  # type: ignore[arg-type]

@@ -43,7 +43,8 @@ use crate::error::Error;
 use crate::format::Snapshot;
 use crate::identify::{
     AnyIdentifier, AnyStatus, Decomposition, HorizonConfig, HorizonIdentifier, HorizonStatus, OnlineIdentifier,
-    PaperConfig, PaperIdentifier, PaperStatus, RefineMode, RpemConfig, RpemIdentifier, RpemStatus, SubFit,
+    PaperConfig, PaperIdentifier, PaperStatus, Reason, RefineMode, RpemConfig, RpemIdentifier, RpemStatus, StepStatus,
+    SubFit,
 };
 use crate::model::Model;
 use crate::params::Params;
@@ -229,6 +230,10 @@ pub struct BwPaperConfig {
     pub min_u_std_v: f64,
     pub n_min: f64,
     pub n_max: f64,
+    /// Phase span of the derivative stencil \[rad\].
+    pub derivative_phase: f64,
+    /// Largest derivative half-width \[samples\].
+    pub max_half_width: usize,
 }
 
 impl From<PaperConfig> for BwPaperConfig {
@@ -252,6 +257,8 @@ impl From<PaperConfig> for BwPaperConfig {
             min_u_std_v: c.min_u_std_v,
             n_min: c.n_bounds.0,
             n_max: c.n_bounds.1,
+            derivative_phase: c.derivative_phase,
+            max_half_width: c.max_half_width,
         }
     }
 }
@@ -279,6 +286,8 @@ impl BwPaperConfig {
             min_line_t: self.min_line_t,
             min_u_std_v: self.min_u_std_v,
             n_bounds: (self.n_min, self.n_max),
+            derivative_phase: self.derivative_phase,
+            max_half_width: self.max_half_width,
             ..PaperConfig::with_window(self.window_len)
         })
     }
@@ -460,25 +469,54 @@ impl From<InverseStatus> for BwInverseStatus {
     }
 }
 
-/// What the last push of a paper identifier did; each sub-fit 0 = held, 1 = reduced, 2 = ran.
+/// What one step of the paper's method did (see `StepStatus` in the Rust docs): `fit`
+/// 0 = held, 1 = reduced, 2 = ran; `reason` 0 = none, 1 = window filling, 2 = no
+/// excitation, 3 = too few points, 4 = no spread, 5 = noise, 6 = out of bounds, 7 =
+/// upstream (step 5: steps 3 and 4 both held); `points` the window points it had;
+/// `noise` their residual scatter about its fit (in the step's units).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BwStepStatus {
+    pub fit: u32,
+    pub reason: u32,
+    pub points: u32,
+    pub noise: f64,
+}
+
+impl From<StepStatus> for BwStepStatus {
+    fn from(s: StepStatus) -> Self {
+        BwStepStatus {
+            fit: match s.fit {
+                SubFit::Held => 0,
+                SubFit::Reduced => 1,
+                SubFit::Ran => 2,
+            },
+            reason: Reason::ALL.iter().position(|&r| r == s.reason).unwrap_or(0) as u32,
+            points: s.points,
+            noise: s.noise,
+        }
+    }
+}
+
+/// What the last push of a paper identifier did (see `PaperStatus` in the Rust docs):
+/// steps 1–5 in `line_fit`, `rate_fit`, `shape_fit`, `return_fit`, `split_fit`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BwPaperStatus {
     pub samples: u64,
     pub window_full: bool,
     pub refreshed: bool,
-    pub line_fit: u32,
-    pub rate_fit: u32,
-    pub shape_fit: u32,
-    pub return_fit: u32,
-}
-
-fn sub_fit(s: SubFit) -> u32 {
-    match s {
-        SubFit::Held => 0,
-        SubFit::Reduced => 1,
-        SubFit::Ran => 2,
-    }
+    /// Half-width m of the derivative stencil \[samples\] (0: no point completed).
+    pub half_width: u32,
+    /// Noise of x over the window \[µm\].
+    pub x_noise_um: f64,
+    /// The noise it leaves on ẋ at half-width m \[µm/s\].
+    pub xdot_noise_um_s: f64,
+    pub line_fit: BwStepStatus,
+    pub rate_fit: BwStepStatus,
+    pub shape_fit: BwStepStatus,
+    pub return_fit: BwStepStatus,
+    pub split_fit: BwStepStatus,
 }
 
 impl From<PaperStatus> for BwPaperStatus {
@@ -487,10 +525,14 @@ impl From<PaperStatus> for BwPaperStatus {
             samples: s.samples,
             window_full: s.window_full,
             refreshed: s.refreshed,
-            line_fit: sub_fit(s.line_fit),
-            rate_fit: sub_fit(s.rate_fit),
-            shape_fit: sub_fit(s.shape_fit),
-            return_fit: sub_fit(s.return_fit),
+            half_width: s.half_width,
+            x_noise_um: s.x_noise_um,
+            xdot_noise_um_s: s.xdot_noise_um_s,
+            line_fit: s.line_fit.into(),
+            rate_fit: s.rate_fit.into(),
+            shape_fit: s.shape_fit.into(),
+            return_fit: s.return_fit.into(),
+            split_fit: s.split_fit.into(),
         }
     }
 }

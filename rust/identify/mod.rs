@@ -38,7 +38,7 @@ use crate::params::Params;
 #[cfg(feature = "std")]
 pub use horizon::BackgroundHorizon;
 pub use horizon::{HorizonConfig, HorizonIdentifier, HorizonStatus, RefineMode};
-pub use paper::{Decomposition, PaperConfig, PaperIdentifier, PaperStatus, SubFit};
+pub use paper::{Decomposition, PaperConfig, PaperIdentifier, PaperStatus, Reason, StepStatus, SubFit};
 pub use rpem::{RpemConfig, RpemIdentifier, RpemStatus};
 
 /// Projects `p` onto the region where the model is well posed, the one both

@@ -73,6 +73,8 @@ pub(crate) fn paper_slots(c: &mut PaperConfig) -> Vec<(&'static str, Slot<'_>)> 
         ("min_log_spread", Slot::Float(&mut c.min_log_spread)),
         ("min_arg_frac", Slot::Float(&mut c.min_arg_frac)),
         ("noise_gate", Slot::Float(&mut c.noise_gate)),
+        ("derivative_phase", Slot::Float(&mut c.derivative_phase)),
+        ("max_half_width", Slot::Count(&mut c.max_half_width)),
         ("min_delta_t", Slot::Float(&mut c.min_delta_t)),
         ("min_r2", Slot::Float(&mut c.min_r2)),
         ("min_line_t", Slot::Float(&mut c.min_line_t)),

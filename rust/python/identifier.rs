@@ -12,7 +12,7 @@ use super::{samples, value_error, InvalidConfig};
 use crate::effects::EffectSet;
 use crate::identify::{
     AnyIdentifier, AnyStatus, BackgroundHorizon, HorizonIdentifier, OnlineIdentifier, PaperIdentifier, RefineMode,
-    RpemConfig, RpemIdentifier,
+    RpemConfig, RpemIdentifier, StepStatus,
 };
 
 /// Online identifier of the asymmetric Bouc–Wen model, one sample at a time.
@@ -387,51 +387,11 @@ impl PyIdentifier {
         }
     }
 
-    /// What the last push did, the method's own report (a new dict at each read).
-    ///
-    /// "paper": samples, window_full, refreshed, and for each sub-fit (line_fit,
-    /// rate_fit, shape_fit, return_fit) "ran", "reduced" or "held".
-    /// "rpem": samples, updated, step_limited, projected, trace_capped, restarted,
-    /// innovation_um (x − x̂ \[µm\]), trace (tr P, scaled units).
+    /// What the last push did, the method's own report: a frozen `PaperStatus`,
+    /// `RpemStatus` or `HorizonStatus` of `boucwen.status` (a new one at each read).
     #[getter]
-    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        match self.inner.status() {
-            AnyStatus::Paper(s) => {
-                d.set_item("samples", s.samples)?;
-                d.set_item("window_full", s.window_full)?;
-                d.set_item("refreshed", s.refreshed)?;
-                d.set_item("line_fit", s.line_fit.name())?;
-                d.set_item("rate_fit", s.rate_fit.name())?;
-                d.set_item("shape_fit", s.shape_fit.name())?;
-                d.set_item("return_fit", s.return_fit.name())?;
-            }
-            AnyStatus::Rpem(s) => {
-                d.set_item("samples", s.samples)?;
-                d.set_item("updated", s.updated)?;
-                d.set_item("step_limited", s.step_limited)?;
-                d.set_item("projected", s.projected)?;
-                d.set_item("trace_capped", s.trace_capped)?;
-                d.set_item("restarted", s.restarted)?;
-                d.set_item("innovation_um", s.innovation_um)?;
-                d.set_item("trace", s.trace)?;
-                d.set_item("noise_um2", s.noise_um2)?;
-            }
-            AnyStatus::Horizon(s) => {
-                d.set_item("samples", s.samples)?;
-                d.set_item("updated", s.updated)?;
-                d.set_item("updates", s.updates)?;
-                d.set_item("window_samples", s.window_samples)?;
-                d.set_item("window_travel_v", s.window_travel_v)?;
-                d.set_item("rms_um", s.rms_um)?;
-                d.set_item("damping", s.damping)?;
-                d.set_item("step_limited", s.step_limited)?;
-                d.set_item("projected", s.projected)?;
-                d.set_item("behind_samples", s.behind_samples)?;
-                d.set_item("behind_s", s.behind_s)?;
-            }
-        }
-        Ok(d)
+    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        status_object(py, self.inner.status())
     }
 
     /// Back to the state right after construction.
@@ -485,5 +445,67 @@ impl PyIdentifier {
             AnyStatus::Horizon(s) => s.samples,
         };
         format!("Identifier(method={:?}, samples={samples})", self.inner.method())
+    }
+}
+
+/// `boucwen.status.<class>(**fields)`.
+fn status_class<'py>(py: Python<'py>, class: &str, d: &Bound<'py, PyDict>) -> PyResult<Bound<'py, PyAny>> {
+    py.import("boucwen.status")?.getattr(class)?.call((), Some(d))
+}
+
+/// A step of the paper's method as a `boucwen.status.StepStatus`.
+fn step_object<'py>(py: Python<'py>, s: StepStatus) -> PyResult<Bound<'py, PyAny>> {
+    let d = PyDict::new(py);
+    d.set_item("outcome", s.fit.name())?;
+    d.set_item("reason", s.reason.name())?;
+    d.set_item("points", s.points)?;
+    d.set_item("noise", s.noise)?;
+    status_class(py, "StepStatus", &d)
+}
+
+/// A method's status as its frozen `boucwen.status` object.
+pub(super) fn status_object<'py>(py: Python<'py>, status: AnyStatus) -> PyResult<Bound<'py, PyAny>> {
+    let d = PyDict::new(py);
+    match status {
+        AnyStatus::Paper(s) => {
+            d.set_item("samples", s.samples)?;
+            d.set_item("window_full", s.window_full)?;
+            d.set_item("refreshed", s.refreshed)?;
+            d.set_item("half_width", s.half_width)?;
+            d.set_item("x_noise_um", s.x_noise_um)?;
+            d.set_item("xdot_noise_um_s", s.xdot_noise_um_s)?;
+            d.set_item("line_fit", step_object(py, s.line_fit)?)?;
+            d.set_item("rate_fit", step_object(py, s.rate_fit)?)?;
+            d.set_item("shape_fit", step_object(py, s.shape_fit)?)?;
+            d.set_item("return_fit", step_object(py, s.return_fit)?)?;
+            d.set_item("split_fit", step_object(py, s.split_fit)?)?;
+            status_class(py, "PaperStatus", &d)
+        }
+        AnyStatus::Rpem(s) => {
+            d.set_item("samples", s.samples)?;
+            d.set_item("updated", s.updated)?;
+            d.set_item("step_limited", s.step_limited)?;
+            d.set_item("projected", s.projected)?;
+            d.set_item("trace_capped", s.trace_capped)?;
+            d.set_item("restarted", s.restarted)?;
+            d.set_item("innovation_um", s.innovation_um)?;
+            d.set_item("trace", s.trace)?;
+            d.set_item("noise_um2", s.noise_um2)?;
+            status_class(py, "RpemStatus", &d)
+        }
+        AnyStatus::Horizon(s) => {
+            d.set_item("samples", s.samples)?;
+            d.set_item("updated", s.updated)?;
+            d.set_item("updates", s.updates)?;
+            d.set_item("window_samples", s.window_samples)?;
+            d.set_item("window_travel_v", s.window_travel_v)?;
+            d.set_item("rms_um", s.rms_um)?;
+            d.set_item("damping", s.damping)?;
+            d.set_item("step_limited", s.step_limited)?;
+            d.set_item("projected", s.projected)?;
+            d.set_item("behind_samples", s.behind_samples)?;
+            d.set_item("behind_s", s.behind_s)?;
+            status_class(py, "HorizonStatus", &d)
+        }
     }
 }

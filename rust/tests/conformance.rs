@@ -188,9 +188,9 @@ fn push_all(id: &mut PaperIdentifier, u: &[f64], x: &[f64], cov: &mut Coverage) 
     for (&a, &b) in u.iter().zip(x) {
         checksum += id.push(a, b).expect("finite sample");
         let s = id.status();
-        cov.line += (s.line_fit == SubFit::Ran) as u32;
-        cov.rate += (s.rate_fit != SubFit::Held) as u32;
-        cov.shape_or_return += (s.shape_fit == SubFit::Ran || s.return_fit == SubFit::Ran) as u32;
+        cov.line += (s.line_fit.fit == SubFit::Ran) as u32;
+        cov.rate += (s.rate_fit.fit != SubFit::Held) as u32;
+        cov.shape_or_return += (s.shape_fit.fit == SubFit::Ran || s.return_fit.fit == SubFit::Ran) as u32;
         cov.refreshed += s.refreshed as u32;
     }
     // A rejected sample takes the error path, which must not allocate either.

@@ -292,9 +292,13 @@ fn flatness_child() {
         return;
     };
     let (u, x) = record();
-    let mut id = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(window)).unwrap();
+    // The work per push is O(m) in the derivative's half-width m (set by the input's
+    // frequency over the window, at most `max_half_width`) and O(1) in N: m is held at
+    // its least here, so that the counts compare N alone.
+    let config = PaperConfig { max_half_width: PaperConfig::MIN_HALF_WIDTH, ..PaperConfig::with_window(window) };
+    let mut id = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, config).unwrap();
     // Warm past the first full window; every window measures the same samples.
-    let warm = window + 2;
+    let warm = window + 2 * config.max_half_width + 2;
     for k in 0..warm {
         id.push(u[k % u.len()], x[k % u.len()]).unwrap();
     }

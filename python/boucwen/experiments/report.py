@@ -140,6 +140,86 @@ def _track(r: Mapping[str, Any], bench: str, refs: Sequence[str] | None, *, rms:
     return "\n".join(lines)
 
 
+_STEPS = (
+    ("line_fit", "1, kv and x0"),
+    ("rate_fit", "2, A and δ"),
+    ("shape_fit", "3, n and β + γ"),
+    ("return_fit", "4, γ − β"),
+    ("split_fit", "5, β and γ"),
+)
+_NAMES = ("kv", "x0", "A", "beta", "gamma", "n", "delta")
+
+
+def _steps(shares: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
+    """Share of pushes on which each step ran (in full + reduced), per frequency, with the
+    median points and scatter of those pushes and the main reasons it held."""
+    head = "| step | 1 Hz | 10 Hz | 100 Hz | 200 Hz | held or reduced because (mean share) |"
+    lines = [head, "|---|---|---|---|---|---|"]
+    for key, label in _STEPS:
+        rows = shares[key]
+        cells = []
+        for f in FREQUENCIES:
+            r = rows[f]
+            share = r["ran"] + r["reduced"]
+            extra = f" ({r['points']:.0f} pts, {r['noise']:.2g})" if share > 0 and key != "split_fit" else ""
+            cells.append(f"{share:.3f}{extra}")
+        reasons: dict[str, float] = {}
+        for f in FREQUENCIES:
+            for why, v in rows[f]["reasons"].items():
+                reasons[why] = reasons.get(why, 0.0) + v / len(FREQUENCIES)
+        why = ", ".join(f"{k} {v:.2f}" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1])[:3])
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {why} |")
+    return "\n".join(lines)
+
+
+def _exact_table1(r: Mapping[str, Any]) -> str:
+    best = r["sweep"][str(r["chosen_window"])]
+    n = r["chosen_window"]
+    lines = [_HEAD.format("predictor")]
+    lines.append(_freq_row(f"online `paper`, N = {n}, period-ahead", best["period_ahead"]))
+    lines.append(_freq_row(f"online `paper`, N = {n}, one step (the paper's metric)", best["one_step"]))
+    paper = {k: float(v) for k, v in r["paper"]["table1"]["online"].items()}
+    lines.append(_freq_row("online, paper (Table 1)", paper, fmt="{:.2f}"))
+    lines.append(_freq_row("persistence x̂ₖ = xₖ₋₁ (no model)", r["baselines"]["persistence"]))
+    lines.append(_freq_row("two-tap x̂ₖ = 2xₖ₋₁ − xₖ₋₂ (no model)", r["baselines"]["two_tap"]))
+    return "\n".join(lines)
+
+
+def _exact_sweep(r: Mapping[str, Any]) -> str:
+    lines = ["| N | period-ahead 1 / 10 / 100 / 200 Hz | one step 1 / 10 / 100 / 200 Hz |", "|---|---|---|"]
+    for w, row in r["sweep"].items():
+        pa = " / ".join(f"{row['period_ahead'][f]:.3f}" for f in FREQUENCIES)
+        os_ = " / ".join(f"{row['one_step'][f]:.3f}" for f in FREQUENCIES)
+        mark = " (chosen)" if int(w) == r["chosen_window"] else ""
+        lines.append(f"| {w}{mark} | {pa} | {os_} |")
+    return "\n".join(lines)
+
+
+def _exact_table2(r: Mapping[str, Any]) -> str:
+    est = r["sweep"][str(r["chosen_window"])]["table2"]
+    truth = r["paper"]["table2"]
+    lines = ["| f | " + " | ".join(_NAMES) + " |", "|---|" + "---|" * len(_NAMES)]
+    for f in FREQUENCIES:
+        cells = [f"{est[f][n]:.4g} ({truth[f][n]:.3g})" for n in _NAMES]
+        lines.append(f"| {f} Hz | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _exact_budget(r: Mapping[str, Any]) -> str:
+    lines = [
+        "| step | f | points | median \\|A − r\\| (signal) | rms noise of r | rms bias of r | half-width m |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for step, label in (("shape_fit", "3"), ("return_fit", "4")):
+        for f in FREQUENCIES:
+            b = r["step_budget"][step][f]
+            lines.append(
+                f"| {label} | {f} Hz | {b['points']} | {b['signal']:.2e} | {b['noise']:.2e} | {b['bias']:.2e} | "
+                f"{b['half_width']} |"
+            )
+    return "\n".join(lines)
+
+
 #: Every table the documents may hold, by marker name.
 BLOCKS: dict[str, Block] = {
     "readme_table1": Block("reproduce", lambda r: _table1(r, _README_TABLE1)),
@@ -166,6 +246,12 @@ BLOCKS: dict[str, Block] = {
     "compare": Block("compare", lambda r: _compare(r)),
     "diagnosis_suite": Block("diagnosis_suite", lambda r: _suite(r)),
     "plant_family": Block("plant_family", lambda r: _family(r)),
+    "bench_paper_steps": Block("reproduce", lambda r: _steps(r["paper_steps"]["online_paper"])),
+    "exact_table1": Block("paper_exact", _exact_table1),
+    "exact_sweep": Block("paper_exact", _exact_sweep),
+    "exact_table2": Block("paper_exact", _exact_table2),
+    "exact_steps": Block("paper_exact", lambda r: _steps(r["sweep"][str(r["chosen_window"])]["steps"])),
+    "exact_budget": Block("paper_exact", _exact_budget),
 }
 
 #: The online methods of the plant family's table, in its order, with their labels.

@@ -21,7 +21,9 @@ Steps of :func:`run`:
    printed beside two predictors with no model (persistence and the two-tap
    extrapolator), which a one-step figure must beat to mean anything.
    **Table 2**: the online estimates at the end of each frequency, beside the paper's.
-   Adaptation times after each switch, from the period-ahead errors.
+   Adaptation times after each switch, from the period-ahead errors. For the paper's
+   method, the share of pushes on which each of its five steps ran, per frequency, and
+   why it held (``paper_steps``, :func:`step_shares`).
 6. ``DIR/results.json``, ``DIR/predictions.npz`` (every signal the tables and
    figures are computed from) and the figures ``DIR/fig6_1_to_10hz.png``,
    ``fig7_10_to_100hz.png``, ``fig8_100_to_200hz.png``, ``fig9_loops.png``.
@@ -68,7 +70,8 @@ from .._core import EffectSet, Identifier, Params, simulate, simulate_extended
 from ..config import HorizonConfig, PaperConfig, RpemConfig
 from ..fit import FitResult, fit
 from ..io import jsonable
-from ..pacing import COOPERATIVE_INTERVALS, REFINE_MODES, RefineMode, feed_for, realtime
+from ..pacing import COOPERATIVE_INTERVALS, REFINE_MODES, PacedFeed, RefineMode, feed_for, realtime
+from ..status import PaperStatus
 
 if TYPE_CHECKING:
     from .._core import _IdentifierMethod
@@ -78,20 +81,25 @@ __all__ = [
     "ADAPTATION_RULE",
     "DEFAULT_OUT",
     "ONLINE_METHODS",
+    "PAPER_STEPS",
     "PAPER_TABLE1",
     "PAPER_TABLE2",
     "QUICK_SEGMENTS",
     "SEGMENTS",
     "STEADY_STATE",
     "OnlineMethod",
+    "StepTally",
     "adaptation_times",
     "available_online_methods",
     "default_online_method",
     "default_window",
     "fixed_parameter_prediction",
+    "format_step_shares",
+    "format_window_sweep",
     "refine_variants",
     "run",
     "steady_state_slice",
+    "step_shares",
     "table1_from_predictions",
 ]
 
@@ -230,6 +238,85 @@ def default_window(segments: Sequence[tuple[float, int, int]], dt: float) -> int
     return max(16, round(1.0 / (fmax * dt)))
 
 
+# --------------------------------------------------------------------------- paper's steps
+
+#: The five steps of the paper's method, as :class:`boucwen.PaperStatus` names them.
+PAPER_STEPS: tuple[str, ...] = ("line_fit", "rate_fit", "shape_fit", "return_fit", "split_fit")
+
+
+@dataclass
+class StepTally(PacedFeed):
+    """Pushes the samples one at a time, as fast as it goes, and keeps the status of
+    every push of the paper's method (``statuses[k]`` after sample k; other methods'
+    statuses are not kept)."""
+
+    paced: bool = False
+    statuses: list[PaperStatus] = field(default_factory=list)
+
+    def push_many(self, ident: Identifier, u: Any, x: Any) -> np.ndarray:
+        ua = np.ascontiguousarray(u, dtype=np.float64)
+        xa = np.ascontiguousarray(x, dtype=np.float64)
+        out = np.empty_like(ua)
+        for i, (a, b) in enumerate(zip(ua.tolist(), xa.tolist())):
+            out[i] = ident.push(a, b)
+            status = ident.status
+            if isinstance(status, PaperStatus):
+                self.statuses.append(status)
+        self.samples += ua.size
+        return out
+
+
+def step_shares(
+    statuses: Sequence[PaperStatus], segments: Sequence[tuple[float, int, int]]
+) -> dict[str, dict[str, dict[str, Any]]]:
+    """Per step of the paper's method and per frequency: the share of pushes on which it
+    ran in full (``ran``), ran reduced (``reduced``) and held (``held``), the share of
+    pushes held or reduced for each reason (``reasons``), and the median points and
+    noise of the pushes on which it ran or ran reduced (``points``, ``noise``; NaN if
+    never). ``statuses[k]`` is the status after sample k."""
+    out: dict[str, dict[str, dict[str, Any]]] = {step: {} for step in PAPER_STEPS}
+    for f, lo, hi in segments:
+        part = statuses[lo:hi]
+        total = max(1, len(part))
+        for step in PAPER_STEPS:
+            rows = [getattr(s, step) for s in part]
+            used = [r for r in rows if r.outcome != "held"]
+            reasons: dict[str, float] = {}
+            for r in rows:
+                if r.reason != "none":
+                    reasons[r.reason] = reasons.get(r.reason, 0.0) + 1.0 / total
+            out[step][_key(f)] = {
+                "ran": sum(r.outcome == "ran" for r in rows) / total,
+                "reduced": sum(r.outcome == "reduced" for r in rows) / total,
+                "held": sum(r.outcome == "held" for r in rows) / total,
+                "reasons": reasons,
+                "points": float(np.median([r.points for r in used])) if used else float("nan"),
+                "noise": float(np.median([r.noise for r in used])) if used else float("nan"),
+            }
+    return out
+
+
+def format_step_shares(shares: Mapping[str, Mapping[str, Mapping[str, Any]]], freqs: Sequence[str]) -> list[str]:
+    """Lines of a table: per step, the share of pushes on which it ran (in full +
+    reduced) per frequency, and the main reason it held."""
+    heads = [f"{f} Hz" for f in freqs]
+    lines = [
+        "Share of pushes on which each step of the paper's method ran (in full + reduced); main reasons",
+        f"{'step':<12}" + "".join(f"{h:>9}" for h in heads) + "   held or reduced because (mean share)",
+    ]
+    for step in PAPER_STEPS:
+        rows = shares[step]
+        reasons: dict[str, float] = {}
+        for f in freqs:
+            for why, v in rows[f]["reasons"].items():
+                reasons[why] = reasons.get(why, 0.0) + v / len(freqs)
+        why_text = ", ".join(f"{k} {v:.2f}" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1])[:3])
+        lines.append(
+            f"{step:<12}" + "".join(f"{rows[f]['ran'] + rows[f]['reduced']:>9.3f}" for f in freqs) + f"   {why_text}"
+        )
+    return lines
+
+
 # --------------------------------------------------------------------------- metrics
 
 
@@ -304,11 +391,12 @@ def _run_online(
 
     Returns a dict with ``period_ahead`` (score per frequency [µm]), ``per_period``
     (every period's max error), ``one_step`` and ``trace`` (the one-step and the
-    period-ahead predictions [µm]) and ``estimates`` (the parameters at the end of each
-    frequency, Table 2)."""
+    period-ahead predictions [µm]), ``estimates`` (the parameters at the end of each
+    frequency, Table 2) and, for the paper's method, ``steps`` (:func:`step_shares`)."""
     freezes: list[tuple[int, Params, EffectSet | None]] = []
     trace = np.empty_like(x)
-    feed = feed_for(m.refine, dt)
+    tally = StepTally(dt) if m.method == "paper" else None
+    feed = tally if tally is not None else feed_for(m.refine, dt)
     started = time.perf_counter()
     with realtime() if real_time and feed is not None and feed.paced else nullcontext(False) as granted:
         ident = _make_identifier(m, dt, window, init, h0)
@@ -323,6 +411,8 @@ def _run_online(
             feed=feed,
         )
     status = ident.status
+    updates = getattr(status, "updates", None)
+    behind = getattr(status, "behind_samples", None)
     replay = {
         "refine": m.refine,
         "real_time": granted,
@@ -331,8 +421,8 @@ def _run_online(
         "late_samples": feed.late_samples if feed is not None else 0,
         "max_late_s": feed.max_late_s if feed is not None else 0.0,
         "wall_s": time.perf_counter() - started,
-        "updates": status.get("updates"),
-        "behind_samples_at_end": status.get("behind_samples"),
+        "updates": updates,
+        "behind_samples_at_end": behind,
     }
     estimates = {}
     effects: dict[str, EffectSet | None] = {}
@@ -349,6 +439,7 @@ def _run_online(
         "trace": trace,
         "estimates": estimates,
         "replay": replay,
+        "steps": step_shares(tally.statuses, segments) if tally is not None else None,
     }
 
 
@@ -463,13 +554,19 @@ def _print_tables(
     if sweep:
         log("")
         log("Window sweep, online_paper: error [µm] per frequency (period-ahead | one step)")
-        for w, rows in sweep.items():
-            log(
-                _fmt_row(f"N = {w}", [rows["period_ahead"][f] for f in freqs])
-                + "  |"
-                + "".join(f"{rows['one_step'][f]:>9.3f}" for f in freqs)
-            )
+        for line in format_window_sweep(sweep, freqs):
+            log(line)
     log("")
+
+
+def format_window_sweep(sweep: Mapping[str, Mapping[str, Mapping[str, float]]], freqs: Sequence[str]) -> list[str]:
+    """One line per window N: the period-ahead and the one-step error per frequency [µm]."""
+    return [
+        _fmt_row(f"N = {w}", [rows["period_ahead"][f] for f in freqs])
+        + "  |"
+        + "".join(f"{rows['one_step'][f]:>9.3f}" for f in freqs)
+        for w, rows in sweep.items()
+    ]
 
 
 def run(
@@ -561,6 +658,7 @@ def run(
     per_period: dict[str, dict[str, list[float]]] = {}
     effects_at_end: dict[str, Mapping[str, EffectSet | None]] = {}
     replays: dict[str, dict[str, Any]] = {}
+    paper_steps: dict[str, Any] = {}
     for m in methods:
         step(f"online method {m.label!r}" + (f" (window {window} samples)" if m.method == "paper" else ""))
         r = _run_online(m, u, x, dt, window, trad.params, trad.h0, segments, real_time)
@@ -570,6 +668,8 @@ def run(
         one_step[key], traces[key] = r["one_step"], r["trace"]
         table1[key], table2[key], per_period[key] = r["period_ahead"], r["estimates"], r["per_period"]
         effects_at_end[key] = r["effects"]
+        if r["steps"] is not None:
+            paper_steps[key] = r["steps"]
     skipped = [m.label for m in ONLINE_METHODS if m.label not in labels]
     if skipped:
         step(f"online methods not available in this build: {', '.join(skipped)}")
@@ -649,6 +749,7 @@ def run(
         "window_sweep": sweep,
         "best_fixed_per_frequency": best_fixed,
         "refine_modes": replays,
+        "paper_steps": paper_steps,
     }
 
     results = jsonable(results)
@@ -679,6 +780,11 @@ def run(
     )
     if len(replays) > 1:
         for line in format_refine_modes(replays, freqs):
+            say(line)
+    for key, shares in paper_steps.items():
+        say("")
+        say(f"{key} (window {window} samples):")
+        for line in format_step_shares(shares, freqs):
             say(line)
     say(f"online = online_{default}; steady state = {STEADY_STATE}")
     step(f"wrote {out / 'results.json'}, {out / 'predictions.npz'} and the figures")

@@ -19,33 +19,65 @@ pub struct PaperConfig {
     pub window_len: usize,
     /// See [`Decomposition`].
     pub decomposition: Decomposition,
-    /// |h| below this fraction of the window's std(x) counts as h ≈ 0 (step 2);
-    /// h above it counts as h > 0 (steps 3–4). Default 0.005.
+    /// |h| below this fraction of the starting model's saturation amplitude hₛ =
+    /// (|A₀|/(|β₀|+|γ₀|))^(1/n₀) counts as h ≈ 0 (step 2); h above it counts as h > 0
+    /// (steps 3–4) (of the window's std(x) where hₛ is undefined, |A₀| or |β₀|+|γ₀| 0).
+    /// hₛ, not the window's std(x): a short window's std(x) shrinks to nanometres near
+    /// the turning points, and the band to a sample or two per crossing. At the paper's
+    /// 1 Hz values hₛ ≈ 1.5 µm and the band is ±0.075 µm, about 130 samples per crossing
+    /// at 1 Hz and 10 kHz; the |h|ⁿ terms there are corrected with the current β, γ, n
+    /// (step 2) and are at most (|β|+|γ|)·0.075ⁿ ≈ 0.8 % of |A|. Default 0.05.
     pub h_zero_frac: f64,
     /// Points with |u̇| below this fraction of the window's rms(u̇) are left out of
-    /// steps 2–4. Default 0.2.
+    /// steps 2–4: steps 3–4 divide by u̇, so near the input's turning points the noise of
+    /// ẋ over a small u̇ swamps r, and step 2's rate term vanishes there. Default 0.2.
     pub rate_frac: f64,
-    /// Fewest points for a sub-fit. Default 8.
+    /// Fewest points for a sub-fit: below it a fit's scatter (and step 3's r²) says
+    /// nothing, and one bad point decides it. Default 8.
     pub min_points: usize,
     /// Step 2 fits both A + kv and δ only when 1 − corr²(u̇, u) over its points
-    /// exceeds this. Default 1e-3.
+    /// exceeds this: at one frequency the crossings sit at nearly the same (u, u̇), the
+    /// two columns are collinear and δ trades against A + kv (ran reduced). Default 1e-3.
     pub rank_tol: f64,
-    /// Step 3 fits n only when std(ln h) over its points exceeds this. Default 0.05.
+    /// Step 3 fits n only when std(ln h) over its points exceeds this: the slope n of a
+    /// log–log line over a narrow range of h is set by the noise (held, no spread).
+    /// Default 0.05.
     pub min_log_spread: f64,
     /// Steps 3–4 use a point only when |A − r| is at least this fraction of |A|:
     /// smaller values are a difference of two nearly equal numbers, dominated by
-    /// the error of A and of the finite differences. Default 0.05.
+    /// the error of A. Default 0: with the paper's own values (β + γ)·hⁿ reaches only
+    /// 2.5 % of |A| at 1 Hz, so any fraction above that empties step 3; the noise of
+    /// the derivatives is gated by `noise_gate` instead.
     pub min_arg_frac: f64,
     /// Steps 3–4 use a point only when |A − r| is at least this many standard
-    /// deviations of the noise of r (that of ẋ over |u̇|; ẋ's noise is estimated
-    /// over the window from the difference of the five- and three-point
-    /// derivatives). Default 3.
+    /// deviations of the noise of r (that of ẋ over |u̇|, ẋ's noise from the
+    /// derivative's, see `derivative_phase`): a logarithm of a quantity buried in
+    /// noise is mostly noise, and of the wrong sign undefined. Default 3.
     pub noise_gate: f64,
+    /// The derivative estimator, which the paper leaves open: u̇ and ẋ of a window
+    /// point are the Savitzky–Golay first derivative (the slope of the local
+    /// least-squares line, equal to that of the local quadratic) over 2m + 1 samples
+    /// centred on it, m = round(this / (ω̂·Δt)) within 2 … `max_half_width`, ω̂ =
+    /// rms(u̇)/std(u) over the window (the input's angular frequency for a sine).
+    /// The stencil spans ±this radians of the input's phase: for a sine the slope
+    /// errs by 1 − 3(sin θ − θ cos θ)/θ³ ≈ θ²/10 (0.1 % at 0.1 rad), while white noise
+    /// σ on x leaves σ/(√S·Δt) on ẋ, S = m(m+1)(2m+1)/3 (a five-point stencil, m = 2,
+    /// leaves 0.32·σ/Δt: 3.2 µm/s from 1 nm at 10 kHz, against 6 nm/s at m = 160, the
+    /// 1 Hz stencil). Step 3's signal, (β + γ)·hⁿ, is at most 2.5 % of A with the
+    /// paper's values, so the bias must stay well below that: 0.3 rad (0.9 %) already
+    /// moves n by tenths on noise-free data. A fixed m cannot serve 1 Hz and 200 Hz:
+    /// what quiets the noise at one frequency biases the other. Default 0.1 rad.
+    pub derivative_phase: f64,
+    /// Largest derivative half-width m \[samples\]; the raw samples of 2m + 1 are held
+    /// (24 bytes each), and a point enters the window m samples after it was measured.
+    /// Default 500 (50 ms at 10 kHz; 1 Hz needs 160).
+    pub max_half_width: usize,
     /// Step 2 updates δ only when |δ| is at least this many standard errors of
     /// its estimate (else it fits A + kv alone). Default 3.
     pub min_delta_t: f64,
     /// Step 3 fits n only when the log–log points lie on a line: squared
-    /// correlation of ln h and ln|A − r| at least this. Default 0.9.
+    /// correlation of ln h and ln|A − r| at least this; a cloud off a line has a slope
+    /// that is not n (held for noise). Default 0.9.
     pub min_r2: f64,
     /// Step 1 updates kv, x0 only when |kv| is at least this many standard errors
     /// of its window estimate. Default 10.
@@ -60,9 +92,9 @@ pub struct PaperConfig {
     /// when |A₀| or |β₀|+|γ₀| is 0, or with `f64::INFINITY`). At the starting model's
     /// own saturation amplitude the new model's |h|ⁿ terms may be at most this many
     /// times |A₀|, i.e. its saturation amplitude may shrink at most this^(1/n)-fold
-    /// (4.5-fold at n = 1.52). Without it, on long noisy records steps 3–4 fed by a
+    /// (2.5-fold at n = 1.52). Without it, on long noisy records steps 3–4 fed by a
     /// local line fit (short windows) or by points near h ≈ 0 give β ± γ that pass
-    /// the sign test with |β|, |γ| many orders of magnitude too large. Default 10.
+    /// the sign test with |β|, |γ| many orders of magnitude too large. Default 4.
     pub max_hysteresis_gain: f64,
     /// Step 2 keeps a fitted δ only while the δ·u term does not outweigh the rate
     /// term on its points: |δ|·rms(u) ≤ this × |A + kv|·rms(u̇), A + kv from the fit
@@ -79,21 +111,28 @@ impl PaperConfig {
     pub const MIN_WINDOW: usize = 16;
     /// Largest accepted window (the points are held in memory, 56 bytes each).
     pub const MAX_WINDOW: usize = 10_000_000;
+    /// Smallest derivative half-width: 5 points, the least for a local quadratic with
+    /// a residual (the noise estimate).
+    pub const MIN_HALF_WIDTH: usize = 2;
+    /// Largest accepted `max_half_width` (1 s at 100 kHz).
+    pub const MAX_HALF_WIDTH: usize = 100_000;
 
     /// Defaults with window N = `window_len`.
     pub fn with_window(window_len: usize) -> Self {
         PaperConfig {
             window_len,
             decomposition: Decomposition::Model,
-            h_zero_frac: 0.005,
+            h_zero_frac: 0.05,
             rate_frac: 0.2,
             min_points: 8,
             rank_tol: 1e-3,
             min_log_spread: 0.05,
             min_r2: 0.9,
-            min_arg_frac: 0.05,
+            min_arg_frac: 0.0,
             min_line_t: 10.0,
             noise_gate: 3.0,
+            derivative_phase: 0.1,
+            max_half_width: 500,
             min_delta_t: 3.0,
             min_u_std_v: 1e-6,
             n_bounds: (0.5, 4.0),
@@ -113,6 +152,12 @@ impl PaperConfig {
         }
         if self.min_points < 2 || self.min_points > self.window_len {
             return bad("min_points", self.min_points as f64, "must be between 2 and the window length");
+        }
+        if self.max_half_width < Self::MIN_HALF_WIDTH || self.max_half_width > Self::MAX_HALF_WIDTH {
+            return bad("max_half_width", self.max_half_width as f64, "must be between 2 and 100 000 samples");
+        }
+        if !(self.derivative_phase.is_finite() && self.derivative_phase > 0.0) {
+            return bad("derivative_phase", self.derivative_phase, "must be finite and > 0");
         }
         let fractions = [
             ("h_zero_frac", self.h_zero_frac),

@@ -5,45 +5,52 @@
 //! Per sample k:
 //! 1. **Predict** x̂ₖ = kv·uₖ + x0 + hₖ with the estimates from before the sample, h
 //!    integrated by the model itself ([`crate::model::advance_h`]).
-//! 2. **Window.** Sample k−2 is completed (five-point central differences u̇, ẋ
-//!    need samples up to k) and enters the window of the newest N samples; the
-//!    oldest leaves.
+//! 2. **Derivatives and window.** The paper leaves the derivative estimate open. Here
+//!    u̇ and ẋ of sample j are the Savitzky–Golay first derivative over the 2m + 1
+//!    samples centred on it (the slope of the local least-squares line, which equals
+//!    that of the local quadratic), m set from the input's frequency over the window
+//!    ([`PaperConfig::derivative_phase`]): about ±0.3 rad of its phase, 2 samples at
+//!    200 Hz and 10 kHz, up to [`PaperConfig::max_half_width`] at 1 Hz. The residual of
+//!    the local quadratic fit at the centre measures the noise of x (σ²·(1 − w₀) for
+//!    white noise, w₀ the centre weight), and the noise it leaves on ẋ is σ/(√S·Δt),
+//!    S = m(m+1)(2m+1)/3. Sample j is completed, and enters the window of the newest N
+//!    points, once sample j + m has arrived; the oldest point leaves.
 //! 3. **Step 1, kv and x0** (eqs. 6–7): limited-memory recursive least squares of
-//!    y on [u, 1]: a rank-one update for the entering sample and a rank-one downdate
+//!    y on [u, 1]: a rank-one update for the entering point and a rank-one downdate
 //!    (Sherman–Morrison) for the leaving one, started from the batch fit of the first
-//!    full window and re-synchronised with the exact window sums every N samples.
+//!    full window and re-synchronised with the exact window sums every N points.
 //!    With [`Decomposition::Line`] (the paper, literal) y = x: the line through the
 //!    loop. With [`Decomposition::Model`] (default) y = x − h_model: the line that the
 //!    model's own h leaves, which is the model's kv rather than the loop's centre line
 //!    (the two differ when A ≠ 0: about 0.16 vs 0.19 µm/V with the paper's values).
 //!    kv and x0 are taken only while the window resolves kv (`min_line_t`).
-//! 4. **Steps 2–5** from running sums of the points in the window (O(1) per sample):
-//!    each sample is classified once, when it enters, with the estimates of that
+//! 4. **Steps 2–5** from running sums of the points in the window (O(1) per point):
+//!    each point is classified once, when it enters, with the estimates of that
 //!    moment; h = x − kv·u − x0 there.
 //!    - step 2 (eqs. 8–9): u̇ > 0 and |h| < `h_zero_frac`·std(x): least squares of ẋ
 //!      on [u̇, u] gives A + kv and δ (ẋ is first corrected by the small
-//!      |h|^n terms of eq. (5) at the point's h, with the current β, γ, n). If the two columns are nearly collinear (one
-//!      frequency puts every such point at the same (u, u̇)), only A + kv is fitted
-//!      and δ is kept. So is δ where δ·u would outweigh the rate term on the
-//!      points (`max_delta_ratio`).
+//!      |h|^n terms of eq. (5) at the point's h, with the current β, γ, n). If the two
+//!      columns are nearly collinear (one frequency puts every such point at the same
+//!      (u, u̇)), only A + kv is fitted and δ is kept (ran reduced). So is δ where
+//!      δ·u would outweigh the rate term on the points (`max_delta_ratio`).
 //!    - step 3 (eqs. 10–12): u̇ > 0 and h above the tolerance: r = (ḣ − δu)/u̇,
 //!      ln|A − r| = ln|β+γ| + n·ln h. The sign of A − r is carried: points of each
 //!      sign are summed apart and the larger group decides the sign of β + γ.
 //!    - step 4 (eqs. 13–14): u̇ < 0, h above the tolerance: r = (ḣ + δu)/u̇,
 //!      ln|γ−β| = mean(ln|A − r| − n·ln h), sign carried as in step 3.
-//!    - step 5: β, γ from β+γ and γ−β, accepted only where h stays bounded for
-//!      every input (β + γ > 0 and β − γ > 0, as in the paper's Table 2) and the
-//!      hysteresis terms stay physically bounded: (|β|+|γ|)·hₛⁿ at most
+//!    - step 5 (eqs. 15–16): β, γ from β+γ and γ−β, accepted only where h stays
+//!      bounded for every input (β + γ > 0 and β − γ > 0, as in the paper's Table 2)
+//!      and the hysteresis terms stay physically bounded: (|β|+|γ|)·hₛⁿ at most
 //!      `max_hysteresis_gain`·|A₀| at the starting model's saturation amplitude hₛ
 //!      (without it, long noisy records drive |β|, |γ| to 10³–10⁸ with β ± γ
 //!      still > 0); otherwise β, γ and n are held.
 //!
-//!    Steps 3–4 leave out points whose |A − r| is below `min_arg_frac`·|A| (a
-//!    small difference of nearly equal numbers: its logarithm is mostly error) or
-//!    below `noise_gate` standard deviations of the noise of r.
+//!    Steps 3–4 leave out points whose |A − r| is below `min_arg_frac`·|A| or below
+//!    `noise_gate` standard deviations of the noise of r (that of ẋ over |u̇|).
 //!    Points with |u̇| below `rate_frac`·rms(u̇) are left out of steps 2–4 (the
-//!    ratios divide by u̇, and finite differences of noisy x are unreliable there).
-//!    A sub-fit with too few points or too little spread keeps its previous estimate.
+//!    ratios divide by u̇). A step with too few points or too little spread keeps its
+//!    previous estimate; [`PaperStatus`] says, for each step, whether it ran, ran
+//!    reduced or held, why, on how many points and with what scatter.
 
 use nalgebra::{Matrix2, Vector2};
 
@@ -60,7 +67,7 @@ use crate::math;
 use crate::model::{advance_h, output};
 use crate::params::Params;
 pub use config::{Decomposition, PaperConfig};
-pub use status::{PaperStatus, SubFit};
+pub use status::{PaperStatus, Reason, StepStatus, SubFit};
 use window::{Ring, WindowSums};
 
 /// Which sub-fit a window point feeds, decided when it enters.
@@ -88,9 +95,9 @@ struct Point {
     a: f64,
     /// ln|A − r| for steps 3–4.
     b: f64,
-    /// Five-point minus three-point estimate of ẋ \[µm/s\]: mostly noise (for the
-    /// noise estimate of the gate of steps 3–4).
-    dx_diff: f64,
+    /// Estimate of the variance of the noise of x from this point's local quadratic
+    /// fit \[µm²\] (window mean: the noise of the derivatives).
+    noise2: f64,
     class: Class,
 }
 
@@ -107,13 +114,10 @@ const SYY: usize = 8;
 const C_CNT: usize = 9; // step 2: count, Σu̇², Σu̇u, Σu², Σu̇ẋ, Σuẋ, Σẋ²
 const L_POS: usize = 16; // step 3 (+): count, Σz, Σz², Σw, Σzw, Σw²
 const L_NEG: usize = 22; // step 3 (−)
-const U_POS: usize = 28; // step 4 (+): count, Σz, Σw
-const U_NEG: usize = 31; // step 4 (−)
-const SEE: usize = 34; // Σ (ẋ₅ − ẋ₃)²
-const NSUMS: usize = 35;
-
-/// Raw samples kept for the derivative stencil besides the newest one.
-const RAW_HISTORY: usize = 4;
+const U_POS: usize = 28; // step 4 (+): count, Σz, Σz², Σw, Σzw, Σw²
+const U_NEG: usize = 34; // step 4 (−)
+const SEE: usize = 40; // Σ noise²
+const NSUMS: usize = 41;
 
 impl Point {
     /// Contribution of the point to every running sum (a pure function of the point,
@@ -129,21 +133,22 @@ impl Point {
         c[SXX] = self.x * self.x;
         c[SDD] = self.udot * self.udot;
         c[SYY] = self.y * self.y;
-        c[SEE] = self.dx_diff * self.dx_diff;
+        c[SEE] = self.noise2;
         match self.class {
             Class::Unused => {}
             Class::Crossing => {
                 let (d, u, xd) = (self.udot, self.u, self.a);
                 c[C_CNT..C_CNT + 7].copy_from_slice(&[1.0, d * d, d * u, u * u, d * xd, u * xd, xd * xd]);
             }
-            Class::Loading { positive } => {
-                let at = if positive { L_POS } else { L_NEG };
+            Class::Loading { positive } | Class::Unloading { positive } => {
+                let at = match self.class {
+                    Class::Loading { .. } if positive => L_POS,
+                    Class::Loading { .. } => L_NEG,
+                    _ if positive => U_POS,
+                    _ => U_NEG,
+                };
                 let (z, w) = (self.a, self.b);
                 c[at..at + 6].copy_from_slice(&[1.0, z, z * z, w, z * w, w * w]);
-            }
-            Class::Unloading { positive } => {
-                let at = if positive { U_POS } else { U_NEG };
-                c[at..at + 3].copy_from_slice(&[1.0, self.a, self.b]);
             }
         }
         c
@@ -151,7 +156,7 @@ impl Point {
 }
 
 /// A raw sample waiting for its successors (derivative stencil).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Raw {
     u: f64,
     x: f64,
@@ -217,9 +222,10 @@ impl Class {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct RateFit {
     delta_in: f64,
+    span: f64,
     a_plus_kv: f64,
     delta_out: f64,
-    status: SubFit,
+    status: StepStatus,
 }
 
 /// Result of step 3 for given sums.
@@ -227,7 +233,7 @@ struct RateFit {
 struct ShapeFit {
     n: f64,
     sum_bg: f64,
-    status: SubFit,
+    status: StepStatus,
 }
 
 /// Result of step 4 for given sums and n.
@@ -235,7 +241,7 @@ struct ShapeFit {
 struct ReturnFit {
     n_in: f64,
     diff_gb: f64,
-    status: SubFit,
+    status: StepStatus,
 }
 
 /// The sub-fit results of the last refit, reused while their inputs are unchanged
@@ -248,12 +254,32 @@ struct SubFitCache {
     ret: Option<ReturnFit>,
 }
 
-/// Step 2 (eqs. 8–9): A + kv and δ from the crossing points.
-fn rate_fit(cfg: &PaperConfig, s: &[f64; NSUMS], delta: f64) -> RateFit {
-    let held = RateFit { delta_in: delta, a_plus_kv: 0.0, delta_out: delta, status: SubFit::Held };
+/// A point count as reported (saturating).
+fn count_u32(c: f64) -> u32 {
+    if c >= u32::MAX as f64 {
+        u32::MAX
+    } else {
+        c.max(0.0) as u32
+    }
+}
+
+/// Step 2 (eqs. 8–9): A + kv and δ from the crossing points; `span` = 2m + 1, the
+/// samples a derivative stencil spans (neighbouring points share their noise over it).
+fn rate_fit(cfg: &PaperConfig, s: &[f64; NSUMS], delta: f64, span: f64) -> RateFit {
     let c = &s[C_CNT..C_CNT + 7];
-    if !(c[0] >= cfg.min_points as f64 && c[1] > 0.0) {
-        return held;
+    let points = count_u32(c[0]);
+    let held = |reason| RateFit {
+        delta_in: delta,
+        span,
+        a_plus_kv: 0.0,
+        delta_out: delta,
+        status: StepStatus::held(reason, points),
+    };
+    if c[0] < cfg.min_points as f64 {
+        return held(Reason::TooFewPoints);
+    }
+    if c[1] <= 0.0 {
+        return held(Reason::NoSpread);
     }
     let det = c[1] * c[3] - c[2] * c[2];
     let well_posed = c[3] > 0.0 && det > cfg.rank_tol * c[1] * c[3];
@@ -261,75 +287,138 @@ fn rate_fit(cfg: &PaperConfig, s: &[f64; NSUMS], delta: f64) -> RateFit {
         if well_posed { ((c[4] * c[3] - c[2] * c[5]) / det, (c[1] * c[5] - c[2] * c[4]) / det) } else { (0.0, 0.0) };
     // δ is kept only where the data resolve it: |δ| at least `min_delta_t`
     // standard errors, from the residual of the two-column fit; and only while
-    // δ·u does not outweigh the rate term on the points (`max_delta_ratio`).
+    // δ·u does not outweigh the rate term on the points (`max_delta_ratio`). The
+    // derivatives of neighbouring points share their noise over a stencil of `span`
+    // samples, so the points are worth about count/span independent ones: the
+    // standard error is √span times that of independent points (without it, one
+    // crossing of the first window at 1 Hz gives δ = 0.7, a hundred times the truth,
+    // "resolved" at 3 standard errors).
+    // The residual variance is floored at the derivative's own error, (θ²/10)·ẋ for a
+    // sine (θ = `derivative_phase`): on noise-free records the residual is that bias
+    // alone, and without the floor any δ it leaves "resolves" (δ = 0.09, twelve times
+    // the truth, from the first window of the paper's noise-free 1 Hz record).
     let dof = c[0] - 2.0;
     let rss = (c[6] - full_a_plus_kv * c[4] - full_delta * c[5]).max(0.0);
-    let se_delta = if dof > 0.0 { math::sqrt(rss / dof * c[1] / det) } else { f64::INFINITY };
+    let bias2 = math::powi(math::powi(cfg.derivative_phase, 2) / 10.0, 2) * c[6] / c[0];
+    let var = if dof > 0.0 { (rss / dof).max(bias2) } else { f64::INFINITY };
+    let se_delta = math::sqrt(span * var * c[1] / det);
     // The rate term is measured by the one-column fit (well conditioned where u̇ and
-    // u are nearly collinear, when the two-column fit can trade one for the other).
-    let reduced = (c[4] - delta * c[2]) / c[1];
+    // u are nearly collinear, when the two-column fit can trade one for the other):
+    // ẋ − δu on u̇, δ held.
+    let suy = c[4] - delta * c[2];
+    let reduced = suy / c[1];
+    let syy = c[6] - 2.0 * delta * c[5] + delta * delta * c[3];
+    let reduced_noise = math::sqrt(((syy - reduced * suy).max(0.0)) / (c[0] - 1.0).max(1.0));
     let bounded = full_delta.abs() * math::sqrt(c[3]) <= cfg.max_delta_ratio * reduced.abs() * math::sqrt(c[1]);
-    let fit = if well_posed && full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta && bounded {
-        RateFit { delta_in: delta, a_plus_kv: full_a_plus_kv, delta_out: full_delta, status: SubFit::Ran }
+    let why = if !well_posed {
+        Reason::NoSpread
+    } else if !(full_delta.is_finite() && full_delta.abs() >= cfg.min_delta_t * se_delta) {
+        Reason::Noise
+    } else if !bounded {
+        Reason::OutOfBounds
     } else {
-        RateFit { delta_in: delta, a_plus_kv: reduced, delta_out: delta, status: SubFit::Reduced }
+        Reason::None
+    };
+    let fit = if why == Reason::None {
+        let status = StepStatus { fit: SubFit::Ran, reason: why, points, noise: math::sqrt(rss / dof) };
+        RateFit { delta_in: delta, span, a_plus_kv: full_a_plus_kv, delta_out: full_delta, status }
+    } else {
+        let status = StepStatus { fit: SubFit::Reduced, reason: why, points, noise: reduced_noise };
+        RateFit { delta_in: delta, span, a_plus_kv: reduced, delta_out: delta, status }
     };
     if fit.a_plus_kv.is_finite() {
         fit
     } else {
-        held
+        held(Reason::OutOfBounds)
+    }
+}
+
+/// The larger sign group of steps 3–4 (offset of its sums, sign of A − r).
+fn larger_group(s: &[f64; NSUMS], pos: usize, neg: usize) -> (usize, f64) {
+    if s[pos] >= s[neg] {
+        (pos, 1.0)
+    } else {
+        (neg, -1.0)
     }
 }
 
 /// Step 3 (eqs. 10–12): n and β + γ from the loading points of the larger sign group.
 fn shape_fit(cfg: &PaperConfig, s: &[f64; NSUMS]) -> ShapeFit {
-    let held = ShapeFit { n: 0.0, sum_bg: 0.0, status: SubFit::Held };
-    let (at, sign) = if s[L_POS] >= s[L_NEG] { (L_POS, 1.0) } else { (L_NEG, -1.0) };
+    let (at, sign) = larger_group(s, L_POS, L_NEG);
     let m = s[at];
+    let held = |reason| ShapeFit { n: 0.0, sum_bg: 0.0, status: StepStatus::held(reason, count_u32(m)) };
     if m < cfg.min_points as f64 {
-        return held;
+        return held(Reason::TooFewPoints);
     }
     let mean_z = s[at + 1] / m;
     let var_z = s[at + 2] / m - mean_z * mean_z;
     let mean_w = s[at + 3] / m;
     let cov = s[at + 4] / m - mean_z * mean_w;
     let var_w = s[at + 5] / m - mean_w * mean_w;
-    let r2 = if var_z > 0.0 && var_w > 0.0 { cov * cov / (var_z * var_w) } else { 0.0 };
-    if !(var_z > cfg.min_log_spread * cfg.min_log_spread && r2 >= cfg.min_r2) {
-        return held;
+    if var_z <= cfg.min_log_spread * cfg.min_log_spread {
+        return held(Reason::NoSpread);
+    }
+    let r2 = if var_w > 0.0 { cov * cov / (var_z * var_w) } else { 0.0 };
+    if r2 < cfg.min_r2 {
+        return held(Reason::Noise);
     }
     let n = cov / var_z;
     let log_mag = (mean_w - n * mean_z).clamp(-700.0, 700.0);
-    if n >= cfg.n_bounds.0 && n <= cfg.n_bounds.1 && log_mag.is_finite() {
-        ShapeFit { n, sum_bg: sign * math::exp(log_mag), status: SubFit::Ran }
-    } else {
-        held
+    if !(n >= cfg.n_bounds.0 && n <= cfg.n_bounds.1 && log_mag.is_finite()) {
+        return held(Reason::OutOfBounds);
     }
+    let noise = math::sqrt((var_w - cov * cov / var_z).max(0.0) * m / (m - 2.0).max(1.0));
+    let status = StepStatus { fit: SubFit::Ran, reason: Reason::None, points: count_u32(m), noise };
+    ShapeFit { n, sum_bg: sign * math::exp(log_mag), status }
 }
 
 /// Step 4 (eqs. 13–14): γ − β from the unloading points of the larger sign group.
 fn return_fit(cfg: &PaperConfig, s: &[f64; NSUMS], n: f64) -> ReturnFit {
-    let (at, sign) = if s[U_POS] >= s[U_NEG] { (U_POS, 1.0) } else { (U_NEG, -1.0) };
+    let (at, sign) = larger_group(s, U_POS, U_NEG);
     let m = s[at];
-    if m >= cfg.min_points as f64 {
-        let log_mag = ((s[at + 2] - n * s[at + 1]) / m).clamp(-700.0, 700.0);
-        if log_mag.is_finite() {
-            return ReturnFit { n_in: n, diff_gb: sign * math::exp(log_mag), status: SubFit::Ran };
-        }
+    let held = |reason| ReturnFit { n_in: n, diff_gb: 0.0, status: StepStatus::held(reason, count_u32(m)) };
+    if m < cfg.min_points as f64 {
+        return held(Reason::TooFewPoints);
     }
-    ReturnFit { n_in: n, diff_gb: 0.0, status: SubFit::Held }
+    // d = ln|A − r| − n·ln h: its mean is ln|γ − β|, its scatter the noise.
+    let mean_d = (s[at + 3] - n * s[at + 1]) / m;
+    let mean_d2 = (s[at + 5] - 2.0 * n * s[at + 4] + n * n * s[at + 2]) / m;
+    let log_mag = mean_d.clamp(-700.0, 700.0);
+    if !log_mag.is_finite() {
+        return held(Reason::OutOfBounds);
+    }
+    let noise = math::sqrt((mean_d2 - mean_d * mean_d).max(0.0) * m / (m - 1.0).max(1.0));
+    let status = StepStatus { fit: SubFit::Ran, reason: Reason::None, points: count_u32(m), noise };
+    ReturnFit { n_in: n, diff_gb: sign * math::exp(log_mag), status }
+}
+
+/// ln hₛ, hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀) the saturation amplitude of the model `init`
+/// (where |h| stops growing under a monotone input); `None` when |A₀| or |β₀|+|γ₀| is 0.
+fn ln_saturation(init: &Params) -> Option<f64> {
+    let (a0, s0) = (init.a.abs(), init.beta.abs() + init.gamma.abs());
+    (a0 > 0.0 && s0 > 0.0).then(|| (math::ln(a0) - math::ln(s0)) / init.n)
 }
 
 /// Step 5's physical bound ([`PaperConfig::max_hysteresis_gain`]): (|β|+|γ|)·hₛⁿ ≤
-/// K·|A₀| with hₛ = (|A₀|/(|β₀|+|γ₀|))^(1/n₀) the starting model's saturation
-/// amplitude, compared in logarithms.
+/// K·|A₀| with hₛ the starting model's saturation amplitude, compared in logarithms.
 fn hysteresis_bounded(cfg: &PaperConfig, init: &Params, beta: f64, gamma: f64, n: f64) -> bool {
-    let (a0, s0) = (init.a.abs(), init.beta.abs() + init.gamma.abs());
-    if cfg.max_hysteresis_gain == f64::INFINITY || a0 == 0.0 || s0 == 0.0 {
-        return true;
+    match ln_saturation(init) {
+        Some(ln_hs) if cfg.max_hysteresis_gain != f64::INFINITY => {
+            math::ln(beta.abs() + gamma.abs()) + n * ln_hs <= math::ln(cfg.max_hysteresis_gain * init.a.abs())
+        }
+        _ => true,
     }
-    let ln_hs = (math::ln(a0) - math::ln(s0)) / init.n;
-    math::ln(beta.abs() + gamma.abs()) + n * ln_hs <= math::ln(cfg.max_hysteresis_gain * a0)
+}
+
+/// Savitzky–Golay sums of a stencil of half-width m: S = Σₖ k² over −m … m, and the
+/// centre weight w₀ of the local quadratic's value with its numerator constant c₀ and
+/// denominator (weights wₖ = (c₀ − 15k²)/den).
+fn stencil(m: usize) -> (f64, f64, f64) {
+    let mf = m as f64;
+    let s2 = mf * (mf + 1.0) * (2.0 * mf + 1.0) / 3.0;
+    let c0 = 3.0 * (3.0 * mf * mf + 3.0 * mf - 1.0);
+    let den = (2.0 * mf - 1.0) * (2.0 * mf + 1.0) * (2.0 * mf + 3.0);
+    (s2, c0, den)
 }
 
 /// The paper's online identifier (see the module docs).
@@ -341,8 +430,12 @@ pub struct PaperIdentifier {
     h0: f64,
     params: Params,
     h_model: f64,
-    /// The latest raw samples before the newest, oldest first.
-    raw: [Option<Raw>; RAW_HISTORY],
+    /// The newest raw samples (2·`max_half_width` + 1 of them), oldest first.
+    raw: Ring<Raw>,
+    /// Index of the next sample to complete into a window point.
+    next: u64,
+    /// Window points entered since construction or reset.
+    entered: u64,
     window: Ring<Point>,
     sums: WindowSums<NSUMS>,
     rls: LineRls,
@@ -366,7 +459,9 @@ impl PaperIdentifier {
             h0,
             params: init,
             h_model: h0,
-            raw: [None; RAW_HISTORY],
+            raw: Ring::with_capacity(2 * config.max_half_width + 1),
+            next: 0,
+            entered: 0,
             window: Ring::with_capacity(config.window_len),
             sums: WindowSums::new(config.window_len),
             rls: LineRls { theta: Vector2::new(init.kv, init.x0), p: Matrix2::zeros(), active: false },
@@ -401,38 +496,94 @@ impl PaperIdentifier {
         exact.iter().zip(kept).map(|(e, k)| if *e == 0.0 { k.abs() } else { ((k - e) / e).abs() }).fold(0.0, f64::max)
     }
 
-    /// Builds the window point for the middle sample, classified with the current estimates.
-    /// `s` holds samples k−2, k−1, k, k+1, k+2; the point is sample k. Derivatives
-    /// by the five-point central difference (error O(Δt⁴): about 1e-5 relative at
-    /// 50 samples per period, where the three-point one errs by 3e-3).
-    fn complete(&self, s: [Raw; 5]) -> Point {
+    /// Half-width m of the derivative stencil from the window (see
+    /// [`PaperConfig::derivative_phase`]); the largest until the window is full (its
+    /// statistics do not tell the input's frequency yet, and the points of a small m,
+    /// ten times noisier, would weigh as much as the rest in the first full window's
+    /// fits) and where the rule gives none (no motion).
+    fn half_width(&self) -> usize {
+        let (lo, hi) = (PaperConfig::MIN_HALF_WIDTH, self.config.max_half_width);
+        let s = self.sums.get();
+        let count = s[CNT];
+        if !self.window.is_full() {
+            return hi;
+        }
+        let var_u = s[SUU] / count - math::powi(s[SU] / count, 2);
+        let omega = math::sqrt(s[SDD] / count) / math::sqrt(var_u.max(0.0));
+        let m = math::round(self.config.derivative_phase / (omega * self.dt));
+        if m.is_finite() && m < hi as f64 {
+            (m.max(0.0) as usize).max(lo)
+        } else {
+            hi
+        }
+    }
+
+    /// The window's estimate of the variance of the noise of x \[µm²\] (0 while empty).
+    fn x_noise2(&self) -> f64 {
+        let s = self.sums.get();
+        if s[CNT] > 0.0 {
+            (s[SEE] / s[CNT]).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// Builds the window point of raw sample `c` (its position in `self.raw`) with the
+    /// derivative stencil of half-width `m` (`m` samples on each side are held),
+    /// classified with the current estimates.
+    fn complete(&self, c: usize, m: usize) -> Point {
         let p = &self.params;
-        let mid = s[2];
-        let twelve_dt = 12.0 * self.dt;
-        let udot = (s[0].u - 8.0 * s[1].u + 8.0 * s[3].u - s[4].u) / twelve_dt;
-        let xdot = (s[0].x - 8.0 * s[1].x + 8.0 * s[3].x - s[4].x) / twelve_dt;
-        let dx_diff = xdot - (s[3].x - s[1].x) / (2.0 * self.dt);
+        let raw = |i: usize| self.raw.get(i).copied().unwrap_or_default();
+        let mid = raw(c);
+        let (mut su, mut sx, mut qx0, mut qx2) = (0.0, 0.0, 0.0, 0.0);
+        for k in 1..=m {
+            let (after, before) = (raw(c + k), raw(c - k));
+            let kf = k as f64;
+            su += kf * (after.u - before.u);
+            sx += kf * (after.x - before.x);
+            qx0 += after.x + before.x;
+            qx2 += kf * kf * (after.x + before.x);
+        }
+        let (s2, c0, den) = stencil(m);
+        let udot = su / (s2 * self.dt);
+        let xdot = sx / (s2 * self.dt);
+        // Residual of the local quadratic at the centre: variance σ²·(1 − w₀) for
+        // white noise of variance σ² (the weights' squares sum to w₀).
+        let smooth = (c0 * (qx0 + mid.x) - 15.0 * qx2) / den;
+        let w0 = c0 / den;
+        let noise2 = math::powi(mid.x - smooth, 2) / (1.0 - w0);
         let y = match self.config.decomposition {
             Decomposition::Line => mid.x,
             Decomposition::Model => mid.x - mid.h_model,
         };
-        let mut point = Point { u: mid.u, x: mid.x, y, udot, a: 0.0, b: 0.0, dx_diff, class: Class::Unused };
+        let mut point = Point { u: mid.u, x: mid.x, y, udot, a: 0.0, b: 0.0, noise2, class: Class::Unused };
 
-        let s = self.sums.get();
-        let count = s[CNT];
-        if count < 2.0 {
+        // Points that enter before the window is full stay unclassified (they serve
+        // step 1 and the window's statistics only): their stencils were not yet set by
+        // the input's frequency (the first samples of a record have a short one, the
+        // rest the largest), and a mix of the two biases the first fits of steps 2–4.
+        if !self.window.is_full() {
             return point;
         }
+        let s = self.sums.get();
+        let count = s[CNT];
         let mean_x = s[SX] / count;
         let std_x = math::sqrt((s[SXX] / count - mean_x * mean_x).max(0.0));
         let rms_rate = math::sqrt(s[SDD] / count);
-        let h_tol = self.config.h_zero_frac * std_x;
+        let h_tol = self.config.h_zero_frac * ln_saturation(&self.init).map_or(std_x, math::exp);
         if udot.abs() <= self.config.rate_frac * rms_rate || udot == 0.0 || h_tol == 0.0 {
             return point;
         }
         let h = mid.x - p.kv * mid.u - p.x0;
         let hdot = xdot - p.kv * udot;
+        // Noise of ẋ at this point: σ/(√S·Δt) for its stencil.
+        let xdot_noise = math::sqrt(self.x_noise2() / (s2 * self.dt * self.dt));
         if udot > 0.0 && h.abs() < h_tol {
+            // Step 2 regresses ẋ: a point whose ẋ is within `noise_gate` noise
+            // deviations of 0 (the input's turning points) carries no rate.
+            if xdot.abs() < self.config.noise_gate * xdot_noise {
+                return point;
+            }
             // ẋ less the small |h|^n terms of eq. (5) at this h (current β, γ, n),
             // so that ẋ = (A + kv)·u̇ + δ·u holds at the point, not only at h = 0.
             let hn = if h == 0.0 { 0.0 } else { math::powf(h.abs(), p.n) };
@@ -441,10 +592,8 @@ impl PaperIdentifier {
         } else if h > h_tol {
             let r = if udot > 0.0 { (hdot - p.delta * mid.u) / udot } else { (hdot + p.delta * mid.u) / udot };
             let arg = p.a - r;
-            // Noise of r = (ḣ ∓ δu)/u̇ is that of ẋ over |u̇|. For white noise on x,
-            // var(ẋ₅) = 13·var(ẋ₅ − ẋ₃); the signal in ẋ₅ − ẋ₃ only adds to it (safe).
-            let xdot_var = 13.0 * s[SEE] / count;
-            let resolved = arg.abs() * udot.abs() >= self.config.noise_gate * math::sqrt(xdot_var);
+            // Noise of r = (ḣ ∓ δu)/u̇ is that of ẋ over |u̇|.
+            let resolved = arg.abs() * udot.abs() >= self.config.noise_gate * xdot_noise;
             if arg.is_finite() && arg != 0.0 && arg.abs() >= self.config.min_arg_frac * p.a.abs() && resolved {
                 let positive = arg > 0.0;
                 point.a = math::ln(h);
@@ -464,10 +613,15 @@ impl PaperIdentifier {
         let count = s[CNT];
 
         // Step 1.
-        status.line_fit = SubFit::Held;
         let var_u = s[SUU] / count - math::powi(s[SU] / count, 2);
         let excited = count >= 2.0 && var_u > cfg.min_u_std_v * cfg.min_u_std_v;
-        if self.window.is_full() && excited {
+        status.line_fit = StepStatus::held(Reason::WindowFilling, count_u32(count));
+        if !self.window.is_full() {
+            self.rls.active = false;
+        } else if !excited {
+            self.rls.active = false;
+            status.line_fit.reason = Reason::NoExcitation;
+        } else {
             if !self.rls.active || status.refreshed {
                 if let Some(fresh) = LineRls::from_sums(s) {
                     self.rls = fresh;
@@ -481,10 +635,23 @@ impl PaperIdentifier {
             if self.rls.active && kv.abs() >= cfg.min_line_t * se_kv {
                 p.kv = kv;
                 p.x0 = x0;
-                status.line_fit = SubFit::Ran;
+                let noise = math::sqrt(rss / (count - 2.0));
+                status.line_fit =
+                    StepStatus { fit: SubFit::Ran, reason: Reason::None, points: count_u32(count), noise };
+            } else {
+                status.line_fit.reason = Reason::Noise;
             }
-        } else {
-            self.rls.active = false;
+        }
+
+        // Steps 2–5 wait, as step 1 does, for the window's N points: the paper starts
+        // from the batch fit of the first N samples (eq. 7), and a sub-fit on the first
+        // few points of a record fits noise (they sit at the input's turning point, where
+        // u̇ is below the noise of the derivatives) and its estimate feeds every later one.
+        if !self.window.is_full() {
+            let filling = StepStatus::held(Reason::WindowFilling, 0);
+            (status.rate_fit, status.shape_fit, status.return_fit, status.split_fit) =
+                (filling, filling, filling, filling);
+            return (p, status);
         }
 
         // Steps 2–4, each recomputed only when its inputs changed.
@@ -492,9 +659,13 @@ impl PaperIdentifier {
         if touched & TOUCH_CROSSING != 0 || self.cache.rate.is_some_and(|r| r.delta_in != p.delta) {
             self.cache.rate = None;
         }
-        let rate = *self.cache.rate.get_or_insert_with(|| rate_fit(&cfg, s, p.delta));
+        let span = (2 * self.half_width() + 1) as f64;
+        if self.cache.rate.is_some_and(|r| r.span != span) {
+            self.cache.rate = None;
+        }
+        let rate = *self.cache.rate.get_or_insert_with(|| rate_fit(&cfg, s, p.delta, span));
         status.rate_fit = rate.status;
-        if rate.status != SubFit::Held {
+        if rate.status.fit != SubFit::Held {
             p.a = rate.a_plus_kv - p.kv;
             p.delta = rate.delta_out;
         }
@@ -504,8 +675,9 @@ impl PaperIdentifier {
         }
         let shape = *self.cache.shape.get_or_insert_with(|| shape_fit(&cfg, s));
         status.shape_fit = shape.status;
+        let shape_ran = shape.status.fit == SubFit::Ran;
         let mut sum_bg = p.beta + p.gamma;
-        if shape.status == SubFit::Ran {
+        if shape_ran {
             p.n = shape.n;
             sum_bg = shape.sum_bg;
         }
@@ -515,21 +687,25 @@ impl PaperIdentifier {
         }
         let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, s, p.n));
         status.return_fit = ret.status;
-        let diff_gb = if ret.status == SubFit::Ran { ret.diff_gb } else { p.gamma - p.beta };
+        let ret_ran = ret.status.fit == SubFit::Ran;
+        let diff_gb = if ret_ran { ret.diff_gb } else { p.gamma - p.beta };
 
         // Step 5, kept only inside the region where h stays bounded for every
         // input (β + γ > 0 and β − γ > 0) and where the hysteresis terms stay
         // physically bounded (`max_hysteresis_gain`); otherwise β, γ and n are held.
         let (beta, gamma) = (0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb));
-        if beta + gamma > 0.0 && beta - gamma > 0.0 && hysteresis_bounded(&cfg, &self.init, beta, gamma, p.n) {
+        if !(shape_ran || ret_ran) {
+            status.split_fit = StepStatus::held(Reason::Upstream, 0);
+        } else if beta + gamma > 0.0 && beta - gamma > 0.0 && hysteresis_bounded(&cfg, &self.init, beta, gamma, p.n) {
             p.beta = beta;
             p.gamma = gamma;
+            status.split_fit = StepStatus { fit: SubFit::Ran, ..StepStatus::default() };
         } else {
-            status.shape_fit = SubFit::Held;
-            status.return_fit = SubFit::Held;
+            status.split_fit = StepStatus::held(Reason::OutOfBounds, 0);
             p.n = self.params.n;
         }
         if p.validate().is_err() {
+            status.split_fit = StepStatus::held(Reason::OutOfBounds, 0);
             return (self.params, status);
         }
         (p, status)
@@ -544,23 +720,38 @@ impl OnlineIdentifier for PaperIdentifier {
         finite_sample("x", x)?;
 
         // Predict with the estimates from before this sample.
-        if let Some(prev) = self.raw[RAW_HISTORY - 1] {
+        if let Some(prev) = self.raw.last() {
             self.h_model = advance_h(&self.params, self.h_model, prev.u, u, self.dt);
         }
         let prediction = output(&self.params, u, self.h_model);
-        let newest = Raw { u, x, h_model: self.h_model };
+        let newest = self.status.samples;
+        self.raw.push(Raw { u, x, h_model: self.h_model });
 
         let mut status = self.status;
         status.samples += 1;
         status.refreshed = false;
-        if let [Some(a), Some(b), Some(c), Some(d)] = self.raw {
-            let point = self.complete([a, b, c, d, newest]);
+        status.half_width = 0;
+        // Complete every sample whose stencil of half-width m is now held (none while
+        // m grows, several at once when it shrinks; each sample exactly once, in order).
+        let m = self.half_width();
+        let first = status.samples - self.raw.len() as u64;
+        while self.next + m as u64 <= newest {
+            let j = self.next;
+            self.next += 1;
+            // Only the first samples of a record lack m samples before them.
+            let mj = m.min(j.saturating_sub(first) as usize);
+            if j < first || mj < PaperConfig::MIN_HALF_WIDTH {
+                continue;
+            }
+            let point = self.complete((j - first) as usize, mj);
             let leaving = self.window.push(point);
-            status.refreshed = self.sums.slide(&point.contribution(), leaving.map(|l| l.contribution()).as_ref());
-            self.touched |= point.class.touch_bit() | leaving.map_or(0, |l| l.class.touch_bit());
-            if status.refreshed {
+            self.entered += 1;
+            status.half_width = m as u32;
+            if self.sums.slide(&point.contribution(), leaving.map(|l| l.contribution()).as_ref()) {
+                status.refreshed = true;
                 self.touched = TOUCH_ALL;
             }
+            self.touched |= point.class.touch_bit() | leaving.map_or(0, |l| l.class.touch_bit());
             if self.rls.active {
                 self.rls.rank_one(point.u, point.y, 1.0);
                 if let Some(old) = leaving {
@@ -569,12 +760,13 @@ impl OnlineIdentifier for PaperIdentifier {
             }
         }
         status.window_full = self.window.is_full();
+        let (s2, _, _) = stencil(m);
+        status.x_noise_um = math::sqrt(self.x_noise2());
+        status.xdot_noise_um_s = status.x_noise_um / (math::sqrt(s2) * self.dt);
         self.status = status;
         let (params, status) = self.refit();
         self.params = params;
         self.status = status;
-        let [_, a, b, c] = self.raw;
-        self.raw = [a, b, c, Some(newest)];
         Ok(prediction)
     }
 
@@ -588,7 +780,7 @@ impl OnlineIdentifier for PaperIdentifier {
 
     fn forecast_into(&self, u: &[f64], out: &mut [f64]) -> Result<()> {
         super::check_forecast(u, out)?;
-        let u_prev = self.raw[RAW_HISTORY - 1].map(|r| r.u);
+        let u_prev = self.raw.last().map(|r| r.u);
         crate::model::simulate_into(&self.params, u, self.dt, self.h_model, u_prev, out).map(|_| ())
     }
 
@@ -599,7 +791,9 @@ impl OnlineIdentifier for PaperIdentifier {
     fn reset(&mut self) {
         self.params = self.init;
         self.h_model = self.h0;
-        self.raw = [None; RAW_HISTORY];
+        self.raw.clear();
+        self.next = 0;
+        self.entered = 0;
         self.window.clear();
         self.sums.clear();
         self.rls = LineRls { theta: Vector2::new(self.init.kv, self.init.x0), p: Matrix2::zeros(), active: false };

@@ -26,6 +26,7 @@ impl Snapshot for PaperIdentifier {
             c.min_arg_frac,
             c.min_line_t,
             c.noise_gate,
+            c.derivative_phase,
             c.min_delta_t,
             c.min_u_std_v,
             c.n_bounds.0,
@@ -33,23 +34,21 @@ impl Snapshot for PaperIdentifier {
             c.max_hysteresis_gain,
             c.max_delta_ratio,
         ]);
+        w.u64(c.max_half_width as u64);
         w.f64(self.dt);
         w.params(&self.init);
         w.f64(self.h0);
         w.params(&self.params);
         w.f64(self.h_model);
-        for raw in self.raw {
-            match raw {
-                Some(r) => {
-                    w.u8(1);
-                    w.f64s(&[r.u, r.x, r.h_model]);
-                }
-                None => w.u8(0),
-            }
+        w.u64(self.raw.len() as u64);
+        for r in self.raw.iter() {
+            w.f64s(&[r.u, r.x, r.h_model]);
         }
+        w.u64(self.next);
+        w.u64(self.entered);
         w.u64(self.window.len() as u64);
         for p in self.window.iter() {
-            w.f64s(&[p.u, p.x, p.y, p.udot, p.a, p.b, p.dx_diff]);
+            w.f64s(&[p.u, p.x, p.y, p.udot, p.a, p.b, p.noise2]);
             w.u8(match p.class {
                 Class::Unused => 0,
                 Class::Crossing => 1,
@@ -67,12 +66,17 @@ impl Snapshot for PaperIdentifier {
         w.u64(s.samples);
         w.u8(s.window_full as u8);
         w.u8(s.refreshed as u8);
-        for f in [s.line_fit, s.rate_fit, s.shape_fit, s.return_fit] {
-            w.u8(match f {
+        w.u64(s.half_width as u64);
+        w.f64s(&[s.x_noise_um, s.xdot_noise_um_s]);
+        for f in [s.line_fit, s.rate_fit, s.shape_fit, s.return_fit, s.split_fit] {
+            w.u8(match f.fit {
                 SubFit::Held => 0,
                 SubFit::Reduced => 1,
                 SubFit::Ran => 2,
             });
+            w.u8(Reason::ALL.iter().position(|&r| r == f.reason).unwrap_or(0) as u8);
+            w.u64(f.points as u64);
+            w.f64(f.noise);
         }
         w.finish()
     }
@@ -91,8 +95,13 @@ impl Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, min_delta_t, min_u_std_v, n_lo, n_hi, max_hysteresis_gain, max_delta_ratio] =
-            r.f64s::<12>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, derivative_phase, min_delta_t, min_u_std_v, n_lo, n_hi, max_hysteresis_gain, max_delta_ratio] =
+            r.f64s::<13>()?;
+        let at = r.offset();
+        let max_half_width = usize::try_from(r.u64()?)
+            .ok()
+            .filter(|&m| m <= PaperConfig::MAX_HALF_WIDTH)
+            .ok_or_else(|| corrupt(at, "derivative half-width out of range"))?;
         let config = PaperConfig {
             window_len,
             decomposition,
@@ -105,6 +114,8 @@ impl Snapshot for PaperIdentifier {
             min_arg_frac,
             min_line_t,
             noise_gate,
+            derivative_phase,
+            max_half_width,
             min_delta_t,
             min_u_std_v,
             n_bounds: (n_lo, n_hi),
@@ -118,17 +129,23 @@ impl Snapshot for PaperIdentifier {
         let mut id = PaperIdentifier::new(dt, init, h0, config)?;
         id.params = r.params()?;
         id.h_model = r.finite()?;
-        for slot in 0..RAW_HISTORY {
-            id.raw[slot] =
-                if r.bool()? { Some(Raw { u: r.finite()?, x: r.finite()?, h_model: r.finite()? }) } else { None };
+        let at = r.offset();
+        let raws = r.u64()?;
+        if raws > id.raw.capacity() as u64 {
+            return Err(corrupt(at, "more raw samples than the stencil holds"));
         }
+        for _ in 0..raws {
+            id.raw.push(Raw { u: r.finite()?, x: r.finite()?, h_model: r.finite()? });
+        }
+        id.next = r.u64()?;
+        id.entered = r.u64()?;
         let at = r.offset();
         let points = r.u64()?;
         if points > window_len as u64 {
             return Err(corrupt(at, "more window points than the window holds"));
         }
         for _ in 0..points {
-            let [u, x, y, udot, a, b, dx_diff] = r.f64s::<7>()?;
+            let [u, x, y, udot, a, b, noise2] = r.f64s::<7>()?;
             let class = match r.u8()? {
                 0 => Class::Unused,
                 1 => Class::Crossing,
@@ -138,7 +155,7 @@ impl Snapshot for PaperIdentifier {
                 5 => Class::Unloading { positive: false },
                 _ => return Err(corrupt(r.offset() - 1, "unknown window point class")),
             };
-            id.window.push(Point { u, x, y, udot, a, b, dx_diff, class });
+            id.window.push(Point { u, x, y, udot, a, b, noise2, class });
         }
         let sums = r.f64s::<NSUMS>()?;
         let theta = r.f64s::<2>()?;
@@ -149,27 +166,50 @@ impl Snapshot for PaperIdentifier {
         let samples = r.u64()?;
         let window_full = r.bool()?;
         let refreshed = r.bool()?;
-        let mut fits = [SubFit::Held; 4];
+        let half_width = u32::try_from(r.u64()?).map_err(|_| corrupt(at, "half-width out of range"))?;
+        let [x_noise_um, xdot_noise_um_s] = r.f64s::<2>()?;
+        let mut fits = [StepStatus::default(); 5];
         for f in fits.iter_mut() {
-            *f = match r.u8()? {
+            f.fit = match r.u8()? {
                 0 => SubFit::Held,
                 1 => SubFit::Reduced,
                 2 => SubFit::Ran,
                 _ => return Err(corrupt(r.offset() - 1, "unknown sub-fit status")),
             };
+            f.reason =
+                *Reason::ALL.get(r.u8()? as usize).ok_or_else(|| corrupt(r.offset() - 1, "unknown sub-fit reason"))?;
+            f.points = u32::try_from(r.u64()?).map_err(|_| corrupt(r.offset() - 8, "point count out of range"))?;
+            f.noise = r.f64()?;
         }
         r.end()?;
-        let [line_fit, rate_fit, shape_fit, return_fit] = fits;
-        id.status = PaperStatus { samples, window_full, refreshed, line_fit, rate_fit, shape_fit, return_fit };
+        let [line_fit, rate_fit, shape_fit, return_fit, split_fit] = fits;
+        id.status = PaperStatus {
+            samples,
+            window_full,
+            refreshed,
+            half_width,
+            x_noise_um,
+            xdot_noise_um_s,
+            line_fit,
+            rate_fit,
+            shape_fit,
+            return_fit,
+            split_fit,
+        };
 
-        // One window point per push from the third on; the shadow sum holds the
-        // newest `slides mod N` of them.
-        let slides = samples.saturating_sub(RAW_HISTORY as u64);
-        let raws = id.raw.iter().filter(|r| r.is_some()).count() as u64;
-        if points != slides.min(window_len as u64) || raws != samples.min(RAW_HISTORY as u64) {
+        // The shadow sum holds the newest `entered mod N` window points; every raw
+        // sample up to the newest is held (as many as the stencil keeps), and the next
+        // sample to complete is among them.
+        let first = samples - raws;
+        if points != id.entered.min(window_len as u64)
+            || raws != samples.min(id.raw.capacity() as u64)
+            || id.entered > id.next
+            || id.next > samples
+            || (id.next < first && samples > 0)
+        {
             return Err(corrupt(at, "sample count does not match the stored window"));
         }
-        let count = (slides % window_len as u64) as usize;
+        let count = (id.entered % window_len as u64) as usize;
         let mut shadow = [0.0; NSUMS];
         for p in id.window.iter().skip(points as usize - count) {
             for (s, c) in shadow.iter_mut().zip(p.contribution()) {

@@ -64,6 +64,18 @@ impl<T: Copy + Default> Ring<T> {
         self.capacity
     }
 
+    /// The `i`-th item from the oldest (`None` past the newest).
+    #[inline]
+    pub fn get(&self, i: usize) -> Option<&T> {
+        (i < self.len).then(|| &self.items[(self.head + i) % self.capacity])
+    }
+
+    /// The newest item.
+    #[inline]
+    pub fn last(&self) -> Option<&T> {
+        self.len.checked_sub(1).and_then(|i| self.get(i))
+    }
+
     /// Items from the oldest to the newest.
     pub fn iter(&self) -> impl Iterator<Item = &T> + '_ {
         (0..self.len).map(move |i| &self.items[(self.head + i) % self.capacity])
