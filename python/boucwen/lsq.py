@@ -310,9 +310,15 @@ class OutputErrorProblem:
         reuse_jacobian: bool = False,
     ) -> Solution:
         """Minimises ½‖r‖² from ``z0`` within [lower, upper] by ``method`` (module
-        docs); ``margin`` and ``reuse_jacobian`` are those of
-        :func:`~boucwen.levenberg.levenberg_marquardt` ("lm" only)."""
+        docs); ``margin`` is the statistical stop of
+        :func:`~boucwen.levenberg.levenberg_marquardt` (for "trf", its ``ftol``: a relative
+        fall of the cost below margin/(rows − p)); ``reuse_jacobian`` is "lm"'s."""
         if method == "trf":
+            # The same statistical stop as "lm": a step that lowers the cost by less than
+            # ``margin`` times the noise variance σ̂² = cost/(rows − p) moves the unknowns by
+            # less than the record resolves (and along a flat valley, by an amount no
+            # record determines).
+            statistical = margin / max(self._rows - z0.size, 1)
             res = least_squares(
                 self.residual,
                 z0,
@@ -321,7 +327,7 @@ class OutputErrorProblem:
                 method="trf",
                 x_scale=x_scale,
                 xtol=tol,
-                ftol=tol,
+                ftol=max(tol, statistical),
                 gtol=tol,
                 max_nfev=max_nfev,
             )

@@ -16,8 +16,9 @@ Units: u [V], x and errors [µm], t and dt [s].
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -30,11 +31,13 @@ from .effects.base import params_of, set_of
 from .model_file import ModelSource, SavedModel
 from .pacing import PacedFeed, RefineMode, feed_for
 from .record import Record
+from .status import StepReason
 
 __all__ = [
     "BLOCK_S",
     "METHODS",
     "ONLINE_EFFECTS",
+    "REASON_CODES",
     "SUBFIT_CODES",
     "Replay",
     "check_options",
@@ -51,6 +54,9 @@ BLOCK_S = 0.1
 ONLINE_EFFECTS: dict[str, tuple[str, ...]] = {"horizon": ("input_lag",), "rpem": ("input_lag", "creep"), "paper": ()}
 #: How the paper method's sub-fit outcomes are written in the status columns.
 SUBFIT_CODES = {"ran": 0, "reduced": 1, "held": 2}
+#: The number written for each reason a step of the paper's method gives
+#: (:data:`boucwen.status.StepReason`, in its order).
+REASON_CODES = {reason: k for k, reason in enumerate(get_args(StepReason))}
 
 
 def make_identifier(
@@ -140,7 +146,7 @@ def _flat(prefix: str, value: Any, out: dict[str, float]) -> None:
         for i, v in enumerate(value):
             _flat(f"{prefix}.{i + 1}", v, out)
     elif isinstance(value, str):
-        out[prefix] = float(SUBFIT_CODES.get(value, -1))
+        out[prefix] = float(SUBFIT_CODES.get(value, REASON_CODES.get(value, -1)))
     else:
         out[prefix] = float("nan") if value is None else float(value)
 
@@ -170,7 +176,7 @@ class _RecordingFeed(PacedFeed):
                 _flat("", params_of(found), effects)
             self.rows.append(effects)
             status: dict[str, float] = {}
-            _flat("", dict(ident.status), status)
+            _flat("", dataclasses.asdict(ident.status), status)
             self.status_rows.append(status)
         return out
 

@@ -68,7 +68,7 @@ from ..residual import Unexplained, fit_evidence, lookalike_tests, noise_level, 
 from ..residual import residual_evidence_record as residual_evidence_record
 from . import fits
 from .fits import Convergence, Scored
-from .judge import Decision
+from .judge import Decision, on_common_blocks
 from .policy import DiagnosisPolicy
 from .report import AtBound, Diagnosis, ModelFit, NamedEffect, write_predictions, write_report
 from .search import Search, search
@@ -240,10 +240,11 @@ def _outcome(
         _named(e, state, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
     )
     named = tuple(sorted(named, key=lambda e: added.index(e.name)))
+    cv_before, cv_after = on_common_blocks(base.cv, final.cv, policy.folds)
     unseen = Unseen(
         folds=policy.folds,
-        cv_rms_before_um=base.cv.rms_um,
-        cv_rms_after_um=final.cv.rms_um,
+        cv_rms_before_um=cv_before,
+        cv_rms_after_um=cv_after,
         validation=(
             OnValidation(len(validate), prediction_error(base.fit, validate), prediction_error(final.fit, validate))
             if validate is not None
@@ -280,6 +281,7 @@ def _outcome(
         unexplained=left,
         named_effects=named,
         decisions=(*decisions, *on_validation),
+        taken=tuple(r.taken for r in state.rounds if r.taken is not None),
         at_bounds=fits.on_bounds(final.fit, record, policy.bound_tolerance),
         unseen=unseen,
     )

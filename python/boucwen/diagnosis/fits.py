@@ -80,7 +80,8 @@ class Convergence:
 
     Attributes:
         method: ``"lm"`` (:mod:`boucwen.levenberg`, the default) or ``"trf"`` (SciPy's
-            trust-region reflective method).
+            trust-region reflective method) for the fits of the models compared (the
+            judge's block refits are always ``"lm"``: :func:`held_out`).
         margin: the statistical stop of ``"lm"``: remaining step ≤ √margin standard
             errors.
         tol: relative change of the cost or the unknowns that stops either method.
@@ -141,8 +142,13 @@ def _converge(record: Record, fit: ExtendedFit, effects: EffectSet, conv: Conver
 
 def held_out(record: Record, solved: Solved, folds: int, conv: Convergence) -> CrossValidation:
     """The held-out residual [µm] of the fit ``solved``: each block's from the model
-    refitted to convergence by ``conv`` without it (from the whole-record fit, at most
-    :data:`FOLD_NFEV` trial points), with which refits converged."""
+    refitted without it (from the whole-record fit, at most
+    :data:`FOLD_NFEV` trial points; it starts a few steps from its optimum, so a Jacobian
+    is kept while it predicts the steps), with which refits converged. The refits are
+    the judge's measurement and always run Levenberg–Marquardt to ``conv``'s statistical
+    stop, whatever solver fits the models: along a direction the rest of the record
+    hardly determines, where a refit stops is set by its stopping rule, and the
+    statistical stop is the one that stops where the record no longer resolves a step."""
     fr = solved.fit
     n = len(record)
     held = np.empty(n)
@@ -157,9 +163,10 @@ def held_out(record: Record, solved: Solved, folds: int, conv: Convergence) -> C
             fr.h0,
             max_nfev=FOLD_NFEV,
             tol=conv.tol,
-            method=conv.method,
+            method="lm",
             margin=conv.margin,
             weights=weights,
+            reuse_jacobian=True,
         )
         held[sl] = record.x[sl] - refitted.x[sl]
         converged.append(refitted.fit.success)

@@ -3,9 +3,10 @@ move (:func:`judge`).
 
 **Held-out error.** The record is cut into ``folds`` contiguous blocks of equal length;
 each block is held out in turn from a refit on the others, and every sample's held-out
-residual comes from the refit without its block (:func:`boucwen.diagnosis.fits.scored`:
-each refit converged by the same solver as the whole-record fit, started there, the model
-running through the held-out block, which only leaves the cost). Where the rest of the
+residual comes from the refit without its block (:func:`boucwen.diagnosis.fits.held_out`:
+each refit converged by Levenberg–Marquardt to its statistical stop, started at the
+whole-record fit, the model running through the held-out block, which only leaves the
+cost). Where the rest of the
 record does not determine the model (the held-out block alone holds the largest
 excursion of the input, say), the refit runs off along a flat valley and does not
 converge: that block is left out of every comparison of that model, and of the held-out
@@ -48,6 +49,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy import stats
 
 from ..checks import FloatArray
@@ -61,6 +63,7 @@ __all__ = [
     "fold_slices",
     "gain",
     "judge",
+    "on_common_blocks",
     "threshold",
 ]
 
@@ -159,7 +162,7 @@ def gain(candidate: CrossValidation, reference: CrossValidation, folds: int, bat
     return Gain(ref - float(np.mean(c2[kept])), mean, se, t, folds_, ref)
 
 
-def _masks(n: int, parts: int) -> list[FloatArray]:
+def _masks(n: int, parts: int) -> list[NDArray[np.intp]]:
     """The sample indices of each of ``parts`` contiguous slices of ``range(n)``."""
     return [np.arange(n)[sl] for sl in fold_slices(n, parts)]
 
@@ -273,6 +276,18 @@ def judge(
 def _share(g: Gain, noise_um: float) -> str:
     beyond = g.reference_mse_um2 - noise_um**2
     return f"{g.mean_um2 / beyond:.1%} of the error" if beyond > 0 else "none of the error (it is noise)"
+
+
+def on_common_blocks(a: CrossValidation, b: CrossValidation, folds: int) -> tuple[float, float]:
+    """The held-out RMS errors [µm] of ``a`` and ``b`` over the blocks whose refits
+    converged for both (nan where none did): two models' unseen errors on the same
+    samples."""
+    slices = [sl for sl, x, y in zip(fold_slices(a.residual.size, folds), a.converged, b.converged) if x and y]
+    if not slices:
+        return math.nan, math.nan
+    return rms(np.concatenate([a.residual[sl] for sl in slices])), rms(
+        np.concatenate([b.residual[sl] for sl in slices])
+    )
 
 
 def apart(a: CrossValidation, b: CrossValidation, folds: int, batches: int, t_min: float) -> bool:

@@ -125,7 +125,9 @@ class Diagnosis:
         named_effects: the effects of the returned model, typed, each with its
             confidence and rivals (:class:`NamedEffect`), in the order added.
         decisions: every move the search judged, in order
-            (:class:`~boucwen.diagnosis.judge.Decision`).
+            (:class:`~boucwen.diagnosis.judge.Decision`), then those on the validation
+            record.
+        taken: the moves the search took, in order.
         at_bounds: the returned model's unknowns that ended on a bound of the fit
             (:class:`AtBound`).
         unseen: errors on data the fits did not see [µm]: blocked cross-validation of the
@@ -148,6 +150,7 @@ class Diagnosis:
     unexplained: Unexplained | None = None
     named_effects: tuple[NamedEffect, ...] = ()
     decisions: tuple[Decision, ...] = ()
+    taken: tuple[Decision, ...] = ()
     at_bounds: list[AtBound] = field(default_factory=list)
     unseen: Unseen | None = None
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 from ..effects import FN_MAX_NYQUIST_FRACTION, VOCABULARY, effect_class, simulate_chain
@@ -279,7 +280,7 @@ def _screened(
     for each move the copy leaves out, and the decisions on the copy."""
     full = [_full_only(m, record, current, copy) for m in moves]
     on = [m for m, f in zip(moves, full) if not f]
-    fitted = thread_map(lambda m: _candidate(copy, on_copy, m, conv, policy), on, workers)
+    fitted = thread_map(lambda m: _candidate(copy, on_copy, m, conv=conv, policy=policy), on, workers)
     decisions, _ = _judged(copy, on_copy, on, fitted, t_min, noise_um, policy)
     chosen: set[int] = set()
     growing = [(m, d, f) for m, d, f in decisions if m.kind != "drop"]
@@ -292,10 +293,10 @@ def _screened(
     def on_full(k: int) -> Scored | str:
         m = moves[k]
         if full[k]:
-            return _candidate(record, current, m, conv, policy)
+            return _candidate(record, current, m, conv=conv, policy=policy)
         if id(m) not in chosen:
             return "not among the moves the screened copy ranks first"
-        return _candidate(record, current, m, conv, policy)
+        return _candidate(record, current, m, conv=conv, policy=policy)
 
     return thread_map(on_full, list(range(len(moves))), workers), [d for _, d, _ in decisions]
 
@@ -338,7 +339,7 @@ def search(
         if on_copy is not None and copy is not None:
             fitted, screened = _screened(record, copy, on_copy, current, moves, t_min, noise_um, conv, policy, workers)
         else:
-            fitted = thread_map(lambda m, at=current: _candidate(record, at, m, conv, policy), moves, workers)
+            fitted = thread_map(partial(_candidate, record, current, conv=conv, policy=policy), moves, workers)
         decisions, rejected = _judged(record, current, moves, fitted, t_min, noise_um, policy)
         for _, d, f in decisions:
             verdict = "accepted" if d.accepted else "no"
@@ -408,10 +409,10 @@ def _take(
                 state.rivals.get(m.drops, set()).discard(f)
     drops = [(m, d, f) for m, d, f in decisions if m.kind == "drop" and d.accepted]
     if drops:
-        m, d, f = max(drops, key=lambda t: (t[1].gain.t, vocabulary_order(t[0].effects)))
-        assert m.drops is not None
-        state.rivals.pop(m.drops, None)
-        return Round(all_decisions, d, ((d, f.cv.rms_um),), rejected, signatures, screened)
+        dropped, decision, fit = max(drops, key=lambda t: (t[1].gain.t, vocabulary_order(t[0].effects)))
+        assert dropped.drops is not None
+        state.rivals.pop(dropped.drops, None)
+        return Round(all_decisions, decision, ((decision, fit.cv.rms_um),), rejected, signatures, screened)
     growing = [(m, d, f) for m, d, f in decisions if m.kind != "drop"]
     accepted = [t for t in growing if t[1].accepted]
     if not accepted:
@@ -419,14 +420,14 @@ def _take(
     best = max(accepted, key=lambda t: t[1].gain.mean_um2)
     tied = [t for t in growing if t is best or not apart(t[2].cv, best[2].cv, folds, batches, t_min)]
     eligible = [t for t in tied if t[1].accepted]
-    m, d, f = min(eligible, key=lambda t: (t[2].unknowns, vocabulary_order(t[0].adds)))
-    added = set(m.adds)
+    move, decision, _ = min(eligible, key=lambda t: (t[2].unknowns, vocabulary_order(t[0].adds)))
+    added = set(move.adds)
     others = {k for mm, _, _ in tied for k in mm.adds if k not in added}
-    if m.drops is not None:
+    if move.drops is not None:
         # The effect swapped out stays a rival of the one swapped in.
-        others.add(m.drops)
-        state.rivals.pop(m.drops, None)
-    for k in m.adds:
+        others.add(move.drops)
+        state.rivals.pop(move.drops, None)
+    for k in move.adds:
         state.rivals[k] = set(others)
     ambiguity = tuple((t[1], t[2].cv.rms_um) for t in sorted(tied, key=lambda t: _finite(t[2].cv.rms_um)))
-    return Round(all_decisions, d, ambiguity, rejected, signatures, screened)
+    return Round(all_decisions, decision, ambiguity, rejected, signatures, screened)

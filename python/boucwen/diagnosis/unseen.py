@@ -98,7 +98,8 @@ class Unseen:
 
     Attributes:
         folds: contiguous folds of the blocked cross-validation.
-        cv_rms_before_um, cv_rms_after_um: its RMS error, base and returned models [µm].
+        cv_rms_before_um, cv_rms_after_um: its RMS error, base and returned models [µm],
+            over the blocks whose refits converged for both.
         validation: with a validation record, both models carried to it; else None.
     """
 

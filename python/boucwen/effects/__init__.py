@@ -35,7 +35,7 @@ unknowns. Adding an effect: one module here declaring its class, listed in
 core.
 """
 
-from .base import Context, Effect, RefitStarts, Start, TrialStart, simulate_chain
+from .base import Context, Effect, Start, simulate_chain
 from .creep import Creep, creep_time_constants
 from .delay import Delay, best_delay
 from .drift import Drift
@@ -51,7 +51,7 @@ from .fit import (
     solve_extended_record,
 )
 from .gain_drift import GainDrift
-from .input_lag import InputLag, lagged
+from .input_lag import InputLag
 from .pickup import LINE_FREQUENCIES_HZ, MAX_START_HARMONICS, Pickup
 from .registry import EFFECTS, VOCABULARY, effect_class, effect_set, effects_of, from_json, to_json
 from .resonance import FN_MAX_NYQUIST_FRACTION, ZETA_BOUNDS, Resonance
@@ -76,13 +76,11 @@ __all__ = [
     "InputLag",
     "Layout",
     "Pickup",
-    "RefitStarts",
     "Resonance",
     "Resonance2",
     "Saturation",
     "Solved",
     "Start",
-    "TrialStart",
     "best_delay",
     "candidate_starts",
     "creep_time_constants",
@@ -93,7 +91,6 @@ __all__ = [
     "fit_extended_record",
     "from_json",
     "jacobian_extended",
-    "lagged",
     "simulate_chain",
     "solve_extended_record",
     "to_json",

@@ -15,9 +15,6 @@ the extended fit needs to know about it:
 and what the diagnosis needs to know about it when it tries the effect on a record
 (the search itself names no effect; see :mod:`boucwen.diagnosis`):
 
-* :meth:`Effect.refit_starts`: where the current model, bent to follow the effect, is
-  refitted to variants of the record before the trial starts (a delay: the record
-  shifted by whole samples; a drift: the record less a trend; an input lag: u lagged);
 * :attr:`Effect.partner`, :meth:`Effect.beside`: an effect tried beside another, whose
   trial adds both while the model lacks the other (a second resonance mode);
 * :meth:`Effect.rejects`: a fitted value that makes the effect no candidate (a
@@ -36,7 +33,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar, TypeVar, cast
 
@@ -49,9 +46,7 @@ __all__ = [
     "UNBOUNDED",
     "Context",
     "Effect",
-    "RefitStarts",
     "Start",
-    "TrialStart",
     "params_of",
     "set_of",
     "simulate_chain",
@@ -96,46 +91,6 @@ class Start:
     h0: float
     max_delay: int = 8
     creep_tau_s: tuple[float, ...] | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class TrialStart:
-    """A trial about to add an effect to the current fit (what :meth:`Effect.refit_starts`
-    is asked with).
-
-    Attributes:
-        record: the record the trial fits.
-        params, effects, h0: the current fit (base parameters, effects, h0 [µm]).
-        ranked: the effect's starts (:meth:`Effect.starts` added to ``effects``), best
-            first by the first-order refit of the current model.
-        screened: the record is screened: its refits run on its decimated copy.
-        screened_refits: how many variants a refit start may try on a screened record.
-    """
-
-    record: Record
-    params: Params
-    effects: EffectSet
-    h0: float
-    ranked: tuple[EffectSet, ...]
-    screened: bool
-    screened_refits: int
-
-
-@dataclass(frozen=True, eq=False)
-class RefitStarts:
-    """Starts of a trial that first refit the current model to variants of the record.
-
-    Attributes:
-        variants: each variant of the record (made of the full record), in order.
-        starts: the effects the trial starts with after the refit to each variant.
-        hopeless: per variant, why the trial is hopeless when that variant is the best
-            and fits no better than the record itself; None: the trial then starts
-            from the current model with its best-ranked start.
-    """
-
-    variants: tuple[Callable[[Record], Record], ...]
-    starts: tuple[EffectSet, ...]
-    hopeless: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -229,25 +184,9 @@ class Effect(ABC):
         (the caller keeps the one of least error)."""
 
     @classmethod
-    def refit_starts(cls, at: TrialStart) -> RefitStarts | None:
-        """Variants of the record to refit the current model to before the trial (the
-        current fit has bent itself to follow what the effect describes, and the
-        effect added to that bend starts wrong); None: the trial starts from the
-        current model with the best-ranked start."""
-        return None
-
-    @classmethod
     def beside(cls, partner_start: EffectSet) -> EffectSet:
         """The start of the joint trial (:attr:`partner`), from the partner's best start."""
         return partner_start
-
-    @classmethod
-    def direction(cls, x_model: FloatArray) -> FloatArray | None:
-        """The first-order change the effect makes to a model's prediction ``x_model``
-        [µm] (per unit of its unknown), where that is known without a fit: a trial is
-        hopeless where this direction does not cut the cross-validated error; None: not
-        known."""
-        return None
 
     def rejects(self) -> str | None:
         """Why the fitted effect is no candidate (the trial is recorded, not credited),

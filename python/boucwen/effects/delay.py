@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from .._core import EffectSet, Params
-from ..checks import FloatArray
 from ..metrics import rms
 from ..record import Record
-from .base import Effect, RefitStarts, Start, TrialStart, simulate_chain, without
+from .base import Effect, Start, simulate_chain, without
 
 __all__ = ["Delay", "best_delay"]
 
@@ -42,34 +40,6 @@ class Delay(Effect):
         first = max(d, 1)
         order = [first, *(k for k in range(1, at.max_delay + 1) if k != first)]
         return [cls(samples=k) for k in order]
-
-    @classmethod
-    def refit_starts(cls, at: TrialStart) -> RefitStarts:
-        """The current model refitted to the record shifted by each delay of the ranked
-        starts (the best-ranked :attr:`TrialStart.screened_refits` on a screened
-        record, every one otherwise); hopeless where no shift fits better than none.
-
-        The current fit has bent itself to follow the lag; a delay of d samples is the
-        model fitted to the record shifted by d. The first-order ranking is poor where
-        the base model has absorbed the delay: under a triangle (|u̇| constant, a delay
-        is an offset the hysteresis takes up, except at the reversals) its cost rises
-        from 1 sample on while the delay is 8."""
-        ranked = at.ranked[: at.screened_refits] if at.screened else at.ranked
-        delays = [s.to_dict()["delay"]["samples"] for s in ranked]
-        return RefitStarts(
-            variants=tuple(_shifted(d) for d in delays),
-            starts=tuple(ranked),
-            hopeless=tuple(f"hopeless: the best shift ({d} samples) fits no better than none" for d in delays),
-        )
-
-    @classmethod
-    def direction(cls, x_model: FloatArray) -> FloatArray:
-        """The model's rate per sample, dx̂/dk [µm]: the first-order change of a small delay."""
-        return np.gradient(x_model)
-
-
-def _shifted(d: int) -> Callable[[Record], Record]:
-    return lambda record: record.realigned(d)
 
 
 def best_delay(

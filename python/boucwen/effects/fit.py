@@ -320,13 +320,16 @@ def solve_extended_record(
     margin: float = STATISTICAL_MARGIN,
     weights: FloatArray | None = None,
     prior_weights: FloatArray | None = None,
+    reuse_jacobian: bool = False,
 ) -> Solved:
     """:func:`fit_extended_record` with the fit's simulated displacement and the
     optimiser's Jacobian at the solution, for the callers that score the fit.
     ``weights`` (one per sample, 0 or 1) leaves samples out of the cost (a refit without
     a block of the record: the model still runs through them); the errors of the
     result are over every sample. ``prior_weights`` (one per unknown, µm per unit of
-    it) pulls each unknown weakly towards its start (:class:`boucwen.lsq.Prior`)."""
+    it) pulls each unknown weakly towards its start (:class:`boucwen.lsq.Prior`).
+    ``reuse_jacobian``: keep a Jacobian while it predicts the steps (``"lm"``; a start
+    near the optimum: :func:`boucwen.levenberg.levenberg_marquardt`)."""
     u, x, dt = record.u, record.x, record.dt
     layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
     v0 = layout.pack(params, effects, h0)
@@ -341,7 +344,9 @@ def solve_extended_record(
     prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights, prior=prior)
     if prob.simulate(v0) is None:
         raise ValueError("the starting point of fit_extended cannot be simulated")
-    res = prob.solve(v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev, method=method, margin=margin)
+    res = prob.solve(
+        v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev, method=method, margin=margin, reuse_jacobian=reuse_jacobian
+    )
     p, e, h = layout.unpack(res.x)
     xs = simulate_chain(p, e, u, dt, h)
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point

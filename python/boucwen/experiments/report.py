@@ -245,6 +245,7 @@ BLOCKS: dict[str, Block] = {
     "track_on": Block("track", lambda r: _track(r, "vibration_on", None, rms=True)),
     "compare": Block("compare", lambda r: _compare(r)),
     "diagnosis_suite": Block("diagnosis_suite", lambda r: _suite(r)),
+    "diagnosis_speed": Block("diagnosis_speed", lambda r: _speed(r)),
     "plant_family": Block("plant_family", lambda r: _family(r)),
     "bench_paper_steps": Block("reproduce", lambda r: _steps(r["paper_steps"]["online_paper"])),
     "exact_table1": Block("paper_exact", _exact_table1),
@@ -295,6 +296,15 @@ def _family(r: Mapping[str, Any]) -> str:
     trad = " | ".join(_num(first[f]["traditional_ratio_oracle_median"], "{:.2f}") for f in freqs)
     lines.append(f"| traditional (offline fit at 1 Hz, then fixed), median | {trad} |")
     return "\n".join(lines)
+
+
+def _speed(r: Mapping[str, Any]) -> str:
+    """The table of ``python benches/diagnosis_speed.py --out out/diagnosis_speed
+    [--baseline FILE]``, with its caption."""
+    return (
+        "`python benches/diagnosis_speed.py --baseline BEFORE.json --out out/diagnosis_speed` "
+        f"(package {r['version']}; baseline: the same script run on the previous release):\n\n{r['table']}"
+    )
 
 
 def _suite(r: Mapping[str, Any]) -> str:
