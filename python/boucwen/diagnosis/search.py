@@ -25,12 +25,13 @@ cycle). What the residual follows (the look-alike tests of
 than :data:`SCREEN_RATE_HZ`) wraps the fits; it never decides. Every move is first fitted
 on a copy of the record holding every q-th sample, against the current model refitted
 there; the move the copy ranks best (least held-out error), every move the copy cannot
-tell from it, and every move the copy accepts are then fitted on the full record as without
-screening (from the full record's own starts: an effect's starts may depend on the
-sampling interval, a creep's shortest time constant), and the judge decides there. Moves the copy cannot hold —
-an effect of whole samples of the record's rate (:attr:`boucwen.effects.Effect.full_rate_only`),
-a mode where the residual's spectral peak lies above what the copy can hold, any move
-from a model the copy cannot simulate — are fitted on the full record directly.
+tell from it, and every move it sees any held-out gain from are then fitted on the full
+record as without screening (from the full record's own starts: an effect's starts may
+depend on the sampling interval, a creep's shortest time constant), and the judge
+decides there. Moves the copy cannot hold — an effect of whole samples of the record's
+rate (:attr:`boucwen.effects.Effect.full_rate_only`), a mode where the residual's
+spectral peak lies above what the copy can hold, any move from a model the copy cannot
+simulate — are fitted on the full record directly.
 """
 
 from __future__ import annotations
@@ -288,7 +289,10 @@ def _screened(
         best = min(growing, key=lambda t: _finite(t[2].cv.rms_um))
         folds, batches = policy.folds, policy.batches
         chosen |= {id(m) for m, _, f in growing if m is best[0] or not apart(f.cv, best[2].cv, folds, batches, t_min)}
-    chosen |= {id(m) for m, d, _ in decisions if d.accepted}
+    # A move the copy sees any held-out gain from goes on: an effect whose time scale is
+    # near the copy's sampling interval (a lag's corner, a creep's fastest element) shows
+    # only part of itself there.
+    chosen |= {id(m) for m, d, _ in decisions if d.accepted or d.gain.mean_um2 > 0}
 
     def on_full(k: int) -> Scored | str:
         m = moves[k]
