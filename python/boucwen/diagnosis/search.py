@@ -30,8 +30,8 @@ record as without screening (from the full record's own starts: an effect's star
 depend on the sampling interval, a creep's shortest time constant), and the judge
 decides there. Moves the copy cannot hold — an effect of whole samples of the record's
 rate (:attr:`boucwen.effects.Effect.full_rate_only`), a mode where the residual's
-spectral peak lies above what the copy can hold, any move from a model the copy cannot
-simulate — are fitted on the full record directly.
+spectral peak lies above what the copy can hold, a move with no candidate on the copy,
+any move from a model the copy cannot simulate — are fitted on the full record directly.
 """
 
 from __future__ import annotations
@@ -283,6 +283,11 @@ def _screened(
     on = [m for m, f in zip(moves, full) if not f]
     fitted = thread_map(lambda m: _candidate(copy, on_copy, m, conv=conv, policy=policy), on, workers)
     decisions, _ = _judged(copy, on_copy, on, fitted, t_min, noise_um, policy)
+    # A move with no candidate on the copy (no start simulates there, or its fit is not
+    # what its name says at the copy's rate) is one the copy cannot hold.
+    for m, f in zip(on, fitted):
+        if isinstance(f, str):
+            full[moves.index(m)] = True
     chosen: set[int] = set()
     growing = [(m, d, f) for m, d, f in decisions if m.kind != "drop"]
     if growing:

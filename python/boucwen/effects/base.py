@@ -115,8 +115,9 @@ class Effect(ABC):
     #: ``peak``); None where no test speaks of it. Evidence only, reported beside the
     #: diagnosis's answer.
     signature: ClassVar[str | None] = None
-    #: Its parameters are whole samples of the record's rate (a delay): a decimated
-    #: copy of the record cannot hold it, so it is fitted on the full record only.
+    #: Its parameters need the record's full rate (a delay's whole samples; a lag's
+    #: corner, which may lie above a decimated copy's band): a decimated copy of the
+    #: record cannot hold it, so it is fitted on the full record only.
     full_rate_only: ClassVar[bool] = False
     #: It belongs to the record, not to the device (a drift, a mains pickup whose phase
     #: is the record's): not carried to another record of the device.

@@ -29,6 +29,7 @@ class InputLag(Effect):
 
     name: ClassVar[str] = "input_lag"
     signature: ClassVar[str | None] = "lag"
+    full_rate_only: ClassVar[bool] = True
     fc_hz: float
 
     def unknowns(self) -> tuple[str, ...]:
