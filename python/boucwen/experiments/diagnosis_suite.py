@@ -307,12 +307,19 @@ def gap_checks(by_half: dict[str, dict[str, float]]) -> list[tuple[str, bool]]:
     dev, held = by_half["development"], by_half["held_out"]
     gap = dev["inside_named"] - held["inside_named"]
     worse = held["outside_wrong_name"] - dev["outside_wrong_name"]
+    named_ok = bool(np.isnan(gap)) or gap <= NAMED_GAP
+    outside_ok = bool(np.isnan(worse)) or worse <= 0
     return [
         (
-            f"inside_named gap (development − held_out): {gap:.3g} (check ≤ {NAMED_GAP:g})",
-            bool(np.isnan(gap)) or gap <= NAMED_GAP,
+            f"inside_named gap (development − held_out): {gap:.3g} (check ≤ {NAMED_GAP:g}) "
+            + ("holds" if named_ok else "FAILS"),
+            named_ok,
         ),
-        (f"outside_wrong_name, held_out − development: {worse:.3g} (check ≤ 0)", bool(np.isnan(worse)) or worse <= 0),
+        (
+            f"outside_wrong_name, held_out − development: {worse:.3g} (check ≤ 0) "
+            + ("holds" if outside_ok else "FAILS"),
+            outside_ok,
+        ),
     ]
 
 
