@@ -158,3 +158,20 @@ def test_a_candidate_whose_fit_did_not_converge_is_never_accepted(kind):
     decisions, _ = search_module._judged(None, current, [move], [unconverged], t_min, 0.01, POLICY)
     [(_, d, _)] = decisions
     assert not d.accepted and "did not converge" in d.reason
+
+
+def test_with_one_effect_kept_its_drop_and_its_swaps_are_proposed():
+    moves = proposals(("creep",), {"creep": {"drift", "gain_drift"}}, 4)
+    assert Move("drop", drops="creep") in moves
+    assert {m.adds for m in moves if m.kind == "swap"} == {("gain_drift",), ("drift",)}
+
+
+def test_two_tied_effects_added_at_once_have_no_rival_when_none_is_within_the_margin():
+    current = _scored((), 0.1)
+    both = _scored(("resonance", "resonance2"), 0.01, 12)
+    lag = _scored(("input_lag",), 0.08, 9)
+    round_, state = _round(
+        current, [(Move("add_tied", ("resonance", "resonance2")), both), (Move("add", ("input_lag",)), lag)]
+    )
+    assert round_.taken is not None and round_.taken.move == "add_tied"
+    assert state.rivals == {"resonance": set(), "resonance2": set()}
