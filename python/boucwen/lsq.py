@@ -8,9 +8,7 @@ Both fits minimise the *output* error of a model simulated from the voltage alon
 over their unknowns z, where s(z) is the simulated signal, y the measured one and
 P either the identity or the projection off span{basis} (the variable projection of
 :func:`boucwen.fit`, whose linear part is solved separately). An optional
-:class:`Ridge` row pulls one unknown towards 0, and an optional :class:`Prior` pulls
-every unknown weakly towards a point (a refit without a block of the record, kept where
-the rest of the record does not determine it). The engine owns what the two fits
+:class:`Ridge` row pulls one unknown towards 0. The engine owns what the two fits
 share:
 
 * the residual, from one simulation, and its Jacobian P·∂s/∂z, from one pass of the
@@ -52,7 +50,6 @@ __all__ = [
     "ManySimulator",
     "Method",
     "OutputErrorProblem",
-    "Prior",
     "Ridge",
     "Simulator",
     "SimulatorWithJacobian",
@@ -158,15 +155,6 @@ class Ridge:
     scale: float
 
 
-@dataclass(frozen=True, eq=False)
-class Prior:
-    """The residual rows ``weights · (z − center)`` [µm]: a weak pull of every unknown
-    towards ``center`` (one weight per unknown, in µm per unit of the unknown)."""
-
-    center: FloatArray
-    weights: FloatArray
-
-
 class OutputErrorProblem:
     """``r(z) = P·(simulate(z) − target)`` (plus an optional ridge row), its Jacobian and
     its minimisation (module docs).
@@ -178,8 +166,6 @@ class OutputErrorProblem:
         basis: columns whose span is projected out of the residual (variable
             projection), or None.
         ridge: an extra residual row, or None.
-        prior: extra residual rows pulling every unknown towards a point, or None (not
-            with ``ridge``).
         simulate_many: several unknowns → their simulated signals (each or None) in
             one batch, for :meth:`costs`; None to run ``simulate`` in threads.
     """
@@ -193,19 +179,14 @@ class OutputErrorProblem:
         basis: FloatArray | None = None,
         ridge: Ridge | None = None,
         simulate_many: ManySimulator | None = None,
-        prior: Prior | None = None,
     ):
-        if ridge is not None and prior is not None:
-            raise ValueError("an output-error problem takes a ridge row or a prior, not both")
         self._simulate = simulate
         self._simulate_many = simulate_many
         self._simulate_with_jacobian = simulate_with_jacobian
         self.target = target
         self.ridge = ridge
-        self.prior = prior
         self._q: FloatArray | None = orthonormal(basis) if basis is not None else None
-        self._extra = 1 if ridge is not None else (prior.center.size if prior is not None else 0)
-        self._rows = target.size + self._extra
+        self._rows = target.size + (1 if ridge is not None else 0)
         self._lock = threading.Lock()
         self._count = 0
 
@@ -239,8 +220,6 @@ class OutputErrorProblem:
     def _residual_of(self, s: FloatArray, z: FloatArray) -> FloatArray:
         """r(z) from the signal ``s`` simulated at z: P·(s − target), the ridge row appended."""
         r = self._project(s - self.target)
-        if self.prior is not None:
-            return np.append(r, self.prior.weights * (z - self.prior.center))
         if self.ridge is None:
             return r
         return np.append(r, self.ridge.weight * z[self.ridge.index] * self.ridge.scale)
@@ -256,18 +235,14 @@ class OutputErrorProblem:
         return self._residual_of(s, z), self._jacobian_rows(ds)
 
     def _jacobian_rows(self, ds: FloatArray) -> FloatArray:
-        """P·ds with the ridge or prior rows appended (``ds`` projected in place when no row
-        is added)."""
-        if not self._extra:
+        """P·ds with the ridge row appended (``ds`` projected in place when no row is added)."""
+        if self.ridge is None:
             return self._project(np.require(ds, requirements=["C", "W"]))
         jac = np.empty((self._rows, ds.shape[1]))
         jac[: self.target.size] = ds
         self._project(jac[: self.target.size])
-        jac[self.target.size :] = 0.0
-        if self.prior is not None:
-            jac[self.target.size :] = np.diag(self.prior.weights)
-        elif self.ridge is not None:
-            jac[-1, self.ridge.index] = self.ridge.weight * self.ridge.scale
+        jac[-1] = 0.0
+        jac[-1, self.ridge.index] = self.ridge.weight * self.ridge.scale
         return jac
 
     def jacobian(self, z: FloatArray) -> FloatArray:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -58,7 +59,6 @@ __all__ = [
     "refit",
     "scored",
     "solved_at",
-    "unknowns",
 ]
 
 #: Starts converged per candidate where its effect lists several (its cost has local
@@ -124,14 +124,19 @@ class Scored:
     def unknowns(self) -> int:
         return int(self.jacobian.shape[1])
 
+    @cached_property
+    def refit_basis(self) -> FloatArray:
+        """An orthonormal basis of the span of the Jacobian's columns (scaled to unit
+        norm): the first-order refit of the model's unknowns, computed once per model
+        and shared by every start ranked from it."""
+        norms = np.linalg.norm(self.jacobian, axis=0)
+        keep = norms > 0
+        q, _ = np.linalg.qr(self.jacobian[:, keep] / norms[keep])
+        return np.asarray(q, dtype=np.float64)
+
 
 def _layout(record: Record, effects: EffectSet) -> Layout:
     return Layout.of(effects, record.dt, record.dt * max(len(record) - 1, 1))
-
-
-def unknowns(record: Record, effects: EffectSet) -> int:
-    """The number of unknowns of a model with ``effects`` (the base model's eight beside)."""
-    return len(_layout(record, effects).labels())
 
 
 def _converge(record: Record, fit: ExtendedFit, effects: EffectSet, conv: Convergence) -> Solved:
@@ -202,9 +207,7 @@ def _first_order(record: Record, current: Scored, effects: EffectSet) -> float:
     xs = simulate_chain(current.fit.params, effects, record.u, record.dt, current.fit.h0)
     if xs is None:
         return math.inf
-    norms = np.linalg.norm(current.jacobian, axis=0)
-    keep = norms > 0
-    q, _ = np.linalg.qr(current.jacobian[:, keep] / norms[keep])
+    q = current.refit_basis
     r = record.x - xs
     return rms(r - q @ (q.T @ r))
 

@@ -32,7 +32,7 @@ from .._core import EffectSet, Params, simulate_extended, simulate_extended_with
 from ..checks import FloatArray
 from ..fit import N_BOUNDS
 from ..levenberg import STATISTICAL_MARGIN
-from ..lsq import Method, OutputErrorProblem, Prior, with_jacobian_or_none
+from ..lsq import Method, OutputErrorProblem, with_jacobian_or_none
 from ..metrics import max_abs, rms
 from ..record import Record, validate_record
 from .base import Context, Effect, Start, simulate_chain, with_effect
@@ -319,15 +319,13 @@ def solve_extended_record(
     method: Method = "lm",
     margin: float = STATISTICAL_MARGIN,
     weights: FloatArray | None = None,
-    prior_weights: FloatArray | None = None,
     reuse_jacobian: bool = False,
 ) -> Solved:
     """:func:`fit_extended_record` with the fit's simulated displacement and the
     optimiser's Jacobian at the solution, for the callers that score the fit.
     ``weights`` (one per sample, 0 or 1) leaves samples out of the cost (a refit without
     a block of the record: the model still runs through them); the errors of the
-    result are over every sample. ``prior_weights`` (one per unknown, µm per unit of
-    it) pulls each unknown weakly towards its start (:class:`boucwen.lsq.Prior`).
+    result are over every sample.
     ``reuse_jacobian``: keep a Jacobian while it predicts the steps (``"lm"``; a start
     near the optimum: :func:`boucwen.levenberg.levenberg_marquardt`)."""
     u, x, dt = record.u, record.x, record.dt
@@ -340,8 +338,7 @@ def solve_extended_record(
     v0 = np.clip(v0, lo + inside, hi - inside)
     typ = _typical(layout, v0, u, x)
     chain: _Chain = _Chain(layout, u, dt) if weights is None else _Weighted(layout, u, dt, weights)
-    prior = None if prior_weights is None else Prior(v0.copy(), np.asarray(prior_weights, dtype=np.float64))
-    prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights, prior=prior)
+    prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights)
     if prob.simulate(v0) is None:
         raise ValueError("the starting point of fit_extended cannot be simulated")
     res = prob.solve(
