@@ -26,8 +26,11 @@ Subcommands:
 * ``boucwen reproduce [--out DIR] [--quick]``: the paper's experiment on the
   simulated bench (:mod:`boucwen.experiments.reproduce`).
 * ``boucwen diagnose (DATA.csv | --dataset NAME) [--json REPORT.json] [--predictions PRED.csv]
-  [--plot FIG.png]``: which effects the base model misses (:mod:`boucwen.diagnosis`);
-  prints the report, writes the files asked for.
+  [--plot FIG.png] [--validate B.csv] [--next-experiment E.csv [--duration S]]``: which
+  effects the base model misses (:mod:`boucwen.diagnosis`); prints the report, writes
+  the files asked for; with ``--next-experiment``, the input that tells apart the rivals
+  the record left (:mod:`boucwen.diagnosis.experiment`), to record and pass back as
+  ``--validate``.
 * ``boucwen batch fit|diagnose SOURCE --out DIR [--scheduler ADDRESS] [--workers N]
   [--layout CSV]``: a fleet of records on Dask (:mod:`boucwen.batch`; exit code 1 when a
   record ended as an error or did not converge; needs ``pip install boucwen[fleet]``).
@@ -286,8 +289,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from .diagnosis import diagnose, write_predictions, write_report
     from .plots import plot_diagnosis
 
-    for path in (args.json, args.predictions, args.plot, args.model):
+    for path in (args.json, args.predictions, args.plot, args.model, args.next_experiment, args.experiment_plot):
         _prepare_output(path)
+    if args.experiment_plot and not args.next_experiment:
+        raise ValueError("--experiment-plot draws the experiment of --next-experiment E.csv: give both")
 
     if (args.data is None) == (args.dataset is None):
         raise ValueError("give either DATA.csv or --dataset NAME (exactly one)")
@@ -304,6 +309,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if "citation" in rec.meta:
         source.update(citation=rec.meta["citation"], licence=rec.meta["licence"])
     val = None if args.validate is None else _read_record(args, args.validate)
+    if args.next_experiment:
+        from .diagnosis.experiment import Limits
+
+        Limits.of(rec, args.duration, args.u_min, args.u_max, args.max_slew, None)  # bad limits fail before the work
     result = diagnose(
         rec.u,
         rec.x,
@@ -339,8 +348,22 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"moves judged: {len(result.decisions)}; taken, in order: {taken}")
     if result.unexplained is not None:
         print(result.unexplained.summary())
+    data = {**source, "samples": len(rec), "dt_s": rec.dt}
+    if args.next_experiment:
+        experiment = result.next_experiment(args.duration, args.u_min, args.u_max, args.max_slew)
+        print("next experiment: " + experiment.summary())
+        data["next_experiment"] = experiment.to_dict()
+        if experiment.ambiguous:
+            experiment.write_csv(args.next_experiment)
+            print(
+                f"wrote {args.next_experiment} (t_s,u_V: {experiment.u.size} samples; record it, then rerun with "
+                f"--validate)"
+            )
+            if args.experiment_plot:
+                experiment.plot(args.experiment_plot)
+                print(f"wrote {args.experiment_plot}")
     if args.json:
-        write_report(result, args.json, data={**source, "samples": len(rec), "dt_s": rec.dt})
+        write_report(result, args.json, data=data)
         print(f"wrote {args.json}")
     if args.predictions:
         write_predictions(result, rec.t, rec.x, args.predictions)
@@ -390,6 +413,23 @@ def _add_diagnose(sub: _Subparsers) -> None:
         default=None,
         help="a second record of the same device (read like DATA): each effect must also predict it better, "
         "and the report gives both models' errors on it",
+    )
+    p.add_argument(
+        "--next-experiment",
+        metavar="E.csv",
+        default=None,
+        help="where the record leaves rivals, write the input (t_s,u_V) that separates them best, and print "
+        "the predicted separations in units of the record's noise",
+    )
+    p.add_argument("--duration", type=float, default=60.0, metavar="S", help="the experiment's length [s] (60)")
+    p.add_argument("--u-min", type=float, default=None, metavar="V", help="its lowest voltage (the record's)")
+    p.add_argument("--u-max", type=float, default=None, metavar="V", help="its highest voltage (the record's)")
+    p.add_argument("--max-slew", type=float, default=None, metavar="V/S", help="its fastest slew [V/s] (the record's)")
+    p.add_argument(
+        "--experiment-plot",
+        metavar="FIG.png",
+        default=None,
+        help="draw the explanations' predictions on the designed and on a generic input",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the base fit's starts (default 0)")
     p.add_argument("--progress", action="store_true", help="print progress to stderr")

@@ -33,8 +33,15 @@ not told what it contains, and selects a model by one loop under one judge:
    ``confident_share`` of the error beyond the noise (else ``tentative``, with the rivals),
    every decision typed (``decisions``), and the parameters on a bound.
 
-With a second record of the device (``validate``), each effect of the device must also
-earn its place there by the same judge (:mod:`~boucwen.diagnosis.unseen`).
+8. **Where the record cannot decide**, design the experiment that can
+   (:meth:`Diagnosis.next_experiment`, :mod:`~boucwen.diagnosis.experiment`): the input,
+   within the record's limits, on which the explanations it left (each tentative name
+   and its rivals) predict most differently.
+
+With a second record of the device (``validate``; the recorded experiment, or any other),
+the explanations the first record left are settled there (one is refuted where another
+passes the judge against it there; the model keeps the one left), and each effect of the
+device must also earn its place there by the same judge (:mod:`~boucwen.diagnosis.unseen`).
 
 Every number is a field of :class:`~boucwen.diagnosis.policy.DiagnosisPolicy`; what
 describes one effect is on its class. What the residual follows (spectral lines, spans,
@@ -44,11 +51,13 @@ it never accepts or rejects. Modules: :mod:`~boucwen.diagnosis.policy` (the numb
 :mod:`~boucwen.diagnosis.fits` (converged fits of candidates),
 :mod:`~boucwen.diagnosis.search` (the moves and their loop),
 :mod:`~boucwen.diagnosis.unseen` (errors on unseen data, the validation record),
+:mod:`~boucwen.diagnosis.experiment` (the next experiment),
 :mod:`~boucwen.diagnosis.report` (:class:`Diagnosis`, its files).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -67,12 +76,13 @@ from ..record import Record, validate_record
 from ..residual import Unexplained, fit_evidence, lookalike_tests, noise_level, residual_evidence, unexplained
 from ..residual import residual_evidence_record as residual_evidence_record
 from . import fits
+from .experiment import Experiment, Explained, explanations
 from .fits import Convergence, Scored
 from .judge import Decision, on_common_blocks
 from .policy import DiagnosisPolicy
 from .report import AtBound, Diagnosis, ModelFit, NamedEffect, write_predictions, write_report
 from .search import Search, search
-from .unseen import OnValidation, Unseen, judged_on, prediction_error
+from .unseen import OnValidation, Unseen, judged_on, prediction_error, settled
 
 __all__ = [
     "AtBound",
@@ -80,6 +90,7 @@ __all__ = [
     "Decision",
     "Diagnosis",
     "DiagnosisPolicy",
+    "Experiment",
     "ModelFit",
     "NamedEffect",
     "OnValidation",
@@ -216,10 +227,14 @@ def _outcome(
     record, its errors, what it leaves, how sure each name is."""
     decisions = [d for r in state.rounds for d in r.decisions]
     final = state.current
+    rivals = {k: set(v) for k, v in state.rivals.items()}
+    swaps = dict(state.swaps)
     on_validation: list[Decision] = []
+    if validate is not None:
+        final, rivals, swaps, on_validation = _settle(record, validate, final, rivals, swaps, policy, conv, say)
     if validate is not None and final.names:
         say(f"judging {', '.join(final.names)} on the validation record ({len(validate)} samples)")
-        kept, on_validation = judged_on(
+        kept, judged = judged_on(
             validate,
             final.fit,
             lambda model, name: fits.refit(record, model, without(model.effects, name), conv),
@@ -227,6 +242,7 @@ def _outcome(
             noise_level(validate.x).sigma_um,
             say,
         )
+        on_validation += judged
         if kept.effects.names != final.fit.effects.names:
             final = fits.scored(record, fits.solved_at(record, kept), policy.folds, conv)
     x = record.x
@@ -237,7 +253,7 @@ def _outcome(
     share = 1.0 - beyond_after / beyond_before if beyond_before > 0 else 1.0
     added = _order_added(state, final.names)
     named = tuple(
-        _named(e, state, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
+        _named(e, rivals, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
     )
     named = tuple(sorted(named, key=lambda e: added.index(e.name)))
     cv_before, cv_after = on_common_blocks(base.cv, final.cv, policy.folds)
@@ -284,6 +300,7 @@ def _outcome(
         taken=tuple(r.taken for r in state.rounds if r.taken is not None),
         at_bounds=fits.on_bounds(final.fit, record, policy.bound_tolerance),
         unseen=unseen,
+        explained=Explained(record, final, rivals, swaps, conv, policy, noise_um),
     )
     say(result.summary())
     return result
@@ -298,11 +315,57 @@ def _order_added(state: Search, names: tuple[str, ...]) -> list[str]:
     return [k for k in order if k in names] + [k for k in names if k not in order]
 
 
+def _settle(
+    record: Record,
+    validate: Record,
+    final: Scored,
+    rivals: dict[str, set[str]],
+    swaps: dict[frozenset[str], Scored],
+    policy: DiagnosisPolicy,
+    conv: Convergence,
+    say: Any,
+) -> tuple[Scored, dict[str, set[str]], dict[frozenset[str], Scored], list[Decision]]:
+    """The explanations the record could not tell apart, settled on the validation
+    record (:func:`~boucwen.diagnosis.unseen.settled`): the model kept, its rivals left,
+    the swaps still fitted from it, and the decisions."""
+    members = explanations(record, final, rivals, swaps, conv, policy)
+    if len(members) < 2:
+        return final, rivals, swaps, []
+    say(f"settling {', '.join(m.label for m in members)} on the validation record")
+    left, decisions = settled(
+        validate, [m.fit for m in members], [m.label for m in members], policy, noise_level(validate.x).sigma_um, say
+    )
+
+    def error(i: int) -> float:
+        e = prediction_error(members[i].fit, validate)
+        return math.inf if e is None else e.rms_um
+
+    keep = 0 if 0 in left else min(left, key=error)
+    chosen = members[keep]
+    if chosen.replaces is None or chosen.scored is None:
+        kept = {
+            k: {m.replaces[1] for i, m in enumerate(members) if i in left and m.replaces and m.replaces[0] == k}
+            for k in rivals
+        }
+        return final, kept, {k: v for k, v in swaps.items() if any(m.scored is v for m in members)}, decisions
+    out, into = chosen.replaces
+    say(f"the validation record refutes {members[0].label}: the model takes {chosen.label}")
+    left_for = {
+        m.replaces[1] for i, m in enumerate(members) if i in left and i != keep and m.replaces and m.replaces[0] == out
+    }
+    return chosen.scored, {into: left_for}, {}, decisions
+
+
 def _named(
-    effect: Any, state: Search, final: Scored, left: Unexplained, share: float, policy: DiagnosisPolicy
+    effect: Any,
+    rivals_of: dict[str, set[str]],
+    final: Scored,
+    left: Unexplained,
+    share: float,
+    policy: DiagnosisPolicy,
 ) -> NamedEffect:
     """An effect of the returned model with its confidence (module docs, step 7)."""
-    rivals = tuple(sorted(state.rivals.get(effect.name, set()) - set(final.names), key=VOCABULARY.index))
+    rivals = tuple(sorted(rivals_of.get(effect.name, set()) - set(final.names), key=VOCABULARY.index))
     if rivals:
         return NamedEffect(
             effect, "tentative", "the record does not tell it from its rivals (within the judge's margin)", rivals

@@ -19,9 +19,9 @@ candidate. A drop refits the model without the effect from where it is.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from functools import cached_property
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -43,12 +43,12 @@ from ..levenberg import STATISTICAL_MARGIN
 from ..metrics import rms
 from ..record import Record
 from .judge import CrossValidation, fold_slices
-from .report import AtBound
 
 __all__ = [
     "FOLD_NFEV",
     "MAX_NFEV",
     "STARTS",
+    "AtBound",
     "Convergence",
     "Scored",
     "add",
@@ -72,6 +72,27 @@ MAX_NFEV = 150
 #: off along a direction only the held-out block determined, and its block is left out of
 #: every comparison (:mod:`~boucwen.diagnosis.judge`).
 FOLD_NFEV = 60
+
+
+@dataclass(frozen=True)
+class AtBound:
+    """An unknown of a fit that ended on a bound of the fit.
+
+    Attributes:
+        parameter: its name (:meth:`boucwen.effects.Layout.labels`, e.g. ``"creep.g1"``).
+        value: its value, in its unit.
+        bound: the bound it is on, same unit.
+        side: ``"lower"`` or ``"upper"``.
+    """
+
+    parameter: str
+    value: float
+    bound: float
+    side: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"parameter", "value", "bound", "side"}`` (JSON-ready)."""
+        return asdict(self)
 
 
 @dataclass(frozen=True)

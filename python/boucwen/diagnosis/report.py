@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 from numpy.typing import ArrayLike
 
@@ -14,31 +14,14 @@ from ..checks import FloatArray
 from ..effects import Effect
 from ..io import jsonable, write_csv
 from ..residual import Unexplained
+from .fits import AtBound
 from .judge import Decision
 from .unseen import Unseen
 
+if TYPE_CHECKING:
+    from .experiment import Experiment, Explained
+
 __all__ = ["AtBound", "Diagnosis", "ModelFit", "NamedEffect", "jsonable", "write_predictions", "write_report"]
-
-
-@dataclass(frozen=True)
-class AtBound:
-    """An unknown of a fit that ended on a bound of the fit.
-
-    Attributes:
-        parameter: its name (:meth:`boucwen.effects.Layout.labels`, e.g. ``"creep.g1"``).
-        value: its value, in its unit.
-        bound: the bound it is on, same unit.
-        side: ``"lower"`` or ``"upper"``.
-    """
-
-    parameter: str
-    value: float
-    bound: float
-    side: str
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"parameter", "value", "bound", "side"}`` (JSON-ready)."""
-        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -133,6 +116,8 @@ class Diagnosis:
         unseen: errors on data the fits did not see [µm]: blocked cross-validation of the
             base and returned models and, with a validation record, both carried to it
             (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
+        explained: the record, the returned model and its rivals, for
+            :meth:`next_experiment` (None where the diagnosis was not run here).
     """
 
     effects: list[str]
@@ -153,6 +138,47 @@ class Diagnosis:
     taken: tuple[Decision, ...] = ()
     at_bounds: list[AtBound] = field(default_factory=list)
     unseen: Unseen | None = None
+    explained: Explained | None = field(default=None, repr=False)
+
+    def next_experiment(
+        self,
+        duration_s: float = 60.0,
+        u_min: float | None = None,
+        u_max: float | None = None,
+        max_slew_v_per_s: float | None = None,
+        dt: float | None = None,
+        *,
+        seed: int = 0,
+    ) -> Experiment:
+        """The input to record next so that the explanations this record could not tell
+        apart (each tentative name and its rivals) can be told apart
+        (:mod:`boucwen.diagnosis.experiment`).
+
+        Args:
+            duration_s: the experiment's length [s].
+            u_min, u_max: its voltage range [V] (default: the record's).
+            max_slew_v_per_s: its fastest slew [V/s] (default: the record's fastest).
+            dt: its sampling interval [s] (default: the record's).
+            seed: seed of the design's global search.
+
+        Returns:
+            An :class:`~boucwen.diagnosis.experiment.Experiment`: the input ``u`` [V] and
+            ``dt`` [s], the explanations it separates, the predicted separation of each
+            pair in units of the record's noise beside a generic input's, what in the
+            input does the separating, and the record's own segments that separate them
+            best. Where no name has a rival, it says so (``ambiguous`` False, no input).
+
+        Raises:
+            ValueError: a bad limit (precise message), or a diagnosis that holds no
+                record (one read back from a report).
+        """
+        from .experiment import Limits, design
+
+        if self.explained is None:
+            raise ValueError("this diagnosis holds no record: run boucwen.diagnose to design an experiment")
+        ctx = self.explained
+        limits = Limits.of(ctx.record, duration_s, u_min, u_max, max_slew_v_per_s, dt)
+        return design(ctx.record, ctx.members(), ctx.noise_um, limits, seed=seed)
 
     @property
     def model(self) -> ModelFit:

@@ -134,12 +134,16 @@ class Search:
         current: the current model.
         rounds: every round so far.
         rivals: per effect of the model, the effects the record did not tell it from.
+        swaps: the swaps of the current model for a rival fitted in the last round (by
+            the set of effects of each), kept for the explanations the record could not
+            tell apart (:mod:`~boucwen.diagnosis.experiment`).
         stopped: why the search ended.
     """
 
     current: Scored
     rounds: list[Round] = field(default_factory=list)
     rivals: dict[str, set[str]] = field(default_factory=dict)
+    swaps: dict[frozenset[str], Scored] = field(default_factory=dict)
     stopped: str = ""
 
 
@@ -356,11 +360,13 @@ def search(
         signatures = tuple(sorted(named(lookalike_tests(record, current.x))))
         round_ = _take(decisions, current, t_min, policy, state, signatures, rejected, tuple(screened))
         state.rounds.append(round_)
+        state.swaps = {frozenset(f.names): f for m, _, f in decisions if m.kind == "swap"}
         if round_.taken is None:
             state.stopped = "no move is accepted"
             break
         chosen = next(f for m, d, f in decisions if d is round_.taken)
         state.current = chosen
+        state.swaps = {}
         seen.add(frozenset(chosen.names))
         say(f"took {round_.taken.label}: held-out RMS {current.cv.rms_um:.4g} → {chosen.cv.rms_um:.4g} µm")
     else:

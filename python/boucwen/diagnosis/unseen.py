@@ -22,13 +22,19 @@ batch-means sampling error): the model with it against the model without it (the
 refitted without it on the first record), both carried; one that does not earn its
 place there is dropped (:func:`judged_on`). The record's own effects are judged on the
 record itself.
+
+Where the first record could not tell an effect from its rivals, the second one settles
+the set (:func:`settled`): every explanation carried there, one is refuted where another
+is accepted against it by the same judge; the model keeps the explanation left (the one
+the second record predicts best where several are), and a name with no rival left is no
+longer tentative for want of one.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -50,6 +56,7 @@ __all__ = [
     "carried",
     "judged_on",
     "prediction_error",
+    "settled",
 ]
 
 
@@ -237,3 +244,50 @@ def judged_on(
         if not keep.accepted:
             current = rest
     return current, decisions
+
+
+def settled(
+    validation: Record,
+    members: Sequence[ExtendedFit],
+    labels: Sequence[str],
+    policy: DiagnosisPolicy,
+    noise_um: float,
+    say: Callable[[str], None],
+) -> tuple[tuple[int, ...], list[Decision]]:
+    """The explanations (``members``, fitted on the identification record, named
+    ``labels``) that the ``validation`` record does not refute: each carried there
+    (:func:`carried`), a member is refuted where another is accepted against it by the
+    judge (:func:`~boucwen.diagnosis.judge.judge`: significant at level α over the pairs,
+    and at least ``min_share`` of its error beyond the noise ``noise_um`` [µm]). A member
+    that cannot be carried is not refuted. Returns the indices left and the decisions
+    (``"swap"`` from the refuted to the one that refutes it, accepted where it does)."""
+    out = [carried(m, validation) for m in members]
+    cvs = {
+        i: CrossValidation.of(validation.x - o[0], validation.x - o[0], policy.folds)
+        for i, o in enumerate(out)
+        if o is not None
+    }
+    pairs = [(i, j) for i in cvs for j in cvs if i != j]
+    t_min = threshold(policy.alpha, max(len(pairs) // 2, 1), policy.batches)
+    refuted: set[int] = set()
+    decisions: list[Decision] = []
+    for i, j in pairs:
+        d = judge(
+            "swap",
+            (labels[i], labels[j]),
+            (labels[j],),
+            (labels[i],),
+            gain(cvs[j], cvs[i], policy.folds, policy.batches),
+            t_min=t_min,
+            noise_um=noise_um,
+            min_share=policy.min_share,
+            unknowns=0,
+        )
+        decisions.append(replace(d, reason="on the validation record: " + d.reason))
+        if d.accepted:
+            refuted.add(i)
+    left = tuple(i for i in range(len(members)) if i not in refuted)
+    for i, o in enumerate(out):
+        err = "cannot be simulated" if o is None else f"{o[1].rms_um:.4g} µm"
+        say(f"  validation {labels[i]}: {err}" + (" — refuted" if i in refuted else ""))
+    return left, decisions

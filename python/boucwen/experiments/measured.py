@@ -86,6 +86,9 @@ IN_RECORD_GAIN = 0.20
 UNSEEN_GAIN = 0.15
 #: Target 2: the returned model's unseen RMS error at most (1 + this) × the base model's.
 WORSE_TOLERANCE = 0.02
+#: Length [s] of the next experiment designed where a name is left with rivals (the
+#: shipped records are 40 s long; a minute on the bench).
+EXPERIMENT_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -166,13 +169,26 @@ def _change(before: float, after: float) -> float:
     return after / before - 1.0 if before > 0 else 0.0
 
 
-def run_case(case: Case, *, seed: int = 0, progress: bool = False, workers: int | None = None) -> dict[str, Any]:
-    """Diagnoses ``case.fitted`` and scores both models on ``case.unseen``; a JSON-able dict."""
+def run_case(
+    case: Case,
+    *,
+    seed: int = 0,
+    progress: bool = False,
+    workers: int | None = None,
+    figure: Path | None = None,
+) -> dict[str, Any]:
+    """Diagnoses ``case.fitted`` and scores both models on ``case.unseen``; a JSON-able dict.
+    Where a name is left with rivals, it also designs the next experiment
+    (:meth:`boucwen.diagnosis.Diagnosis.next_experiment`, :data:`EXPERIMENT_S` long, the
+    record's limits) and draws it to ``figure`` if given."""
     if case.fitted.dt != case.unseen.dt:
         raise ValueError(f"{case.name}: fitted and unseen records are sampled differently")
     started = time.perf_counter()
     result = diagnose(case.fitted.u, case.fitted.x, case.fitted.dt, seed=seed, progress=progress, workers=workers)
     elapsed = time.perf_counter() - started
+    experiment = result.next_experiment(duration_s=EXPERIMENT_S, seed=seed)
+    if figure is not None and experiment.ambiguous:
+        experiment.plot(figure)
     pred = predictions(result, case)
     base = _errors(case.unseen.x, pred["x_base"])
     returned = _errors(case.unseen.x, pred["x_returned"])
@@ -195,6 +211,8 @@ def run_case(case: Case, *, seed: int = 0, progress: bool = False, workers: int 
         "replay_um": pred["replay_um"],
         "offset_reestimated": not case.continued,
         "params": result.to_dict()["params"],
+        "next_experiment": {**experiment.to_dict(), "summary": experiment.summary()},
+        "figure": None if figure is None or not experiment.ambiguous else str(figure),
     }
 
 
@@ -246,6 +264,9 @@ def print_case(row: dict[str, Any], out: TextIO) -> None:
         file=out,
     )
     print(f"effects: {named}; diagnosis {row['time_s']:.1f} s", file=out)
+    print(f"next experiment ({EXPERIMENT_S:g} s): {row['next_experiment']['summary']}", file=out)
+    if row.get("figure"):
+        print(f"  figure: {row['figure']}", file=out)
 
 
 def print_targets(targets: dict[str, Any], out: TextIO) -> None:
@@ -294,8 +315,12 @@ def run(
     for line in skipped:
         print(f"skipped: {line}", file=out)
     rows = []
+    if out_dir is not None:
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
     for case in case_list:
-        rows.append(run_case(case, seed=seed, progress=progress, workers=workers))
+        slug = "_".join("".join(c if c.isalnum() else " " for c in case.name).split())
+        figure = None if out_dir is None else Path(out_dir) / f"next_experiment_{slug}.png"
+        rows.append(run_case(case, seed=seed, progress=progress, workers=workers, figure=figure))
         print_case(rows[-1], out)
     targets = check_targets(rows)
     if rows:
