@@ -13,6 +13,8 @@
 //! u: voltage \[V\]; x: displacement \[µm\]; h: hysteresis state \[µm\]; t: time \[s\].
 //!
 //! - [`Params`]: the seven parameters and their units.
+//! - [`oscillator`]: a second model class, the hysteretic oscillator of the Noël & Schoukens
+//!   benchmark (a mass, spring and damper with a Bouc–Wen spring driven by its motion).
 //! - [`model`]: the operator, its integrator, the per-sample [`Model`] and [`simulate`].
 //! - [`identify`]: online identifiers behind one trait, [`identify::OnlineIdentifier`].
 //! - [`Error`]: every fallible call returns it; nothing here panics on user input.
@@ -36,6 +38,7 @@ pub mod format;
 pub mod identify;
 pub mod math;
 pub mod model;
+pub mod oscillator;
 pub mod params;
 
 #[cfg(feature = "ffi")]

@@ -31,6 +31,8 @@ part is one new section (and one line in ``__all__``):
 - channels: ``Bank``
 - compensation: ``_Clip``, ``_InverseStatus``, ``_CompensatorStatus``,
   ``_CompensatorGains`` (type-only), ``Inverse``, ``invert``, ``Compensator``
+- the hysteretic oscillator (a second model class): ``OSCILLATOR_UNKNOWNS``,
+  ``oscillator_simulate``, ``oscillator_simulate_with_jacobian``
 """
 
 from collections.abc import Sequence
@@ -45,6 +47,7 @@ if TYPE_CHECKING:  # type-only: the compiled core does not import the config mod
 
 __all__ = [
     "INVERSE_TOLERANCE_UM",
+    "OSCILLATOR_UNKNOWNS",
     "RESONANCE_SUBSTEPS",
     "Bank",
     "Compensator",
@@ -64,6 +67,8 @@ __all__ = [
     "_substep_plan",
     "_validate_config",
     "invert",
+    "oscillator_simulate",
+    "oscillator_simulate_with_jacobian",
     "paper_input",
     "simulate",
     "simulate_extended",
@@ -907,3 +912,41 @@ class Compensator:
         """What the last step did (a new dict at each read)."""
     def __copy__(self) -> Compensator: ...
     def __deepcopy__(self, _memo: dict[int, object], /) -> Compensator: ...
+
+# ---------------------------------------------------------------- hysteretic oscillator
+#
+# m·ÿ + c·ẏ + k·y + z = F,  ż = α·ẏ − β·(γ·|ẏ|·|z|^(ν−1)·z + δ·ẏ·|z|^ν)
+# F [N], y [m], z [N]; params in the order m [kg], c [N·s/m], k [N/m], alpha [N/m],
+# beta [N^(1−ν)/m], gamma [-], delta [-], nu [-] (boucwen.oscillator.OscillatorParams).
+
+OSCILLATOR_UNKNOWNS: list[str]
+"""The columns of :func:`oscillator_simulate_with_jacobian`'s Jacobian: m, c, k, alpha,
+gamma, delta, nu, y0, v0, z0 (β has none: it enters only as β·γ and β·δ)."""
+
+def oscillator_simulate(
+    params: Sequence[float],
+    force: ArrayLike,
+    dt: float,
+    y0: float = 0.0,
+    v0: float = 0.0,
+    z0: float = 0.0,
+) -> NDArray[np.float64]:
+    """The displacement y [m] of the hysteretic oscillator driven by ``force`` [N] (linear
+    between samples ``dt`` [s] apart) from the state (y0 [m], v0 [m/s], z0 [N]) at sample 0.
+
+    Raises:
+        InvalidParams: not 8 parameters, or one out of its domain (named).
+        InvalidRecord: a non-finite force sample or initial state.
+        InvalidConfig: dt not finite and > 0.
+    """
+
+def oscillator_simulate_with_jacobian(
+    params: Sequence[float],
+    force: ArrayLike,
+    dt: float,
+    y0: float = 0.0,
+    v0: float = 0.0,
+    z0: float = 0.0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(y, jac)``: :func:`oscillator_simulate` and ∂y/∂θ of shape (samples, 10), θ =
+    :data:`OSCILLATOR_UNKNOWNS`, from one forward-mode pass with the same sub-steps."""

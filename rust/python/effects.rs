@@ -376,7 +376,7 @@ fn chain_inputs(
 }
 
 /// x \[µm\] and its Jacobian, one row per sample, as NumPy arrays.
-type OutputAndJacobian<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>);
+pub(crate) type OutputAndJacobian<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>);
 
 /// The arrays of a [`Jacobian`].
 fn arrays(py: Python<'_>, jac: Jacobian) -> PyResult<OutputAndJacobian<'_>> {

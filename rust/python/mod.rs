@@ -9,6 +9,7 @@ mod errors;
 mod extended_state;
 mod identifier;
 mod model;
+mod oscillator;
 mod params;
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
@@ -75,6 +76,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::paper_input, m)?)?;
     m.add_class::<compensate::PyInverse>()?;
     m.add_function(wrap_pyfunction!(compensate::invert, m)?)?;
+    m.add_function(wrap_pyfunction!(oscillator::oscillator_simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(oscillator::oscillator_simulate_with_jacobian, m)?)?;
+    m.add("OSCILLATOR_UNKNOWNS", crate::oscillator::UNKNOWNS.to_vec())?;
     m.add_class::<compensate::PyCompensator>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("INVERSE_TOLERANCE_UM", crate::compensate::inverse::TOLERANCE_UM)?;
