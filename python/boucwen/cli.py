@@ -322,6 +322,23 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         validate=None if val is None else (val.u, val.x, val.dt),
     )
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
+    units = rec.meta.get("units")
+    if units:
+        print(f"input: force [{units['u']}]; displacement: {units['x']}")
+    structure = result.structure
+    if structure is not None:
+        p = structure.fit.params
+        print(
+            "model fitted: hysteretic oscillator m·ÿ + c·ẏ + k·y + z = F, z Bouc–Wen in ẏ "
+            f"({structure.level}: {structure.why})"
+        )
+        print(
+            f"  m = {p.m:.5g} kg, c = {p.c:.5g} N·s/m, k = {p.k:.5g} N/m, alpha = {p.alpha:.5g} N/m, "
+            f"beta = {p.beta:.5g}, gamma = {p.gamma:.5g}, delta = {p.delta:.5g}, nu = {p.nu:.5g}"
+        )
+        print(f"input-driven rival: effects {', '.join(result.effects) if result.effects else 'none'}")
+    else:
+        print("model fitted: asymmetric Bouc–Wen driven by the input (x = kv·u + x0 + h), with its effects")
     print(f"effects: {', '.join(result.effects) if result.effects else 'none (base model only)'}")
     for e in result.named_effects:
         rival = f"; rivals: {', '.join(e.rivals)}" if e.rivals else ""
@@ -374,9 +391,15 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.model:
         from .model_file import ModelSource, SavedModel
 
-        origin = ModelSource.of_record(rec, "diagnose", result.x_extended)
+        origin = ModelSource.of_record(rec, "diagnose", None if structure is not None else result.x_extended)
         SavedModel(result.params, result.h0_um, rec.dt, result.effect_set, origin).save(args.model)
-        print(f"wrote {args.model} (the returned model, with its effects)")
+        what = (
+            "the input-driven rival: a model file holds input-driven models; the oscillator's parameters are "
+            "printed above and in --json"
+            if structure is not None
+            else "the returned model, with its effects"
+        )
+        print(f"wrote {args.model} ({what})")
     return EXIT_OK
 
 

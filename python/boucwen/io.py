@@ -12,8 +12,12 @@ CSV format read by :func:`read_csv`:
   ``x (um)``): time ``t``, ``time``; voltage ``u``, ``v``, ``voltage``; displacement
   ``x``, ``displacement``, ``disp``, ``pos``, ``position`` (:data:`COLUMN_NAMES`); a
   recognised name in another unit (``t_ms``, ``x_nm``) is an error, as are two columns
-  for one quantity. ``columns=("T", "U", "X")`` (``--columns T,U,X``) names them
-  instead, ``("U", "X")`` for a record without time. Other columns are ignored;
+  for one quantity. A record of a mechanical structure names a **force** as its input
+  (``force``, ``force_N``, ``Force [N]``: it takes the voltage's place, in N) and may give
+  its displacement in m (``displacement_m``, as the Bouc–Wen benchmark's records do):
+  that column is read in µm (× 1e6), and ``meta["units"]`` says so.
+  ``columns=("T", "U", "X")`` (``--columns T,U,X``) names them instead, ``("U", "X")``
+  for a record without time. Other columns are ignored;
 * a file without a header line (``numpy.savetxt`` output, a logger's export: numbers
   separated by commas, or by spaces or tabs) is read with ``columns`` as 1-based
   positions, ``"2,4,3"`` (``--columns 2,4,3``: time, voltage, displacement), ``"4,3"``
@@ -76,7 +80,7 @@ REQUIRED_COLUMNS = ("t", "u", "x")
 #: the column holds.
 COLUMN_NAMES: dict[str, tuple[tuple[str, ...], tuple[str, ...], str]] = {
     "t": (("t", "time"), ("s", "sec"), "time [s]"),
-    "u": (("u", "v", "voltage"), ("v", "volt", "volts"), "voltage [V]"),
+    "u": (("u", "v", "voltage", "force"), ("v", "volt", "volts", "n", "newton", "newtons"), "voltage [V]"),
     "x": (
         ("x", "displacement", "disp", "pos", "position"),
         ("um", "µm", "μm", "micron", "microns"),
@@ -187,16 +191,27 @@ def _spelled(keys: tuple[str, ...]) -> str:
     return ",".join(k.upper() for k in keys)
 
 
+def force_record(header: list[str]) -> bool:
+    """The header names a force [N] as the input (``force``, ``force_N``, ``Force [N]``):
+    a record of a mechanical structure, whose displacement may be in m (SI, as the
+    Bouc–Wen benchmark's records are)."""
+    return any(
+        (m := _NAME_UNIT.match(h.strip().lower())) is not None and m["name"] == "force" and _role(h)[0] == "u"
+        for h in header
+    )
+
+
 def _recognised_columns(
     path: Path, header: list[str], header_no: int, keys: tuple[str, ...] = REQUIRED_COLUMNS
 ) -> dict[str, int]:
     """Indices of the columns of ``keys`` (time, voltage, displacement) recognised in the header."""
     hits: dict[str, list[int]] = {key: [] for key in keys}
+    in_metres = force_record(header)
     for i, name in enumerate(header):
         key, unit = _role(name)
         if key not in hits:
             continue
-        if unit is not None:
+        if unit is not None and not (in_metres and key == "x" and unit == "m"):
             raise _fail(
                 path,
                 f"column {name!r} is in {unit}; boucwen takes the {COLUMN_NAMES[key][2]}: convert it, "
@@ -268,6 +283,11 @@ def read_csv(
     table = _read_table(Path(path), REQUIRED_COLUMNS, columns, dt)
     path = table.path
     u, x, meta = table.values["u"], table.values["x"], table.meta
+    read_x = (meta.get("read") or {}).get("x")
+    if columns is None and isinstance(read_x, str) and _role(read_x) == ("x", "m"):
+        # A force record's displacement in m (force_record): the record holds µm.
+        x = x * 1e6
+        meta["units"] = {"u": "N", "x": f"{read_x} [m] × 1e6 → µm"}
     if table.t is None:
         return Record(
             t=np.arange(u.size, dtype=np.float64) * table.dt, u=u, x=x, dt=table.dt, name=path.stem, meta=meta

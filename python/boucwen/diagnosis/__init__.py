@@ -27,13 +27,20 @@ not told what it contains, and selects a model by one loop under one judge:
 6. **Repeat** from 3 until no move is accepted or the residual is consistent with the
    record's noise (:func:`boucwen.residual.unexplained`). A model already held is never
    proposed again.
-7. **Report**: the returned model's errors before and after, what it leaves
+7. **The other structure**: where the input-driven model the loop returns holds a mode
+   (an effect of signature ``"peak"``: the mark of a mechanical structure), the
+   hysteretic oscillator (:mod:`boucwen.oscillator`: the hysteresis driven by the
+   output's motion, the input a force) is fitted and scored the same way and judged by
+   the same rule against that model; accepted, it is the returned model (where the
+   record cannot tell them apart, it is the mode's rival). Without a mode, an
+   output-driven hysteresis reduces to a static one that the input-driven model holds.
+8. **Report**: the returned model's errors before and after, what it leaves
    (``unexplained``), the held-out errors of the base and returned models (``unseen``),
    each name ``confident`` only where it has no rival and the model explains at least
    ``confident_share`` of the error beyond the noise (else ``tentative``, with the rivals),
    every decision typed (``decisions``), and the parameters on a bound.
 
-8. **Where the record cannot decide**, design the experiment that can
+9. **Where the record cannot decide**, design the experiment that can
    (:meth:`Diagnosis.next_experiment`, :mod:`~boucwen.diagnosis.experiment`): the input,
    within the record's limits, on which the explanations it left (each tentative name
    and its rivals) predict most differently.
@@ -59,6 +66,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -66,7 +74,7 @@ from numpy.typing import ArrayLike
 
 from .._core import EffectSet
 from ..checks import check_int
-from ..effects import VOCABULARY, effects_of
+from ..effects import VOCABULARY, effect_class, effects_of
 from ..effects.base import without
 from ..fit import fit_record
 from ..io import jsonable
@@ -77,11 +85,11 @@ from ..residual import Unexplained, fit_evidence, lookalike_tests, noise_level, 
 from ..residual import residual_evidence_record as residual_evidence_record
 from . import fits
 from .experiment import Experiment, Explained, explanations
-from .fits import Convergence, Scored
+from .fits import Convergence, Scored, Structure
 from .judge import Decision, on_common_blocks
 from .policy import DiagnosisPolicy
-from .report import AtBound, Diagnosis, ModelFit, NamedEffect, write_predictions, write_report
-from .search import Search, search
+from .report import AtBound, Diagnosis, ModelFit, NamedEffect, NamedStructure, write_predictions, write_report
+from .search import Search, search, structure_move
 from .unseen import OnValidation, Unseen, judged_on, prediction_error, settled
 
 __all__ = [
@@ -93,6 +101,7 @@ __all__ = [
     "Experiment",
     "ModelFit",
     "NamedEffect",
+    "NamedStructure",
     "OnValidation",
     "Unexplained",
     "Unseen",
@@ -245,9 +254,24 @@ def _outcome(
         on_validation += judged
         if kept.effects.names != final.fit.effects.names:
             final = fits.scored(record, fits.solved_at(record, kept), policy.folds, conv)
+    osc, osc_decision, osc_skipped = structure_move(record, final, noise_um=noise_um, policy=policy, say=say)
+    if osc_decision is not None:
+        decisions.append(osc_decision)
+    other = osc if osc is not None and osc_decision is not None and osc_decision.accepted else None
+    if (
+        osc is not None
+        and osc_decision is not None
+        and other is None
+        and abs(osc_decision.gain.t) <= osc_decision.threshold
+    ):
+        # The record does not tell the oscillator from the input-driven model's mode.
+        for k in final.names:
+            if effect_class(k).signature == "peak":
+                rivals.setdefault(k, set()).add(osc.name)
+    returned_x, returned_cv = (other.x, other.cv) if other is not None else (final.x, final.cv)
     x = record.x
-    err_b, err_e = x - base.x, x - final.x
-    left = unexplained(record, final.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
+    err_b, err_e = x - base.x, x - returned_x
+    left = unexplained(record, returned_x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
     beyond_before = max(float(np.mean(err_b**2)) - noise_um**2, 0.0)
     beyond_after = max(float(np.mean(err_e**2)) - noise_um**2, 0.0)
     share = 1.0 - beyond_after / beyond_before if beyond_before > 0 else 1.0
@@ -256,7 +280,12 @@ def _outcome(
         _named(e, rivals, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
     )
     named = tuple(sorted(named, key=lambda e: added.index(e.name)))
-    cv_before, cv_after = on_common_blocks(base.cv, final.cv, policy.folds)
+    structure = None if other is None else _structure(other, left, share, policy)
+    if other is not None:
+        # The effects of the input-driven model the oscillator refutes are its rival's.
+        why = "the hysteretic oscillator predicts the record better: this effect is the refuted input-driven model's"
+        named = tuple(replace(e, level="tentative", why=why, rivals=(*e.rivals, other.name)) for e in named)
+    cv_before, cv_after = on_common_blocks(base.cv, returned_cv, policy.folds)
     unseen = Unseen(
         folds=policy.folds,
         cv_rms_before_um=cv_before,
@@ -277,7 +306,12 @@ def _outcome(
         "validation": [d.to_dict() for d in on_validation],
         "explained_share": share,
         "unseen": unseen.to_dict(),
-        "lookalike": lookalike_tests(record, final.x),
+        "lookalike": lookalike_tests(record, returned_x),
+        "structure": (
+            {"tried": False, "why": osc_skipped}
+            if osc is None
+            else {"tried": True, "held_out_rms_um": osc.cv.rms_um, "fit": osc.fit.to_dict()}
+        ),
         "elapsed_s": time.perf_counter() - started,
     }
     say(left.summary())
@@ -292,7 +326,7 @@ def _outcome(
         base_only=ModelFit(base.fit.params, base.fit.h0),
         evidence=jsonable(evidence),
         x_base=base.x,
-        x_extended=final.x,
+        x_extended=returned_x,
         effect_set=final.fit.effects if final.names else EffectSet(),
         unexplained=left,
         named_effects=named,
@@ -301,6 +335,7 @@ def _outcome(
         at_bounds=fits.on_bounds(final.fit, record, policy.bound_tolerance),
         unseen=unseen,
         explained=Explained(record, final, rivals, swaps, conv, policy, noise_um),
+        structure=structure,
     )
     say(result.summary())
     return result
@@ -356,6 +391,20 @@ def _settle(
     return chosen.scored, {into: left_for}, {}, decisions
 
 
+def _structure(osc: Structure, left: Unexplained, share: float, policy: DiagnosisPolicy) -> NamedStructure:
+    """The oscillator returned, with its confidence (module docs, step 8): it passed the
+    judge against the input-driven model (so that model is not within its margin); it
+    is confident where its fit converged and it explains the record."""
+    if not left.consistent_with_noise and share < policy.confident_share:
+        why = (
+            f"it predicts held-out blocks better than the input-driven model, but explains {share:.0%} of the "
+            "error beyond the noise and leaves a residual that is not noise"
+        )
+        return NamedStructure(osc.name, "tentative", why, osc.fit, osc.cv.rms_um)
+    why = "it predicts held-out blocks better than the best input-driven model beyond that model's margin"
+    return NamedStructure(osc.name, "confident", why, osc.fit, osc.cv.rms_um)
+
+
 def _named(
     effect: Any,
     rivals_of: dict[str, set[str]],
@@ -364,7 +413,7 @@ def _named(
     share: float,
     policy: DiagnosisPolicy,
 ) -> NamedEffect:
-    """An effect of the returned model with its confidence (module docs, step 7)."""
+    """An effect of the returned model with its confidence (module docs, step 8)."""
     rivals = tuple(sorted(rivals_of.get(effect.name, set()) - set(final.names), key=VOCABULARY.index))
     if rivals:
         return NamedEffect(

@@ -152,6 +152,8 @@ def explanations(
     for k in names:
         for r in sorted(rivals.get(k, ()), key=VOCABULARY.index):
             rest = set(names) - {k}
+            if r not in VOCABULARY:  # another structure (the oscillator): not an effect to swap in
+                continue
             # An effect tied to a partner (a second mode after a first) comes with it.
             partner = effect_class(r).partner
             adds = (r,) if partner is None or partner in rest else (partner, r)

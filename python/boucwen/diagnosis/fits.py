@@ -41,6 +41,9 @@ from ..effects.base import without
 from ..fit import FitResult
 from ..levenberg import STATISTICAL_MARGIN
 from ..metrics import rms
+from ..oscillator import UNKNOWNS as OSCILLATOR_UNKNOWNS
+from ..oscillator import OscillatorFit
+from ..oscillator import fit as fit_oscillator
 from ..record import Record
 from .judge import CrossValidation, fold_slices
 
@@ -51,11 +54,13 @@ __all__ = [
     "AtBound",
     "Convergence",
     "Scored",
+    "Structure",
     "add",
     "base",
     "drop",
     "held_out",
     "on_bounds",
+    "oscillator",
     "refit",
     "scored",
     "solved_at",
@@ -301,6 +306,62 @@ def refit(record: Record, fit: ExtendedFit, effects: EffectSet, conv: Convergenc
         return _converge(record, fit, effects, conv).fit
     except ValueError:
         return None
+
+
+@dataclass(frozen=True, eq=False)
+class Structure:
+    """A model of the other structure, converged and scored: the hysteretic oscillator
+    (:mod:`boucwen.oscillator`: a mass on a spring and damper whose Bouc–Wen restoring
+    force is driven by its own motion, the input a force), fitted to the record with its
+    input as the force and its displacement in m.
+
+    Attributes:
+        name: ``"oscillator"``.
+        fit: the fit over the whole record (:class:`boucwen.oscillator.OscillatorFit`).
+        x: its displacement over the record [µm].
+        cv: its blocked cross-validation (each block from the oscillator refitted without
+            it, from the whole-record fit).
+        converged: the whole-record fit converged.
+        unknowns: its number of unknowns.
+    """
+
+    name: str
+    fit: OscillatorFit
+    x: FloatArray
+    cv: CrossValidation
+    converged: bool
+    unknowns: int
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return (self.name,)
+
+
+def oscillator(record: Record, folds: int) -> Structure | str:
+    """The hysteretic oscillator fitted to ``record`` (u as the force [N], x [µm] as the
+    displacement, in m for the fit) and scored like every model the judge compares; or
+    why there is none (the fit cannot run on the record)."""
+    n = len(record)
+    y = record.x * 1e-6
+    try:
+        whole = fit_oscillator(record.u, y, record.dt)
+    except ValueError as exc:
+        return f"the oscillator cannot be fitted: {exc}"
+    held = record.x - whole.y * 1e6
+    converged = []
+    for sl in fold_slices(n, folds):
+        weights = np.ones(n)
+        weights[sl] = 0.0
+        try:
+            refitted = fit_oscillator(record.u, y, record.dt, start=whole.params, weights=weights, max_nfev=FOLD_NFEV)
+        except ValueError:
+            converged.append(False)
+            continue
+        held[sl] = record.x[sl] - refitted.y[sl] * 1e6
+        converged.append(refitted.success)
+    x = whole.y * 1e6
+    cv = CrossValidation.of(held, record.x - x, folds, tuple(converged))
+    return Structure("oscillator", whole, x, cv, whole.success, len(OSCILLATOR_UNKNOWNS))
 
 
 def on_bounds(fit: ExtendedFit, record: Record, tolerance: float) -> list[AtBound]:

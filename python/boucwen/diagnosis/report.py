@@ -19,9 +19,19 @@ from .judge import Decision
 from .unseen import Unseen
 
 if TYPE_CHECKING:
+    from ..oscillator import OscillatorFit
     from .experiment import Experiment, Explained
 
-__all__ = ["AtBound", "Diagnosis", "ModelFit", "NamedEffect", "jsonable", "write_predictions", "write_report"]
+__all__ = [
+    "AtBound",
+    "Diagnosis",
+    "ModelFit",
+    "NamedEffect",
+    "NamedStructure",
+    "jsonable",
+    "write_predictions",
+    "write_report",
+]
 
 
 @dataclass(frozen=True)
@@ -82,6 +92,38 @@ class NamedEffect:
 
 
 @dataclass(frozen=True, eq=False)
+class NamedStructure:
+    """The model class returned where it is not the input-driven Bouc–Wen model: the
+    hysteretic oscillator (:mod:`boucwen.oscillator`), whose hysteresis is driven by the
+    output's motion, the input taken as the force [N] and the displacement in m.
+
+    Attributes:
+        name: ``"oscillator"``.
+        level: ``"confident"`` or ``"tentative"`` (as for an effect).
+        why: the reason for the level.
+        fit: the oscillator fitted to the whole record
+            (:class:`boucwen.oscillator.OscillatorFit`; its ``y`` in m).
+        held_out_rms_um: its held-out RMS error [µm].
+    """
+
+    name: str
+    level: str
+    why: str
+    fit: OscillatorFit
+    held_out_rms_um: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"name", "level", "why", "fit", "held_out_rms_um"}`` (JSON-ready)."""
+        return {
+            "name": self.name,
+            "level": self.level,
+            "why": self.why,
+            "fit": self.fit.to_dict(),
+            "held_out_rms_um": self.held_out_rms_um,
+        }
+
+
+@dataclass(frozen=True, eq=False)
 class Diagnosis:
     """Result of :func:`boucwen.diagnose`.
 
@@ -118,6 +160,11 @@ class Diagnosis:
             (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
         explained: the record, the returned model and its rivals, for
             :meth:`next_experiment` (None where the diagnosis was not run here).
+        structure: where the returned model is the hysteretic oscillator rather than the
+            input-driven model (:class:`NamedStructure`); None otherwise. Then
+            ``x_extended``, ``rms_after_um``, ``max_after_um``, ``unexplained`` and
+            ``unseen`` are the oscillator's, while ``params``, ``h0_um``, ``effect_set``
+            and ``named_effects`` stay the best input-driven model's (its rival).
     """
 
     effects: list[str]
@@ -139,6 +186,7 @@ class Diagnosis:
     at_bounds: list[AtBound] = field(default_factory=list)
     unseen: Unseen | None = None
     explained: Explained | None = field(default=None, repr=False)
+    structure: NamedStructure | None = None
 
     def next_experiment(
         self,
@@ -208,6 +256,7 @@ class Diagnosis:
             "decisions": [d.to_dict() for d in self.decisions],
             "unseen": {} if self.unseen is None else self.unseen.to_dict(),
             "at_bounds": [b.to_dict() for b in self.at_bounds],
+            "structure": None if self.structure is None else self.structure.to_dict(),
         }
 
     def summary(self) -> str:
@@ -227,6 +276,13 @@ class Diagnosis:
         if val is not None and val.before is not None and val.after is not None:
             cv += f"; validation record RMS {val.before.rms_um:.4g} → {val.after.rms_um:.4g} µm"
         bounds = "".join(f"; {b.parameter} = {b.value:.4g} on its {b.side} bound" for b in self.at_bounds)
+        if self.structure is not None:
+            s = self.structure
+            return (
+                f"model: hysteretic oscillator ({s.level}; against the input-driven model with {named}); "
+                f"RMS {self.rms_before_um:.4g} → {self.rms_after_um:.4g} µm, "
+                f"max {self.max_before_um:.4g} → {self.max_after_um:.4g} µm{cv}"
+            )
         return (
             f"effects: {named}; RMS {self.rms_before_um:.4g} → {self.rms_after_um:.4g} µm, "
             f"max {self.max_before_um:.4g} → {self.max_after_um:.4g} µm{cv}{bounds}"

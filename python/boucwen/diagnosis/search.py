@@ -48,7 +48,7 @@ from ..record import Record
 from ..residual import lookalike_tests, unexplained
 from ..residual.evidence import spectral_peak
 from ..residual.lookalike import named
-from .fits import Convergence, Scored, add, drop, refit, scored, solved_at
+from .fits import Convergence, Scored, Structure, add, drop, oscillator, refit, scored, solved_at
 from .judge import Decision, apart, gain, judge, threshold
 from .policy import DiagnosisPolicy
 
@@ -61,6 +61,7 @@ __all__ = [
     "proposals",
     "screen_copy",
     "search",
+    "structure_move",
     "vocabulary_order",
 ]
 
@@ -372,6 +373,44 @@ def search(
     else:
         state.stopped = "the most rounds"
     return state
+
+
+def structure_move(
+    record: Record,
+    final: Scored,
+    *,
+    noise_um: float,
+    policy: DiagnosisPolicy,
+    say: Callable[[str], None],
+) -> tuple[Structure | None, Decision | None, str]:
+    """The other structure (module docs of :mod:`boucwen.diagnosis`, step 7): the
+    hysteretic oscillator judged against the input-driven model the search returned,
+    where that model holds a mode (an effect of signature ``"peak"``). Returns the
+    oscillator, the decision (``"swap"`` input-driven → oscillator) and why it was not
+    tried (empty where it was)."""
+    if not any(effect_class(k).signature == "peak" for k in final.names):
+        return None, None, "the input-driven model holds no mode, the mark of a mechanical structure"
+    say("fitting the hysteretic oscillator (hysteresis driven by the output's motion) and its blocks")
+    osc = oscillator(record, policy.folds)
+    if isinstance(osc, str):
+        return None, None, osc
+    t_min = threshold(policy.alpha, 1, policy.batches)
+    d = judge(
+        "swap",
+        ("input-driven", osc.name),
+        osc.names,
+        final.names,
+        gain(osc.cv, final.cv, policy.folds, policy.batches),
+        t_min=t_min,
+        noise_um=noise_um,
+        min_share=policy.min_share,
+        unknowns=osc.unknowns - final.unknowns,
+    )
+    if not osc.converged:
+        d = _unconverged(d)
+    verdict = "accepted" if d.accepted else "no"
+    say(f"  {d.label:28s} held-out RMS {osc.cv.rms_um:.4g} µm: {verdict} ({d.reason})")
+    return osc, d, ""
 
 
 def _finite(value: float) -> float:
