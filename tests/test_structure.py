@@ -67,7 +67,7 @@ def test_the_benchmark_record_from_the_shell_names_the_oscillator(tmp_path, caps
     report = tmp_path / "r.json"
     assert main(["diagnose", str(short), "--json", str(report)]) == 0
     out = capsys.readouterr().out
-    assert "input: force [N]; displacement: displacement_m [m] × 1e6 → µm" in out
+    assert "input: force [N]; displacement: 'displacement_m' [m, read as µm (× 1e6)]" in out
     assert "model fitted: hysteretic oscillator" in out
     doc = json.loads(report.read_text(encoding="utf-8"))
     assert doc["structure"]["name"] == "oscillator" and doc["structure"]["level"] == "confident"

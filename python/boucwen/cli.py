@@ -138,7 +138,8 @@ def _read_record(args: argparse.Namespace, path: str | None = None) -> Record:
     read = rec.meta["read"]
     if read != {"t": "t", "u": "u", "x": "x"}:
         t_col = f"t = {read['t']!r} [s]" if read["t"] is not None else f"no time column, dt = {rec.dt:.6g} s"
-        print(f"{path}: {t_col}, u = {read['u']!r} [V], x = {read['x']!r} [um]")
+        units = rec.meta.get("units", {"u": "V", "x": "um"})
+        print(f"{path}: {t_col}, u = {read['u']!r} [{units['u']}], x = {read['x']!r} [{units['x']}]")
     info = rec.meta.get("resampled")
     if info is not None:
         print(
@@ -324,7 +325,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
     units = rec.meta.get("units")
     if units:
-        print(f"input: force [{units['u']}]; displacement: {units['x']}")
+        print(f"input: force [{units['u']}]; displacement: {rec.meta['read']['x']!r} [{units['x']}]")
     structure = result.structure
     if structure is not None:
         p = structure.fit.params
@@ -336,15 +337,21 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             f"  m = {p.m:.5g} kg, c = {p.c:.5g} N·s/m, k = {p.k:.5g} N/m, alpha = {p.alpha:.5g} N/m, "
             f"beta = {p.beta:.5g}, gamma = {p.gamma:.5g}, delta = {p.delta:.5g}, nu = {p.nu:.5g}"
         )
-        print(f"input-driven rival: effects {', '.join(result.effects) if result.effects else 'none'}")
+        print(f"input-driven rival's effects: {', '.join(result.effects) if result.effects else 'none'}")
     else:
         print("model fitted: asymmetric Bouc–Wen driven by the input (x = kv·u + x0 + h), with its effects")
-    print(f"effects: {', '.join(result.effects) if result.effects else 'none (base model only)'}")
+        print(f"effects: {', '.join(result.effects) if result.effects else 'none (base model only)'}")
     for e in result.named_effects:
         rival = f"; rivals: {', '.join(e.rivals)}" if e.rivals else ""
         print(f"  {e.name}: {e.level} ({e.why}{rival})")
     print(f"error before (base model): rms {result.rms_before_um:.4g} um, max {result.max_before_um:.4g} um")
-    after = f"with {', '.join(result.effects)}" if result.effects else "base model only, nothing added"
+    after = (
+        "hysteretic oscillator"
+        if structure is not None
+        else f"with {', '.join(result.effects)}"
+        if result.effects
+        else "base model only, nothing added"
+    )
     print(f"error after ({after}): rms {result.rms_after_um:.4g} um, max {result.max_after_um:.4g} um")
     unseen = result.unseen
     if unseen is not None:

@@ -287,7 +287,7 @@ def read_csv(
     if columns is None and isinstance(read_x, str) and _role(read_x) == ("x", "m"):
         # A force record's displacement in m (force_record): the record holds µm.
         x = x * 1e6
-        meta["units"] = {"u": "N", "x": f"{read_x} [m] × 1e6 → µm"}
+        meta["units"] = {"u": "N", "x": "m, read as µm (× 1e6)"}
     if table.t is None:
         return Record(
             t=np.arange(u.size, dtype=np.float64) * table.dt, u=u, x=x, dt=table.dt, name=path.stem, meta=meta
