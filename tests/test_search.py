@@ -175,3 +175,14 @@ def test_two_tied_effects_added_at_once_have_no_rival_when_none_is_within_the_ma
     )
     assert round_.taken is not None and round_.taken.move == "add_tied"
     assert state.rivals == {"resonance": set(), "resonance2": set()}
+
+
+def test_another_structure_as_a_rival_sorts_after_the_effects_and_is_never_swapped_in():
+    # The oscillator within the judge's margin of a mode is the mode's rival: it is
+    # reported (after the effects) but is no effect to swap into the model.
+    from boucwen.diagnosis.search import rival_order
+
+    assert sorted({"oscillator", "delay", "creep"}, key=rival_order) == ["creep", "delay", "oscillator"]
+    moves = proposals(("resonance",), {"resonance": {"oscillator", "creep"}}, 4)
+    swaps = [m for m in moves if m.kind == "swap"]
+    assert [m.adds for m in swaps] == [("creep",)]

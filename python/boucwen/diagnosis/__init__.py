@@ -74,7 +74,7 @@ from numpy.typing import ArrayLike
 
 from .._core import EffectSet
 from ..checks import check_int
-from ..effects import VOCABULARY, effect_class, effects_of
+from ..effects import effect_class, effects_of
 from ..effects.base import without
 from ..fit import fit_record
 from ..io import jsonable
@@ -89,7 +89,7 @@ from .fits import Convergence, Scored, Structure
 from .judge import Decision, on_common_blocks
 from .policy import DiagnosisPolicy
 from .report import AtBound, Diagnosis, ModelFit, NamedEffect, NamedStructure, write_predictions, write_report
-from .search import Search, search, structure_move
+from .search import Search, rival_order, search, structure_move
 from .unseen import OnValidation, Unseen, judged_on, prediction_error, settled
 
 __all__ = [
@@ -414,7 +414,7 @@ def _named(
     policy: DiagnosisPolicy,
 ) -> NamedEffect:
     """An effect of the returned model with its confidence (module docs, step 8)."""
-    rivals = tuple(sorted(rivals_of.get(effect.name, set()) - set(final.names), key=VOCABULARY.index))
+    rivals = tuple(sorted(rivals_of.get(effect.name, set()) - set(final.names), key=rival_order))
     if rivals:
         return NamedEffect(
             effect, "tentative", "the record does not tell it from its rivals (within the judge's margin)", rivals

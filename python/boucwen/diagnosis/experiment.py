@@ -54,6 +54,7 @@ from ..record import Record
 from . import fits
 from .fits import Convergence, Scored
 from .policy import DiagnosisPolicy
+from .search import rival_order
 from .unseen import device_part
 
 __all__ = [
@@ -150,7 +151,7 @@ def explanations(
     names = final.names
     held = {frozenset(names)}
     for k in names:
-        for r in sorted(rivals.get(k, ()), key=VOCABULARY.index):
+        for r in sorted(rivals.get(k, ()), key=rival_order):
             rest = set(names) - {k}
             if r not in VOCABULARY:  # another structure (the oscillator): not an effect to swap in
                 continue

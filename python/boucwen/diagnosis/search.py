@@ -59,6 +59,7 @@ __all__ = [
     "Round",
     "Search",
     "proposals",
+    "rival_order",
     "screen_copy",
     "search",
     "structure_move",
@@ -153,6 +154,12 @@ def vocabulary_order(names: tuple[str, ...]) -> tuple[int, ...]:
     return tuple(VOCABULARY.index(k) for k in names)
 
 
+def rival_order(name: str) -> tuple[int, str]:
+    """Sort key of a rival: effects in the vocabulary's order, then another structure
+    (the oscillator) by name."""
+    return (VOCABULARY.index(name), "") if name in VOCABULARY else (len(VOCABULARY), name)
+
+
 def proposals(names: tuple[str, ...], rivals: dict[str, set[str]], max_effects: int) -> list[Move]:
     """Every move from a model holding ``names`` (module docs)."""
     moves: list[Move] = []
@@ -168,7 +175,9 @@ def proposals(names: tuple[str, ...], rivals: dict[str, set[str]], max_effects: 
     tied_to = {effect_class(k).partner for k in names}
     moves += [Move("drop", drops=k) for k in names if k not in tied_to]
     for k in names:
-        for f in sorted(rivals.get(k, ()), key=VOCABULARY.index):
+        for f in sorted(rivals.get(k, ()), key=rival_order):
+            if f not in VOCABULARY:
+                continue
             partner = effect_class(f).partner
             if f not in names and k not in tied_to and (partner is None or partner in names):
                 moves.append(Move("swap", (f,), k))
