@@ -33,7 +33,18 @@ import numpy as np
 
 from ..record import Record
 
-__all__ = ["ENV_VAR", "FOLDER", "DataNotFoundError", "available", "data_dirs", "find", "load", "name_of_file", "names"]
+__all__ = [
+    "ENV_VAR",
+    "FOLDER",
+    "DataNotFoundError",
+    "available",
+    "data_dirs",
+    "find",
+    "find_file",
+    "load",
+    "name_of_file",
+    "names",
+]
 
 #: Environment variable naming the data directory.
 ENV_VAR = "BOUCWEN_DATA"
@@ -105,21 +116,29 @@ def find(name: str) -> Path:
     """
     if name not in _RECORDS:
         raise ValueError(f"unknown dataset {name!r}; available: {', '.join(names())}")
-    filename = _RECORDS[name][0]
+    return find_file(FOLDER, _RECORDS[name][0], f"dataset {name!r}")
+
+
+def find_file(folder: str, filename: str, what: str) -> Path:
+    """The file ``folder/filename`` in the first data directory that holds it.
+
+    Raises:
+        DataNotFoundError: neither ``$BOUCWEN_DATA/<folder>/`` nor
+            ``../shared/data/<folder>/`` holds the file (the message names both and
+            starts with ``what``).
+    """
     looked = []
-    for label, folder in data_dirs():
-        if folder is None:
-            looked.append(f"{label}/{FOLDER}/ ({ENV_VAR} not set)")
+    for label, base in data_dirs():
+        if base is None:
+            looked.append(f"{label}/{folder}/ ({ENV_VAR} not set)")
             continue
-        path = folder / FOLDER / filename
+        path = base / folder / filename
         if path.is_file():
             return path
-        looked.append(
-            f"{label}/{FOLDER}/ ({folder / FOLDER}: {'no such file' if folder.is_dir() else 'no such folder'})"
-        )
+        looked.append(f"{label}/{folder}/ ({base / folder}: {'no such file' if base.is_dir() else 'no such folder'})")
     raise DataNotFoundError(
-        f"dataset {name!r} ({filename}) not found: looked in {' and in '.join(looked)}; "
-        f"set {ENV_VAR} to a folder holding {FOLDER}/{filename}"
+        f"{what} ({filename}) not found: looked in {' and in '.join(looked)}; "
+        f"set {ENV_VAR} to a folder holding {folder}/{filename}"
     )
 
 
