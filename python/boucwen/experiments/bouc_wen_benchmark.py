@@ -88,11 +88,12 @@ def run(
     *,
     period: int = PERIOD,
     progress: bool = True,
-    out: TextIO = sys.stdout,
+    out: TextIO | None = None,
 ) -> dict[str, Any]:
     """Fits on all periods but the last, predicts the last, checks the targets (module
-    docs); prints the figures to ``out`` and returns them (``targets`` holds each
-    target's value, limit and whether it holds)."""
+    docs); prints the figures to ``out`` (default stdout) and returns them (``targets``
+    holds each target's value, limit and whether it holds)."""
+    out = sys.stdout if out is None else out
     n = record.y.size
     periods = n // period
     if periods < 2:
