@@ -128,7 +128,7 @@ impl<const M: usize> Coefficients<Dual<M>> {
 /// here: `if ν == 1 { |z| } else { powf(|z|, ν) }` is folded by the optimiser into the
 /// `powf` call (both arms agree at ν = 1), which would cost a `powf` at every stage.
 #[inline(always)]
-pub(crate) fn abs_pow<const UNIT: bool>(z: f64, nu: f64) -> f64 {
+pub fn abs_pow<const UNIT: bool>(z: f64, nu: f64) -> f64 {
     let a = z.abs();
     if UNIT {
         a
