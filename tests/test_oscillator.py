@@ -58,10 +58,10 @@ def rk4_reference(p: OscillatorParams, force: np.ndarray, dt: float, fine: int =
     return np.array(out)
 
 
-# RK4 is second order across the kinks of |ẏ| and |z|, in the core and in the reference
-# alike: the 20×-rate reference is itself about 2e-5 of the range from the converged
-# solution, the core (about 4 sub-steps a sample on the benchmark) 3e-4.
-REFERENCE_TOLERANCE = 5e-4
+# Plain RK4 is second order across the kinks of |ẏ| and |z|: the 20×-rate reference is
+# itself about 2e-5 of the range from the converged solution (the core, which takes the
+# kinks in pieces, 3e-5).
+REFERENCE_TOLERANCE = 1e-4
 
 
 def _agreement(force: np.ndarray) -> float:
@@ -169,7 +169,8 @@ def test_the_fit_on_a_noisy_record_reaches_the_noise_and_is_quick():
     assert result.jacobian is not None and result.jacobian.shape == (force.size, 10)
     refit = oscillator.fit(force, y, DT, start=result.params)
     assert refit.params.beta == result.params.beta
-    assert refit.rms <= result.rms * (1 + 1e-6)
+    # From the fitted parameters (and a state at rest): within the statistical stop.
+    assert refit.rms <= result.rms * (1 + 1e-4) and refit.nfev < result.nfev
 
 
 def test_weights_leave_samples_out_of_the_cost():
