@@ -10,8 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from boucwen import _core, oscillator
-from boucwen.datasets import bouc_wen
+from boucwen import _core, datasets, oscillator
 from boucwen.experiments import bouc_wen_benchmark
 from boucwen.oscillator import OscillatorParams
 
@@ -79,7 +78,7 @@ def test_the_core_agrees_with_a_fine_step_rk4_on_a_generated_multisine():
 def test_the_core_agrees_with_a_fine_step_rk4_on_the_training_records_input():
     if not _training_available():
         pytest.skip("the Bouc-Wen benchmark's training record is not on this machine")
-    force = bouc_wen.load_training().force[:4096]
+    force = datasets.load_bouc_wen().force[:4096]
     worst = _agreement(force)
     print(f"max deviation from RK4 at 20x the rate: {worst:.2e} of the range")
     assert worst <= REFERENCE_TOLERANCE
@@ -87,7 +86,7 @@ def test_the_core_agrees_with_a_fine_step_rk4_on_the_training_records_input():
 
 def _training_available() -> bool:
     try:
-        bouc_wen.find_training()
+        datasets.find_bouc_wen()
     except FileNotFoundError:
         return False
     return True

@@ -3,7 +3,7 @@ training record, its last period held out.
 
 ``python -m boucwen.experiments.bouc_wen_benchmark [--out DIR] [--data PATH]``:
 
-1. reads the training record (:mod:`boucwen.datasets.bouc_wen`; ``--data`` names another
+1. reads the training record (:func:`boucwen.datasets.load_bouc_wen`; ``--data`` names another
    file of the same columns) and fits :func:`boucwen.oscillator.fit` on all its periods
    but the last (the first four of five), printing the fit RMS [m], the parameters and
    the time;
@@ -33,8 +33,8 @@ from typing import Any, TextIO
 import numpy as np
 
 from ..checks import FloatArray
-from ..datasets import DataNotFoundError
-from ..datasets.bouc_wen import PERIOD, BenchmarkRecord, load_training
+from ..datasets import BOUC_WEN_PERIOD as PERIOD
+from ..datasets import BenchmarkRecord, DataNotFoundError, load_bouc_wen
 from ..io import jsonable
 from ..metrics import rms
 from ..oscillator import fit, simulate
@@ -163,7 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     args = ap.parse_args(argv)
     try:
-        record = load_training(args.data)
+        record = load_bouc_wen(args.data)
     except (DataNotFoundError, FileNotFoundError) as exc:
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 2
