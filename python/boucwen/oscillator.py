@@ -213,7 +213,7 @@ def _frequency_response(F: FloatArray, y: FloatArray, dt: float) -> tuple[float,
     from scipy import signal
 
     fs = 1.0 / dt
-    nper = int(min(4096, max(64, F.size // 4)))
+    nper = int(min(4096, max(64, F.size // 4), F.size))
     f, s_ff = signal.welch(F, fs, nperseg=nper)
     _, s_fy = signal.csd(F, y, fs, nperseg=nper)
     band = (s_ff > 1e-3 * float(np.max(s_ff))) & (f > 0.0)
@@ -302,7 +302,8 @@ def fit(
     Starts: without ``start``, the candidates of :func:`_candidates` (the linear part from
     the record's frequency response, the hysteresis on a physically scaled grid, β =
     1/(2·std y)) are scored by one simulation each on the first 8192 samples, and the
-    best is refined; with ``start``, that model alone (a refit, e.g. of another fold).
+    best is refined (the whole record where those samples all have weight 0); with
+    ``start``, that model alone (a refit, e.g. of another fold).
     Internally the unknowns are scaled by their start values; inputs and outputs are in
     N, m and s.
 
@@ -345,7 +346,8 @@ def fit(
     nfev = 0
 
     if start is None:
-        n_score = min(_SCORE_LEN, force.size)
+        # The first 8192 samples, or the whole record where those are all left out.
+        n_score = min(_SCORE_LEN, force.size) if np.any(kept[:_SCORE_LEN]) else force.size
         candidates = _candidates(force[kept], meas[kept], dt)
         best, best_cost = candidates[0], math.inf
         for cand in candidates:

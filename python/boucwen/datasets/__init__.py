@@ -21,24 +21,56 @@ folder :data:`FOLDER` of a data directory: the one named by the environment vari
 (the nearest folder above the working directory or the package holding a
 ``pyproject.toml``), when it exists. :func:`find` raises :class:`DataNotFoundError`,
 naming both places, when neither holds the record.
+
+The Bouc–Wen benchmark's training record (Noël & Schoukens, 2016) is read the same way
+from the folder :data:`BOUC_WEN_FOLDER` (:func:`load_bouc_wen`): ``train_multisine.csv``,
+columns ``t_s`` [s], ``force_N`` [N], ``displacement_m`` [m]; 40 960 rows at 750 Hz, 5
+periods of 8192 samples of a random-phase multisine from 5 to 150 Hz, 50 N RMS, made with
+the benchmark's simulator (distributed in forgi86/dynonet, MIT licence © 2020 Marco
+Forgione; the folder's README and LICENSE say more).
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..checks import FloatArray
 from ..record import Record
 
-__all__ = ["ENV_VAR", "FOLDER", "DataNotFoundError", "available", "data_dirs", "find", "load", "name_of_file", "names"]
+__all__ = [
+    "BOUC_WEN_FILE",
+    "BOUC_WEN_FOLDER",
+    "BOUC_WEN_PERIOD",
+    "ENV_VAR",
+    "FOLDER",
+    "BenchmarkRecord",
+    "DataNotFoundError",
+    "available",
+    "data_dirs",
+    "find",
+    "find_bouc_wen",
+    "find_file",
+    "load",
+    "load_bouc_wen",
+    "name_of_file",
+    "names",
+]
 
 #: Environment variable naming the data directory.
 ENV_VAR = "BOUCWEN_DATA"
 #: Folder of a data directory that holds the micromanipulator files.
 FOLDER = "yan9a-piezo-micromanipulator"
+#: Folder of a data directory that holds the Bouc–Wen benchmark's files.
+BOUC_WEN_FOLDER = "bouc-wen-benchmark"
+#: The Bouc–Wen benchmark's training record.
+BOUC_WEN_FILE = "train_multisine.csv"
+#: Samples per period of the Bouc–Wen benchmark's training multisine.
+BOUC_WEN_PERIOD = 8192
 
 _DT = 0.005  # s, 200 Hz
 _SOURCE = "github.com/yan9a/DiscreteBacklashOperator, commit 79fd060, folder MatLabCode/DiscreteBacklashModel/"
@@ -105,21 +137,29 @@ def find(name: str) -> Path:
     """
     if name not in _RECORDS:
         raise ValueError(f"unknown dataset {name!r}; available: {', '.join(names())}")
-    filename = _RECORDS[name][0]
+    return find_file(FOLDER, _RECORDS[name][0], f"dataset {name!r}")
+
+
+def find_file(folder: str, filename: str, what: str) -> Path:
+    """The file ``folder/filename`` in the first data directory that holds it.
+
+    Raises:
+        DataNotFoundError: neither ``$BOUCWEN_DATA/<folder>/`` nor
+            ``../shared/data/<folder>/`` holds the file (the message names both and
+            starts with ``what``).
+    """
     looked = []
-    for label, folder in data_dirs():
-        if folder is None:
-            looked.append(f"{label}/{FOLDER}/ ({ENV_VAR} not set)")
+    for label, base in data_dirs():
+        if base is None:
+            looked.append(f"{label}/{folder}/ ({ENV_VAR} not set)")
             continue
-        path = folder / FOLDER / filename
+        path = base / folder / filename
         if path.is_file():
             return path
-        looked.append(
-            f"{label}/{FOLDER}/ ({folder / FOLDER}: {'no such file' if folder.is_dir() else 'no such folder'})"
-        )
+        looked.append(f"{label}/{folder}/ ({base / folder}: {'no such file' if base.is_dir() else 'no such folder'})")
     raise DataNotFoundError(
-        f"dataset {name!r} ({filename}) not found: looked in {' and in '.join(looked)}; "
-        f"set {ENV_VAR} to a folder holding {FOLDER}/{filename}"
+        f"{what} ({filename}) not found: looked in {' and in '.join(looked)}; "
+        f"set {ENV_VAR} to a folder holding {folder}/{filename}"
     )
 
 
@@ -189,3 +229,54 @@ def load(name: str, path: str | os.PathLike[str] | None = None) -> Record:
         meta["desired"] = np.ascontiguousarray(data[:, 8])
         meta["units"]["desired"] = "µm"
     return Record(t=t, u=data[:, 0], x=data[:, 4], dt=_DT, name=name, meta=meta)
+
+
+@dataclass(frozen=True, eq=False)
+class BenchmarkRecord:
+    """A force–displacement record (:func:`load_bouc_wen`).
+
+    Attributes:
+        t: time [s].
+        force: applied force F [N].
+        y: measured displacement [m].
+        dt: sampling interval [s]: the mean spacing of ``t`` (the file's times are
+            rounded to 1e-8 s).
+        path: the file read.
+    """
+
+    t: FloatArray
+    force: FloatArray
+    y: FloatArray
+    dt: float
+    path: Path
+
+
+def find_bouc_wen() -> Path:
+    """The training record's file.
+
+    Raises:
+        DataNotFoundError: in neither data directory (the message names both).
+    """
+    return find_file(BOUC_WEN_FOLDER, BOUC_WEN_FILE, "the Bouc-Wen benchmark's training record")
+
+
+def load_bouc_wen(path: str | os.PathLike[str] | None = None) -> BenchmarkRecord:
+    """Reads the training record (or a file of the same columns at ``path``).
+
+    Raises:
+        DataNotFoundError: ``path`` not given and the record is in no data directory.
+        ValueError: the file does not hold the three columns ``t_s, force_N,
+            displacement_m`` with at least two rows.
+    """
+    file = find_bouc_wen() if path is None else Path(path)
+    try:
+        data = np.loadtxt(file, delimiter=",", skiprows=1, dtype=np.float64, ndmin=2)
+    except ValueError as exc:
+        raise ValueError(f"{file}: not the comma-separated t_s, force_N, displacement_m columns: {exc}") from None
+    if data.shape[1] != 3 or data.shape[0] < 2:
+        raise ValueError(f"{file}: expected 3 columns and at least 2 rows, found shape {data.shape}")
+    t = np.ascontiguousarray(data[:, 0])
+    dt = float((t[-1] - t[0]) / (t.size - 1))
+    return BenchmarkRecord(
+        t=t, force=np.ascontiguousarray(data[:, 1]), y=np.ascontiguousarray(data[:, 2]), dt=dt, path=file
+    )

@@ -10,6 +10,9 @@
 - :mod:`boucwen.experiments.plant_family`: a seeded family of benches around the
   default one; every online method's period-ahead error against the traditional model
   and the refit oracle, per frequency.
+- :mod:`boucwen.experiments.bouc_wen_benchmark`: the hysteretic oscillator
+  (:mod:`boucwen.oscillator`) fitted to the Bouc–Wen benchmark's training record, its
+  last period held out.
 - :mod:`boucwen.experiments.long_run`: 10⁶-sample runs (the schedule repeated, random
   input, noise 0–5 nm): estimates in the well-posed region, period-ahead error against
   the traditional model, share of the integrator's implicit path.
