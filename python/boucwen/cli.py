@@ -138,7 +138,7 @@ def _read_record(args: argparse.Namespace, path: str | None = None) -> Record:
     read = rec.meta["read"]
     if read != {"t": "t", "u": "u", "x": "x"}:
         t_col = f"t = {read['t']!r} [s]" if read["t"] is not None else f"no time column, dt = {rec.dt:.6g} s"
-        units = rec.meta.get("units", {"u": "V", "x": "um"})
+        units = rec.meta.get("read_units", {"u": "V", "x": "um"})
         print(f"{path}: {t_col}, u = {read['u']!r} [{units['u']}], x = {read['x']!r} [{units['x']}]")
     info = rec.meta.get("resampled")
     if info is not None:
@@ -323,7 +323,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         validate=None if val is None else (val.u, val.x, val.dt),
     )
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
-    units = rec.meta.get("units")
+    units = rec.meta.get("read_units")
     if units:
         print(f"input: force [{units['u']}]; displacement: {rec.meta['read']['x']!r} [{units['x']}]")
     structure = result.structure

@@ -15,7 +15,7 @@ CSV format read by :func:`read_csv`:
   for one quantity. A record of a mechanical structure names a **force** as its input
   (``force``, ``force_N``, ``Force [N]``: it takes the voltage's place, in N) and may give
   its displacement in m (``displacement_m``, as the Bouc–Wen benchmark's records do):
-  that column is read in µm (× 1e6), and ``meta["units"]`` says so.
+  that column is read in µm (× 1e6), and ``meta["read_units"]`` says so.
   ``columns=("T", "U", "X")`` (``--columns T,U,X``) names them instead, ``("U", "X")``
   for a record without time. Other columns are ignored;
 * a file without a header line (``numpy.savetxt`` output, a logger's export: numbers
@@ -287,7 +287,7 @@ def read_csv(
     if columns is None and isinstance(read_x, str) and _role(read_x) == ("x", "m"):
         # A force record's displacement in m (force_record): the record holds µm.
         x = x * 1e6
-        meta["units"] = {"u": "N", "x": "m, read as µm (× 1e6)"}
+        meta["read_units"] = {"u": "N", "x": "m, read as µm (× 1e6)"}
     if table.t is None:
         return Record(
             t=np.arange(u.size, dtype=np.float64) * table.dt, u=u, x=x, dt=table.dt, name=path.stem, meta=meta
