@@ -77,7 +77,9 @@ def test_result_fields_and_json():
         "decisions",
         "unseen",
         "at_bounds",
+        "structure",
     }
+    assert doc["structure"] is None  # a piezo record: the input-driven model
     assert doc["effects"] == ["drift"], d.summary()
     assert doc["confidence"]["drift"]["level"] in ("confident", "tentative")
     assert doc["unseen"]["cv_rms_after_um"] < doc["unseen"]["cv_rms_before_um"]
