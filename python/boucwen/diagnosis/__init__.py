@@ -31,8 +31,11 @@ not told what it contains, and selects a model by one loop under one judge:
    (an effect of signature ``"peak"``: the mark of a mechanical structure), the
    hysteretic oscillator (:mod:`boucwen.oscillator`: the hysteresis driven by the
    output's motion, the input a force) is fitted and scored the same way and judged by
-   the same rule against that model; accepted, it is the returned model (where the
-   record cannot tell them apart, it is the mode's rival). Without a mode, an
+   the same rule against that model; accepted and explaining the record
+   (``confident_share`` of the error beyond the noise, or a residual of noise: a change
+   of model class is a claim about the mechanics that a partial fit cannot carry), it is
+   the returned model; accepted but partial, or within the judge's margin, it is the
+   mode's rival. Without a mode, an
    output-driven hysteresis reduces to a static one that the input-driven model holds.
 8. **Report**: the returned model's errors before and after, what it leaves
    (``unexplained``), the held-out errors of the base and returned models (``unseen``),
@@ -73,7 +76,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet
-from ..checks import check_int
+from ..checks import FloatArray, check_int
 from ..effects import effect_class, effects_of
 from ..effects.base import without
 from ..fit import fit_record
@@ -257,12 +260,23 @@ def _outcome(
     osc, osc_decision, osc_skipped = structure_move(record, final, noise_um=noise_um, policy=policy, say=say)
     if osc_decision is not None:
         decisions.append(osc_decision)
-    other = osc if osc is not None and osc_decision is not None and osc_decision.accepted else None
+    # A change of model class is a claim about the mechanics (the hysteresis inside the
+    # structure's own dynamics, not in the actuator): the oscillator is returned only where
+    # the judge accepts it and it explains the record (``confident_share`` of the error
+    # beyond the noise, or a residual of noise). Accepted but partial, or within the
+    # judge's margin, it is the mode's rival.
+    osc_share = _explained(record.x - base.x, record.x - osc.x, noise_um) if osc is not None else 0.0
+    osc_explains = osc is not None and (
+        osc_share >= policy.confident_share
+        or unexplained(record, osc.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance).consistent_with_noise
+    )
+    accepted = osc_decision is not None and osc_decision.accepted
+    other = osc if accepted and osc_explains else None
     if (
         osc is not None
         and osc_decision is not None
         and other is None
-        and abs(osc_decision.gain.t) <= osc_decision.threshold
+        and (accepted or abs(osc_decision.gain.t) <= osc_decision.threshold)
     ):
         # The record does not tell the oscillator from the input-driven model's mode.
         for k in final.names:
@@ -272,9 +286,7 @@ def _outcome(
     x = record.x
     err_b, err_e = x - base.x, x - returned_x
     left = unexplained(record, returned_x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
-    beyond_before = max(float(np.mean(err_b**2)) - noise_um**2, 0.0)
-    beyond_after = max(float(np.mean(err_e**2)) - noise_um**2, 0.0)
-    share = 1.0 - beyond_after / beyond_before if beyond_before > 0 else 1.0
+    share = _explained(err_b, err_e, noise_um)
     added = _order_added(state, final.names)
     named = tuple(
         _named(e, rivals, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
@@ -389,6 +401,14 @@ def _settle(
         m.replaces[1] for i, m in enumerate(members) if i in left and i != keep and m.replaces and m.replaces[0] == out
     }
     return chosen.scored, {into: left_for}, {}, decisions
+
+
+def _explained(err_before: FloatArray, err_after: FloatArray, noise_um: float) -> float:
+    """The share of the error beyond the noise [µm] that the model of residual
+    ``err_after`` explains, against the base model's ``err_before`` [-]."""
+    beyond_before = max(float(np.mean(err_before**2)) - noise_um**2, 0.0)
+    beyond_after = max(float(np.mean(err_after**2)) - noise_um**2, 0.0)
+    return 1.0 - beyond_after / beyond_before if beyond_before > 0 else 1.0
 
 
 def _structure(osc: Structure, left: Unexplained, share: float, policy: DiagnosisPolicy) -> NamedStructure:
