@@ -265,13 +265,21 @@ def _outcome(
     # the judge accepts it and it explains the record (``confident_share`` of the error
     # beyond the noise, or a residual of noise). Accepted but partial, or within the
     # judge's margin, it is the mode's rival.
-    osc_share = _explained(record.x - base.x, record.x - osc.x, noise_um) if osc is not None else 0.0
-    osc_explains = osc is not None and (
-        osc_share >= policy.confident_share
-        or unexplained(record, osc.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance).consistent_with_noise
+    accepted = osc is not None and osc_decision is not None and osc_decision.accepted
+    osc_left = (
+        unexplained(record, osc.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
+        if accepted and osc is not None
+        else None
     )
-    accepted = osc_decision is not None and osc_decision.accepted
-    other = osc if accepted and osc_explains else None
+    osc_explains = (
+        osc is not None
+        and osc_left is not None
+        and (
+            osc_left.consistent_with_noise
+            or _explained(record.x - base.x, record.x - osc.x, noise_um) >= policy.confident_share
+        )
+    )
+    other = osc if osc_explains else None
     if (
         osc is not None
         and osc_decision is not None
@@ -285,14 +293,18 @@ def _outcome(
     returned_x, returned_cv = (other.x, other.cv) if other is not None else (final.x, final.cv)
     x = record.x
     err_b, err_e = x - base.x, x - returned_x
-    left = unexplained(record, returned_x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
+    left = (
+        osc_left
+        if other is not None and osc_left is not None
+        else unexplained(record, returned_x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
+    )
     share = _explained(err_b, err_e, noise_um)
     added = _order_added(state, final.names)
     named = tuple(
         _named(e, rivals, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
     )
     named = tuple(sorted(named, key=lambda e: added.index(e.name)))
-    structure = None if other is None else _structure(other, left, share, policy)
+    structure = None if other is None else _structure(other)
     if other is not None:
         # The effects of the input-driven model the oscillator refutes are its rival's.
         why = "the hysteretic oscillator predicts the record better: this effect is the refuted input-driven model's"
@@ -411,16 +423,10 @@ def _explained(err_before: FloatArray, err_after: FloatArray, noise_um: float) -
     return 1.0 - beyond_after / beyond_before if beyond_before > 0 else 1.0
 
 
-def _structure(osc: Structure, left: Unexplained, share: float, policy: DiagnosisPolicy) -> NamedStructure:
-    """The oscillator returned, with its confidence (module docs, step 8): it passed the
-    judge against the input-driven model (so that model is not within its margin); it
-    is confident where its fit converged and it explains the record."""
-    if not left.consistent_with_noise and share < policy.confident_share:
-        why = (
-            f"it predicts held-out blocks better than the input-driven model, but explains {share:.0%} of the "
-            "error beyond the noise and leaves a residual that is not noise"
-        )
-        return NamedStructure(osc.name, "tentative", why, osc.fit, osc.cv.rms_um)
+def _structure(osc: Structure) -> NamedStructure:
+    """The oscillator returned (module docs, step 7): it passed the judge against the
+    input-driven model, so that model is not within its margin, and it explains the
+    record, the condition of its return."""
     why = "it predicts held-out blocks better than the best input-driven model beyond that model's margin"
     return NamedStructure(osc.name, "confident", why, osc.fit, osc.cv.rms_um)
 

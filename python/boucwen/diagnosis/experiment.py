@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from ..checks import FloatArray
+from ..checks import FloatArray, check_finite
 from ..effects import VOCABULARY, ExtendedFit, effect_class, simulate_chain
 from ..io import write_csv
 from ..metrics import rms
@@ -173,11 +173,11 @@ def explanations(
 
 
 def _real(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return float(value)
+    """:func:`boucwen.checks.check_finite`, a value that is no number a ValueError too."""
+    try:
+        return check_finite(name, value)
+    except TypeError as exc:
+        raise ValueError(str(exc)) from None
 
 
 def _positive(name: str, value: Any) -> float:
@@ -712,12 +712,14 @@ def design(
     u, parts = _input(np.asarray(found.x), limits, segments)
     staircase = _input(stair, limits, segments)[0]
     multisine = _multisine(limits, segments, seed)
-    generic_kind, generic_u = max(
-        (("staircase", staircase), ("multisine", multisine)),
-        key=lambda g: _closest(members, g[1], limits.dt_s, noise),
-    )
     xs = _predictions(members, u, limits.dt_s)
-    xg = _predictions(members, generic_u, limits.dt_s)
+    generics = [
+        (kind, g, _predictions(members, g, limits.dt_s))
+        for kind, g in (("staircase", staircase), ("multisine", multisine))
+    ]
+    generic_kind, generic_u, xg = max(
+        generics, key=lambda g: min(_all_separations(g[2], noise)) if g[2] is not None else 0.0
+    )
     if xs is None or xg is None:
         raise ValueError("an explanation cannot be simulated on the designed input")
     seps = tuple(
