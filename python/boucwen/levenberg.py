@@ -42,10 +42,11 @@ from typing import Callable, Optional
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import lsq_linear
 
 from .checks import FloatArray
 
-__all__ = ["STATISTICAL_MARGIN", "Solution", "levenberg_marquardt"]
+__all__ = ["STATISTICAL_MARGIN", "Solution", "first_step", "levenberg_marquardt"]
 
 #: Default stop: the remaining Gauss–Newton step is at most √0.01 = 0.1 standard error.
 STATISTICAL_MARGIN = 0.01
@@ -154,6 +155,65 @@ def _bounded(
     return step
 
 
+def _within(lower: FloatArray, upper: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The bounds the iterates keep to: a hair inside ``lower`` and ``upper``."""
+    span = np.where(np.isfinite(lower) & np.isfinite(upper), upper - lower, np.inf)
+    lo = lower + np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(lower), lower, 0.0))), 0.25 * span)
+    hi = upper - np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(upper), upper, 0.0))), 0.25 * span)
+    return lo, hi
+
+
+def _remaining(normal: _Normal, jac: FloatArray, g: FloatArray, at_lower: BoolArray, at_upper: BoolArray) -> float:
+    """The fall of the cost the Gauss–Newton step predicts, the unknowns that would leave
+    their bound held there."""
+    gauss_newton = normal.within(g, np.inf)[0]
+    if _held(gauss_newton, at_lower, at_upper).any():
+        gauss_newton = _bounded(normal, jac, g, np.inf, at_lower, at_upper)
+    return float(-(g @ gauss_newton))
+
+
+def first_step(
+    r: FloatArray,
+    jac: FloatArray,
+    z0: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    *,
+    x_scale: FloatArray | float,
+    margin: float = STATISTICAL_MARGIN,
+    radius: float = np.inf,
+) -> FloatArray:
+    """The minimiser of the linear model ‖r + ∂r/∂z·δ‖² within the bounds, from ``z0``
+    (r and ∂r/∂z given there): ``z0`` itself where the remaining step is already within
+    the statistical margin (:func:`levenberg_marquardt` stops there), else the
+    Gauss–Newton step within the bounds (bounded-variable least squares on the p × p
+    normal equations, the directions the rows do not determine left alone), shortened
+    to ‖S⁻¹δ‖ ≤ ``radius`` (S = diag ``x_scale``). No simulation: the first-order view of
+    a refit from ``z0``."""
+    lo, hi = _within(lower, upper)
+    z = np.clip(np.asarray(z0, dtype=np.float64), lo, hi)
+    scale = np.array(np.broadcast_to(np.asarray(x_scale, dtype=np.float64), z.shape))
+    normal = _Normal(jac, scale)
+    g = jac.T @ r
+    cost = 0.5 * float(r @ r)
+    if _remaining(normal, jac, g, z <= lo, z >= hi) <= margin * 2.0 * cost / max(r.size - z.size, 1):
+        return z
+    # ‖r + J·S·y‖² = yᵀ(SHS)y + 2(Sg)ᵀy + ‖r‖², with SHS = V·diag(w)·Vᵀ: the least-squares
+    # problem ‖diag(√w)·Vᵀ·y + diag(1/√w)·Vᵀ·S·g‖² over the determined directions, with
+    # the bounds on y = δ/S (bounded-variable least squares on a p × p problem).
+    keep = normal.determined
+    root = np.sqrt(normal.w[keep])
+    a = root[:, None] * normal.v[:, keep].T
+    b = -(normal.v[:, keep].T @ (g * scale)) / root
+    box = lsq_linear(a, b, bounds=((lo - z) / scale, (hi - z) / scale), method="bvls")
+    y = np.asarray(box.x, dtype=np.float64)
+    length = float(np.linalg.norm(y))
+    if length > radius:
+        y *= radius / length
+    out: FloatArray = np.clip(z + scale * y, lo, hi)
+    return out
+
+
 def levenberg_marquardt(
     residual: Residual,
     linearise: Linearise,
@@ -166,6 +226,7 @@ def levenberg_marquardt(
     max_nfev: int,
     margin: float = STATISTICAL_MARGIN,
     reuse_jacobian: bool = False,
+    start: tuple[FloatArray, FloatArray] | None = None,
 ) -> Solution:
     """Minimises ½‖r(z)‖² from ``z0`` within [lower, upper] (module docs).
 
@@ -179,16 +240,17 @@ def levenberg_marquardt(
         max_nfev: largest number of trial points.
         margin: the statistical stop, in squared standard errors (module docs).
         reuse_jacobian: keep the Jacobian while it predicts the fall of the cost.
+        start: (r, ∂r/∂z) at ``z0`` where the caller has them (a refit from a fit whose
+            Jacobian is known): the first linearisation is not computed again. With
+            ``reuse_jacobian`` it is kept while it predicts the steps, as any other.
     """
-    span = np.where(np.isfinite(lower) & np.isfinite(upper), upper - lower, np.inf)
-    lo = lower + np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(lower), lower, 0.0))), 0.25 * span)
-    hi = upper - np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(upper), upper, 0.0))), 0.25 * span)
+    lo, hi = _within(lower, upper)
     z = np.clip(np.asarray(z0, dtype=np.float64), lo, hi)
     p = z.size
     scale = np.array(np.broadcast_to(np.asarray(x_scale, dtype=np.float64), z.shape))
     radius = float(np.linalg.norm(z / scale)) or 1.0
-    first = linearise(z)
-    njev, nfev = 1, 0
+    first = start if start is not None else linearise(z)
+    njev, nfev = (0 if start is not None else 1), 0
     if first is None:
         r = residual(z)
         return Solution(
@@ -214,12 +276,7 @@ def levenberg_marquardt(
     while True:
         g = jac.T @ r
         at_lower, at_upper = z <= lo, z >= hi
-        gauss_newton = normal.within(g, np.inf)[0]
-        if _held(gauss_newton, at_lower, at_upper).any():
-            held = _bounded(normal, jac, g, np.inf, at_lower, at_upper)
-            remaining = float(-(g @ held))
-        else:
-            remaining = float(-(g @ gauss_newton))
+        remaining = _remaining(normal, jac, g, at_lower, at_upper)
         if remaining <= margin * 2.0 * cost / max(r.size - p, 1):
             message, success = "the remaining step is within the statistical margin", True
             break

@@ -155,7 +155,7 @@ class Diagnosis:
         taken: the moves the search took, in order.
         at_bounds: the returned model's unknowns that ended on a bound of the fit
             (:class:`AtBound`).
-        unseen: errors on data the fits did not see [µm]: blocked cross-validation of the
+        unseen: errors on data the fits did not see [µm]: forward validation of the
             base and returned models and, with a validation record, both carried to it
             (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
         explained: the record, the returned model and its rivals, for
@@ -268,7 +268,8 @@ class Diagnosis:
         )
         unseen = self.unseen
         cv = (
-            f"; unseen ({unseen.folds}-fold CV) RMS {unseen.cv_rms_before_um:.4g} → {unseen.cv_rms_after_um:.4g} µm"
+            f"; unseen ({unseen.folds} forward folds) RMS {unseen.cv_rms_before_um:.4g} → "
+            f"{unseen.cv_rms_after_um:.4g} µm"
             if unseen is not None
             else ""
         )

@@ -39,10 +39,12 @@ from .base import Context, Effect, Start, simulate_chain, with_effect
 from .registry import effect_class, effect_set, effects_of
 
 __all__ = [
+    "Box",
     "ExtendedFit",
     "Layout",
     "Solved",
     "candidate_starts",
+    "fit_box",
     "fit_extended",
     "fit_extended_record",
     "jacobian_extended",
@@ -308,6 +310,33 @@ def fit_extended_record(
     ).fit
 
 
+@dataclass(frozen=True, eq=False)
+class Box:
+    """Where a fit of a record starts and may go: its :class:`Layout`, the start ``v0``,
+    the bounds ``lower`` ≤ v ≤ ``upper`` (the layout's, narrowed by the sign the
+    model's static gain gives: :meth:`Layout.sign_bounds`) with ``v0`` just inside them,
+    and the optimiser's scale of each unknown (``scale``)."""
+
+    layout: Layout
+    v0: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+    scale: FloatArray
+
+
+def fit_box(record: Record, params: Params, effects: EffectSet, h0: float) -> Box:
+    """The :class:`Box` of a fit of ``record`` started at (params, effects, h0)."""
+    u, x, dt = record.u, record.x, record.dt
+    layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
+    v0 = layout.pack(params, effects, h0)
+    lo, hi = layout.bounds()
+    sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))
+    lo, hi = np.maximum(lo, sign_lo), np.minimum(hi, sign_hi)
+    inside = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    v0 = np.clip(v0, lo + inside, hi - inside)
+    return Box(layout, v0, lo, hi, _typical(layout, v0, u, x))
+
+
 def solve_extended_record(
     record: Record,
     params: Params,
@@ -320,6 +349,8 @@ def solve_extended_record(
     margin: float = STATISTICAL_MARGIN,
     weights: FloatArray | None = None,
     reuse_jacobian: bool = False,
+    fit_until: int | None = None,
+    start: tuple[FloatArray, FloatArray] | None = None,
 ) -> Solved:
     """:func:`fit_extended_record` with the fit's simulated displacement and the
     optimiser's Jacobian at the solution, for the callers that score the fit.
@@ -327,28 +358,38 @@ def solve_extended_record(
     a block of the record: the model still runs through them); the errors of the
     result are over every sample.
     ``reuse_jacobian``: keep a Jacobian while it predicts the steps (``"lm"``; a start
-    near the optimum: :func:`boucwen.levenberg.levenberg_marquardt`)."""
-    u, x, dt = record.u, record.x, record.dt
-    layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
-    v0 = layout.pack(params, effects, h0)
-    lo, hi = layout.bounds()
-    sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))
-    lo, hi = np.maximum(lo, sign_lo), np.minimum(hi, sign_hi)
-    inside = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    v0 = np.clip(v0, lo + inside, hi - inside)
-    typ = _typical(layout, v0, u, x)
-    chain: _Chain = _Chain(layout, u, dt) if weights is None else _Weighted(layout, u, dt, weights)
-    prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights)
+    near the optimum: :func:`boucwen.levenberg.levenberg_marquardt`).
+    ``fit_until``: fit the samples before this index alone (the model simulated only that
+    far while it is fitted; the bounds and scales are the whole record's), a refit on
+    the record's past; ``start``: the residual x − x̂ and the Jacobian ∂x̂/∂v at the start
+    over those samples, where the caller has them (``"lm"``: the first linearisation is
+    not computed again)."""
+    box = fit_box(record, params, effects, h0)
+    layout, v0, lo, hi = box.layout, box.v0, box.lower, box.upper
+    stop = len(record) if fit_until is None else int(fit_until)
+    u, x, dt = record.u[:stop], record.x[:stop], record.dt
+    chain: _Chain = _Chain(layout, u, dt) if weights is None else _Weighted(layout, u, dt, weights[:stop])
+    prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights[:stop])
     if prob.simulate(v0) is None:
         raise ValueError("the starting point of fit_extended cannot be simulated")
+    first = None if start is None else (-start[0][:stop], start[1][:stop])
     res = prob.solve(
-        v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev, method=method, margin=margin, reuse_jacobian=reuse_jacobian
+        v0,
+        lo,
+        hi,
+        x_scale=box.scale,
+        tol=tol,
+        max_nfev=max_nfev,
+        method=method,
+        margin=margin,
+        reuse_jacobian=reuse_jacobian,
+        start=first,
     )
     p, e, h = layout.unpack(res.x)
-    xs = simulate_chain(p, e, u, dt, h)
+    xs = simulate_chain(p, e, record.u, dt, h)
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point
         raise ValueError("the fitted parameters cannot be simulated")
-    err = x - xs
+    err = record.x - xs
     fit = ExtendedFit(
         params=p,
         effects=e,
