@@ -44,7 +44,7 @@ from .levenberg import levenberg_marquardt
 from .metrics import rms
 from .progress import Progress, reporter
 
-__all__ = ["NU_BOUNDS", "UNKNOWNS", "OscillatorFit", "OscillatorParams", "fit", "simulate"]
+__all__ = ["NU_BOUNDS", "UNKNOWNS", "OscillatorFit", "OscillatorParams", "check_admissible", "fit", "simulate"]
 
 #: The exponent's domain [-] (the core's: below 1 the relaxation of z is infinitely
 #: stiff at z = 0).
@@ -270,13 +270,35 @@ def _candidates(F: FloatArray, y: FloatArray, dt: float) -> list[OscillatorParam
 # --------------------------------------------------------------------------- fit
 
 
+#: ∂(γ, δ)/∂(γ, γ − δ): the core's Jacobian columns ∂/∂γ, ∂/∂δ times this give the
+#: fit's ∂/∂γ (γ − δ held) and ∂/∂(γ − δ).
+_REGION_JACOBIAN: FloatArray = np.array([[1.0, 0.0], [1.0, -1.0]])
+
+
+def check_admissible(p: OscillatorParams) -> OscillatorParams:
+    """``p`` if it is in the oscillator's admissible region (docs/design.md, "The admissible
+    region"): γ ≥ 0 (the loop's irreversible term dissipates: with γ < 0 it runs the other
+    way and feeds energy in every cycle) and γ − δ ≥ 0 (the unloading branch stiffens:
+    otherwise z grows against the motion once past (α/(β·(δ − γ)))^(1/ν)); else
+    :class:`boucwen.InvalidParams` naming the combination."""
+    for name, value in (("gamma", p.gamma), ("gamma - delta", p.gamma - p.delta)):
+        if value < 0.0:
+            raise InvalidParams(
+                f"invalid parameter {name} = {value}: must be >= 0: the loop feeds the motion energy "
+                "(the admissible region, docs/design.md)"
+            )
+    return p
+
+
 def _unknowns(p: OscillatorParams, state: Sequence[float]) -> FloatArray:
-    return np.array([p.m, p.c, p.k, p.alpha, p.gamma, p.delta, p.nu, *state], dtype=np.float64)
+    """The fit's unknowns: m, c, k, α, γ, γ − δ (the admissible region is γ ≥ 0, γ − δ ≥ 0),
+    ν and the initial state."""
+    return np.array([p.m, p.c, p.k, p.alpha, p.gamma, p.gamma - p.delta, p.nu, *state], dtype=np.float64)
 
 
 def _params(z: FloatArray, beta: float) -> OscillatorParams:
-    m, c, k, alpha, gamma, delta, nu = (float(v) for v in z[:7])
-    return OscillatorParams(m=m, c=c, k=k, alpha=alpha, beta=beta, gamma=gamma, delta=delta, nu=nu)
+    m, c, k, alpha, gamma, minus, nu = (float(v) for v in z[:7])
+    return OscillatorParams(m=m, c=c, k=k, alpha=alpha, beta=beta, gamma=gamma, delta=gamma - minus, nu=nu)
 
 
 def fit(
@@ -293,11 +315,13 @@ def fit(
     """Fits the oscillator to a record by output error: the model simulated from ``F``
     alone, never from the measured y.
 
-    Minimises Σ wₖ·(yₖ − ŷₖ)² over m, c, k, α, γ, δ, ν and the initial state (y0, v0, z0)
-    by Levenberg–Marquardt (:func:`boucwen.levenberg.levenberg_marquardt`, stopped where
-    the remaining step is within a tenth of a standard error) on the exact Jacobian from
-    the core's dual pass. **β is not identified**: it appears only in the products β·γ and
-    β·δ, so it stays at its start value and γ, δ carry the loop's shape.
+    Minimises Σ wₖ·(yₖ − ŷₖ)² over m, c, k, α, γ, δ, ν and the initial state (y0, v0, z0),
+    within the admissible region (γ ≥ 0 and γ − δ ≥ 0, the unknowns γ and γ − δ bounded
+    below by 0: :func:`check_admissible`), by Levenberg–Marquardt
+    (:func:`boucwen.levenberg.levenberg_marquardt`, stopped where the remaining step is
+    within a tenth of a standard error) on the exact Jacobian from the core's dual pass.
+    **β is not identified**: it appears only in the products β·γ and β·δ, so it stays at
+    its start value and γ, δ carry the loop's shape.
 
     Starts: without ``start``, the candidates of :func:`_candidates` (the linear part from
     the record's frequency response, the hysteresis on a physically scaled grid, β =
@@ -311,7 +335,8 @@ def fit(
         F: force [N], one sample per ``dt``.
         y: measured displacement [m], same length.
         dt: sampling interval [s].
-        start: the model to start from (its β is kept); None for the data-driven starts.
+        start: the model to start from (its β is kept; in the admissible region); None
+            for the data-driven starts.
         weights: per-sample weights (0 or 1: a 0 leaves the sample out of the cost, e.g.
             a held-out block); None for all ones.
         max_nfev: most trial points of the solver.
@@ -325,6 +350,7 @@ def fit(
         InvalidRecord: F or y empty, of different lengths, or with a non-finite sample;
             weights of another length, negative, non-finite, or all zero.
         InvalidConfig: dt not finite and > 0; max_nfev < 1.
+        InvalidParams: a ``start`` outside the admissible region.
     """
     started = time.perf_counter()
     say = reporter(progress, "oscillator.fit", started)
@@ -344,6 +370,8 @@ def fit(
             raise InvalidRecord("weights must be >= 0 with at least one > 0")
     kept = w > 0.0
     nfev = 0
+    if start is not None:
+        check_admissible(start)
 
     if start is None:
         # The first 8192 samples, or the whole record where those are all left out.
@@ -366,7 +394,7 @@ def fit(
     x_scale[4:6] = np.maximum(x_scale[4:6], 0.1)
     x_scale[6] = 1.0
     x_scale[7:] = (amplitude, velocity, max(start.alpha * amplitude, 1e-12))
-    lower = np.array([1e-9 * start.m, 0.0, 0.0, 1e-9 * start.alpha, -np.inf, -np.inf, NU_BOUNDS[0], *[-np.inf] * 3])
+    lower = np.array([1e-9 * start.m, 0.0, 0.0, 1e-9 * start.alpha, 0.0, 0.0, NU_BOUNDS[0], *[-np.inf] * 3])
     upper = np.array([np.inf] * 6 + [NU_BOUNDS[1]] + [np.inf] * 3)
 
     def run(z: FloatArray) -> FloatArray | None:
@@ -397,6 +425,7 @@ def fit(
         if not (np.all(np.isfinite(sim)) and np.all(np.isfinite(jac))):
             return None
         say(f"pass {nfev}: RMS {rms((sim - meas)[kept]):.4e} m")
+        jac[:, 4:6] = jac[:, 4:6] @ _REGION_JACOBIAN
         return w * (sim - meas), w[:, None] * jac
 
     sol = levenberg_marquardt(

@@ -7,11 +7,13 @@ from u alone with :func:`boucwen.simulate_extended`, by ``scipy.optimize.least_s
 usual starting point here).
 
 Unknowns, in this order (see :class:`Layout`): the base model's kv [µm/V], x0 [µm], A,
-β, γ, n, δ (units of :class:`boucwen.Params`) and the initial hysteresis state h0
-[µm]; then, for each effect present in signal-chain order, the unknowns its class
+β + γ, β − γ, n, δ (units of :class:`boucwen.Params`) and the initial hysteresis state
+h0 [µm]; then, for each effect present in signal-chain order, the unknowns its class
 declares (:meth:`~boucwen.effects.Effect.unknowns`: the creep gains, ln fc, ln fn and
 ln ζ, the drift rate; the creep time constants and the delay are held fixed), with
-their bounds, typical sizes and sign constraints.
+their bounds, typical sizes and sign constraints. β + γ and β − γ are bounded below by
+0: a fit cannot leave the admissible region, where h stays bounded
+(:mod:`boucwen.region`), and a start outside it is refused (:class:`boucwen.InvalidParams`).
 
 Residual, Jacobian (exact, from the Rust core in one pass with the simulation:
 :func:`boucwen._core.simulate_extended_with_jacobian`, whose columns are these unknowns
@@ -35,6 +37,7 @@ from ..levenberg import STATISTICAL_MARGIN
 from ..lsq import Method, OutputErrorProblem, with_jacobian_or_none
 from ..metrics import max_abs, rms
 from ..record import Record, validate_record
+from ..region import PAIR_NAMES, SPLIT_JACOBIAN, check, pair, split
 from .base import Context, Effect, Start, simulate_chain, with_effect
 from .registry import effect_class, effect_set, effects_of
 
@@ -51,8 +54,11 @@ __all__ = [
     "solve_extended_record",
 ]
 
-#: The base model's unknowns: the seven parameters and h0.
-_BASE = (*Params.names, "h0")
+#: The base model's unknowns: the seven parameters, β and γ as β ± γ (the coordinates in
+#: which the admissible region is a box), and h0.
+_BASE = ("kv", "x0", "A", *PAIR_NAMES, "n", "delta", "h0")
+#: Where β ± γ sit in the vector of unknowns (and β, γ in the core's Jacobian).
+_PAIR = slice(3, 5)
 
 
 @dataclass(frozen=True)
@@ -94,13 +100,16 @@ class Layout:
         if tuple(e.name for e in present) != self.names:
             raise ValueError(f"the layout is for the effects {list(self.names)}, got {effects.names}")
         v = [*list(params.to_array()), float(h0)]
+        v[_PAIR] = pair(params.beta, params.gamma)
         for e in present:
             v += e.pack()
         return np.asarray(v, dtype=np.float64)
 
     def unpack(self, v: FloatArray) -> tuple[Params, EffectSet, float]:
         """Vector of unknowns → (params, effects, h0); ValueError if invalid."""
-        params = Params.from_array(v[:7])
+        base = np.array(v[:7], dtype=np.float64)
+        base[_PAIR] = split(float(v[3]), float(v[4]))
+        params = Params.from_array(base)
         h0 = float(v[7])
         i = len(_BASE)
         fitted = []
@@ -126,11 +135,16 @@ class Layout:
             p, e, h0 = self.unpack(v)
         except (ValueError, OverflowError):
             return None
-        return with_jacobian_or_none(lambda: simulate_extended_with_jacobian(p, e, u, dt, h0))
+        out = with_jacobian_or_none(lambda: simulate_extended_with_jacobian(p, e, u, dt, h0))
+        if out is not None:
+            # The core's columns ∂/∂β, ∂/∂γ → ∂/∂(β + γ), ∂/∂(β − γ).
+            out[1][:, _PAIR] = out[1][:, _PAIR] @ SPLIT_JACOBIAN
+        return out
 
     def bounds(self) -> tuple[FloatArray, FloatArray]:
-        """Lower and upper bounds of the unknowns."""
+        """Lower and upper bounds of the unknowns (β ± γ ≥ 0: the admissible region)."""
         base = [(-np.inf, np.inf)] * len(_BASE)
+        base[3] = base[4] = (0.0, np.inf)
         base[5] = N_BOUNDS
         return _columns(base, [b for e in self.effects for b in e.bounds(self.context)])
 
@@ -147,8 +161,8 @@ class Layout:
             "kv": span_x / span_u,
             "x0": span_x,
             "A": span_x / span_u,
-            "beta": 1e-3,
-            "gamma": 1e-3,
+            PAIR_NAMES[0]: 1e-3,
+            PAIR_NAMES[1]: 1e-3,
             "n": 1.0,
             "delta": 1e-3,
             "h0": 0.01 * span_x,
@@ -258,8 +272,9 @@ def fit_extended(
     Args:
         u: voltage [V] (1-D, finite); x: measured displacement [µm], same length.
         dt: sampling interval [s].
-        params, effects, h0: starting point; ``effects`` also fixes which effects are
-            present, the creep time constants and the delay (see the module docs).
+        params, effects, h0: starting point (``params`` in the admissible region);
+            ``effects`` also fixes which effects are present, the creep time constants
+            and the delay (see the module docs).
         max_nfev: most trial points (a fit stopped there has ``success`` False).
         tol: relative change of the cost or of the unknowns that stops (``"lm"``), or
             ``xtol``/``ftol``/``gtol`` (``"trf"``).
@@ -271,7 +286,8 @@ def fit_extended(
         An :class:`ExtendedFit` (errors over the given record).
 
     Raises:
-        ValueError: invalid data or a starting point that cannot be simulated.
+        ValueError: invalid data or a starting point that cannot be simulated;
+            :class:`boucwen.InvalidParams` for a start outside the admissible region.
     """
     record = validate_record(u, x, dt)
     return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, method=method, margin=margin)
@@ -364,6 +380,7 @@ def solve_extended_record(
     the record's past; ``start``: the residual x − x̂ and the Jacobian ∂x̂/∂v at the start
     over those samples, where the caller has them (``"lm"``: the first linearisation is
     not computed again)."""
+    check(params)
     box = fit_box(record, params, effects, h0)
     layout, v0, lo, hi = box.layout, box.v0, box.lower, box.upper
     stop = len(record) if fit_until is None else int(fit_until)
