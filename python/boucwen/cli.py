@@ -356,7 +356,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     unseen = result.unseen
     if unseen is not None:
         print(
-            f"unseen data ({unseen.folds}-fold blocked cross-validation): rms {unseen.cv_rms_before_um:.4g} um "
+            f"unseen data ({unseen.folds} forward folds): rms {unseen.cv_rms_before_um:.4g} um "
             f"(base model) -> {unseen.cv_rms_after_um:.4g} um (returned model)"
         )
         on_val = unseen.validation
@@ -415,10 +415,11 @@ def _add_diagnose(sub: _Subparsers) -> None:
         "diagnose",
         help="find which effect the base model misses in a record",
         description="Fits the base model, then adds, drops and swaps effects of the "
-        "vocabulary while a move improves the error on held-out blocks of the record "
-        "(blocked cross-validation, every fit converged) by more than its sampling "
-        "error; reports the error before and after [um], the rivals the record cannot "
-        "tell apart, and what is left unexplained.",
+        "vocabulary (or replaces the model by the hysteretic oscillator) while a move "
+        "improves the prediction of samples its refits did not see (each fold refitted on "
+        "the record before it) by more than its sampling error; reports the error before "
+        "and after [um], the rivals the record cannot tell apart, and what is left "
+        "unexplained.",
     )
     p.add_argument("data", nargs="?", default=None, help=_DATA_HELP)
     _add_record_options(p)

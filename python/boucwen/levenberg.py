@@ -21,7 +21,10 @@ d² ≤ ``margin`` (default :data:`STATISTICAL_MARGIN`: the remaining step is at
 tenth of a standard error), with σ² estimated from the residual, σ̂² = ‖r‖²/(rows − p):
 further iterations would move the unknowns by less than the record can resolve and
 change the cost by at most ``margin``·σ̂², far below any difference a decision between
-models is made on. ``tol`` stops it earlier on noise-free records (relative change of
+models is made on. The same margin on the fall each step achieves stops it too: three
+accepted steps in a row that each lower ‖r‖² by less than ``margin``·σ̂² (a curved valley,
+along which the Gauss–Newton step keeps predicting a fall it never gives; SciPy's ``trf``
+is stopped the same way, its ``ftol``). ``tol`` stops it earlier on noise-free records (relative change of
 the cost or of the scaled unknowns below ``tol``); ``max_nfev`` bounds the number of
 trial points.
 
@@ -60,6 +63,11 @@ _KEEP_RHO = 0.75
 #: converges linearly, at a rate set by how far the Jacobian has drifted; a fresh one
 #: converges quadratically).
 _CHORD_RATE = 0.25
+
+#: Accepted steps in a row, each lowering the cost by less than the statistical margin,
+#: that stop the solver as converged: along a curved valley the Gauss–Newton step keeps
+#: predicting a fall the record would resolve while the steps achieve less than it can.
+_STALLED = 3
 
 #: Eigenvalues of the scaled H below this fraction of the largest are directions the
 #: record does not determine: no Gauss–Newton step along them.
@@ -262,6 +270,7 @@ def levenberg_marquardt(
     normal = _Normal(jac, scale)
     message, success = f"{max_nfev} trial points, the limit", False
     last_remaining = np.inf
+    stalled = 0
 
     def refresh() -> bool:
         nonlocal r, jac, normal, fresh, njev
@@ -311,7 +320,15 @@ def levenberg_marquardt(
         if actual > 0.0 and predicted > 0.0:
             small_cost = actual <= tol * cost
             small_step = scaled_norm <= tol * (tol + float(np.linalg.norm(z / scale)))
+            # The fall the record resolves: the statistical margin on the achieved fall,
+            # as on the predicted one (a curved valley predicts falls it never gives).
+            stalled = stalled + 1 if 2.0 * actual <= margin * 2.0 * cost_new / max(r_new.size - p, 1) else 0
             z, r, cost = trial, r_new, cost_new
+            if stalled >= _STALLED:
+                message, success = "the cost no longer falls by what the record resolves", True
+                if not (reuse_jacobian and rho >= _KEEP_RHO):
+                    refresh()
+                break
             keep = reuse_jacobian and rho >= _KEEP_RHO
             if small_cost or small_step:
                 message = "relative change of the cost below tol" if small_cost else "relative step below tol"

@@ -461,7 +461,7 @@ def _named(
             effect,
             "tentative",
             f"the model removes {share:.0%} of the base model's error beyond the noise (the least of its held-out "
-            "share and its share before the first origin) and leaves a residual that is not noise: the effects may "
-            "stand in for something outside the vocabulary",
+            "share and, before the first origin where no fold predicts, its in-sample share) and leaves a residual "
+            "that is not noise: the effects may stand in for something outside the vocabulary",
         )
     return NamedEffect(effect, "confident", "no rival within the judge's margin; the model explains the record")

@@ -11,10 +11,9 @@ A candidate adds effects to the current model from their physical starting value
 length, a mode at the residual's spectral peak, each whole-sample delay, …) and, where
 the search fitted the same effect beside another model before, from the values it took
 there (a warm start). Where there are several starts (the cost has local optima: a
-mode's frequency, a lag's corner, a delay), they are ranked by the first-order refit of
-the current model (one simulation each: what a start leaves once the current unknowns
-are refitted along their Jacobian) and the best :data:`STARTS` are each converged; the
-fit of least cost is the candidate. A drop refits the model without the effect from
+mode's frequency, a lag's corner, a delay), they are ranked by short fits on a copy of
+the record at a few kHz (:func:`_ranked`) and the best :data:`STARTS` are each converged
+on the record; the fit of least cost is the candidate. A drop refits the model without the effect from
 where it is.
 
 **Held-out errors** (:func:`held_out`; the folds are :class:`~boucwen.diagnosis.judge.Folds`):
@@ -39,7 +38,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
-from functools import cached_property
 from typing import Any, Literal
 
 import numpy as np
@@ -54,7 +52,6 @@ from ..effects import (
     effect_class,
     effects_of,
     fit_box,
-    simulate_chain,
     solve_extended_record,
 )
 from ..effects.base import with_effect, without
@@ -63,7 +60,7 @@ from ..levenberg import STATISTICAL_MARGIN, first_step
 from ..lsq import thread_map
 from ..metrics import rms
 from ..oscillator import UNKNOWNS as OSCILLATOR_UNKNOWNS
-from ..oscillator import OscillatorFit
+from ..oscillator import OscillatorFit, linearised
 from ..oscillator import fit as fit_oscillator
 from ..oscillator import simulate as simulate_oscillator
 from ..record import Record
@@ -72,6 +69,10 @@ from .judge import CrossValidation, Folds
 __all__ = [
     "FOLD_NFEV",
     "MAX_NFEV",
+    "RANK_NFEV",
+    "RANK_RATE_HZ",
+    "RANK_SAMPLES",
+    "RANK_SHORTLIST",
     "STARTS",
     "AtBound",
     "Convergence",
@@ -97,6 +98,17 @@ __all__ = [
 STARTS = 2
 #: Trial points that bound a fit which does not converge (marked, never accepted).
 MAX_NFEV = 150
+#: The rate [Hz] of the copy on which a candidate's starts are ranked (every q-th
+#: sample; the record itself where it is sampled slower): the screened copy's.
+RANK_RATE_HZ = 2500.0
+#: Most samples of that copy: a longer one is cut to its window of most voltage travel.
+RANK_SAMPLES = 8192
+#: Trial points of a start's ranking fit on that copy (enough to leave a start's
+#: neighbourhood for its basin; it only ranks).
+RANK_NFEV = 10
+#: Starts fitted for the ranking, the best by the first-order refit (a lag's whole grid
+#: of corners; a mode's best frequencies and dampings of its 50).
+RANK_SHORTLIST = 12
 #: Trial points of a fold's refit (from the whole-record fit, a few steps away when the
 #: past determines the model); one that has not converged by then runs off along a
 #: direction only the future determined, and its fold is left out of every comparison
@@ -139,11 +151,16 @@ class Convergence:
         margin: the statistical stop of ``"lm"``: remaining step ≤ √margin standard
             errors.
         tol: relative change of the cost or the unknowns that stops either method.
+        screen: read a held-out error from the screen (the refits' first step) where a
+            decision is far from its threshold (:mod:`~boucwen.diagnosis.search`);
+            False reads every one from converged refits — the judge the screen must
+            agree with, for checking it.
     """
 
     method: Literal["lm", "trf"] = "lm"
     margin: float = STATISTICAL_MARGIN
     tol: float = 1e-10
+    screen: bool = True
 
     def tighter(self, factor: float = 10.0) -> Convergence:
         """The same solver with its stopping tolerances ``factor`` times tighter."""
@@ -160,8 +177,9 @@ class Leaveout:
         lower, upper: the unknowns' bounds.
         scale: each unknown's typical size (the metric of the screen's step).
         simulate: (z, stop) → x̂ [µm] over the first ``stop`` samples, or None.
-        refit: until → (x̂ [µm] over the record of the model refitted on the samples
-            before ``until``, whether that refit converged), x̂ None where it failed.
+        refit: train → (x̂ [µm] over the record of the model refitted on the samples
+            ``train`` (a slice of the record's past), whether that refit converged), x̂
+            None where it failed.
         margin: the refits' statistical stop (the screen stops where they would).
     """
 
@@ -171,52 +189,51 @@ class Leaveout:
     upper: FloatArray
     scale: FloatArray
     simulate: Callable[[FloatArray, int], FloatArray | None]
-    refit: Callable[[int], tuple[FloatArray | None, bool]]
+    refit: Callable[[slice], tuple[FloatArray | None, bool]]
     margin: float = STATISTICAL_MARGIN
 
 
-def _screen(lo: Leaveout, x_hat: FloatArray, r: FloatArray, until: int, stop: int) -> FloatArray | None:
-    """The screen's prediction over the first ``stop`` samples for the fold whose past is
-    [0, ``until``): the refit's first step from z* (module docs) as the solver takes it —
-    the bounded Gauss–Newton step (:func:`boucwen.levenberg.first_step`; none where the
-    remaining step is within the statistical margin, as the refit stops there), within
-    the solver's first trust region, kept where it lowers the cost of the past, else
-    shortened to a quarter and tried again (four tries; then z* itself, where the refit
-    ends when no step lowers the cost)."""
-    past = -r[:until]
-    cost = float(past @ past)
+def _screen(lo: Leaveout, x_hat: FloatArray, r: FloatArray, train: slice, stop: int) -> FloatArray | None:
+    """The screen's prediction over the first ``stop`` samples for the fold refitted on
+    ``train``: the refit's first step from z* (module docs) as the solver takes it — the
+    bounded Gauss–Newton step on those rows (:func:`boucwen.levenberg.first_step`; none
+    where the remaining step is within the statistical margin, as the refit stops there),
+    within the solver's first trust region, kept where it lowers the cost of those rows,
+    else shortened to a quarter and tried again (four tries; then z* itself, where the
+    refit ends when no step lowers the cost)."""
+    rows = -r[train]
+    cost = float(rows @ rows)
     radius = float(np.linalg.norm(lo.z / lo.scale)) or 1.0
     for _ in range(_SCREEN_TRIES):
         z1 = first_step(
-            past, lo.jacobian[:until], lo.z, lo.lower, lo.upper, x_scale=lo.scale, margin=lo.margin, radius=radius
+            rows, lo.jacobian[train], lo.z, lo.lower, lo.upper, x_scale=lo.scale, margin=lo.margin, radius=radius
         )
         step = float(np.linalg.norm((z1 - lo.z) / lo.scale))
         if step == 0.0:
             break
-        x1 = lo.simulate(z1, stop)
+        x1 = lo.simulate(z1, max(stop, train.stop))
         if x1 is not None:
-            left = x1[:until] - (x_hat[:until] + r[:until])
+            left = x1[train] - (x_hat[train] + r[train])
             if float(left @ left) < cost:
                 return x1
         radius = 0.25 * step
-    return x_hat[:stop]
+    return x_hat[: max(stop, train.stop)]
 
 
 def held_out(
     record: Record, lo: Leaveout, x_hat: FloatArray, folds: Folds, exact: bool, workers: int | None = 1
 ) -> CrossValidation:
     """The held-out residual [µm] of the fit ``lo`` (simulated ``x_hat`` [µm] over the
-    record) on ``folds``: each fold's from the model refitted on its past (``exact``)
-    or from the screen's step (module docs)."""
+    record) on ``folds``: each fold's from the model refitted on its training samples
+    (``exact``) or from the screen's step (module docs)."""
     r = record.x - x_hat
-    held = r.copy()
-    held[: folds.tested.start] = np.nan
+    held = np.full(r.size, np.nan)
 
     def one(k: int) -> tuple[FloatArray | None, bool]:
-        o, stop = folds.origins[k], folds.test(k).stop
+        train, stop = folds.train(k), folds.test(k).stop
         if exact:
-            return lo.refit(o)
-        return _screen(lo, x_hat, r, o, stop), True
+            return lo.refit(train)
+        return _screen(lo, x_hat, r, train, stop), True
 
     out = thread_map(one, list(range(folds.count)), workers if exact else 1)
     converged = []
@@ -260,16 +277,6 @@ class Scored:
     def unknowns(self) -> int:
         return int(self.jacobian.shape[1])
 
-    @cached_property
-    def refit_basis(self) -> FloatArray:
-        """An orthonormal basis of the span of the Jacobian's columns (scaled to unit
-        norm): the first-order refit of the model's unknowns, computed once per model
-        and shared by every start ranked from it."""
-        norms = np.linalg.norm(self.jacobian, axis=0)
-        keep = norms > 0
-        q, _ = np.linalg.qr(self.jacobian[:, keep] / norms[keep])
-        return np.asarray(q, dtype=np.float64)
-
 
 def _layout(record: Record, effects: EffectSet) -> Layout:
     return Layout.of(effects, record.dt, record.dt * max(len(record) - 1, 1))
@@ -302,7 +309,7 @@ def _leaveout(record: Record, solved: Solved, conv: Convergence) -> Leaveout:
     def simulate(v: FloatArray, stop: int) -> FloatArray | None:
         return layout.simulate(v, record.u[:stop], record.dt)
 
-    def refit(until: int) -> tuple[FloatArray | None, bool]:
+    def refit(train: slice) -> tuple[FloatArray | None, bool]:
         try:
             out = solve_extended_record(
                 record,
@@ -314,7 +321,7 @@ def _leaveout(record: Record, solved: Solved, conv: Convergence) -> Leaveout:
                 method="lm",
                 margin=conv.margin,
                 reuse_jacobian=True,
-                fit_until=until,
+                fit_until=train.stop,
                 start=(r, solved.jacobian),
             )
         except ValueError:
@@ -361,15 +368,79 @@ def base(record: Record, offline: FitResult, conv: Convergence, folds: int, firs
     return scored(record, solved, Folds.of(record, folds, first_origin, solved.jacobian), conv)
 
 
-def _first_order(record: Record, current: Scored, effects: EffectSet) -> float:
-    """RMS [µm] left by the current model with ``effects`` once its unknowns are refitted
-    to first order along their Jacobian (∞ where it cannot be simulated)."""
-    xs = simulate_chain(current.fit.params, effects, record.u, record.dt, current.fit.h0)
+def _first_order(record: Record, current: Scored, effects: EffectSet, added: tuple[str, ...]) -> float:
+    """RMS [µm] left by the current model with ``effects`` once its unknowns and those of
+    the effects ``added`` are refitted to first order: along the current model's
+    Jacobian, and along each added unknown's own direction at the start (a forward
+    difference of a thousandth of its typical size, one simulation each); ∞ where it
+    cannot be simulated."""
+    box = fit_box(record, current.fit.params, effects, current.fit.h0)
+    v = box.v0
+    xs = box.layout.simulate(v, record.u, record.dt)
     if xs is None:
         return math.inf
-    q = current.refit_basis
+    owners = [label.split(".", 1)[0] for label in box.layout.labels()]
+    columns = [current.jacobian]
+    for i, owner in enumerate(owners):
+        if owner not in added:
+            continue
+        h = 1e-3 * float(box.scale[i])
+        moved = v.copy()
+        moved[i] = v[i] + h if v[i] + h <= box.upper[i] else v[i] - h
+        x2 = box.layout.simulate(moved, record.u, record.dt)
+        if x2 is not None:
+            columns.append(((x2 - xs) / (moved[i] - v[i]))[:, None])
+    basis = np.column_stack(columns)
+    norms = np.linalg.norm(basis, axis=0)
+    keep = norms > 0
+    q, _ = np.linalg.qr(basis[:, keep] / norms[keep])
     r = record.x - xs
     return rms(r - q @ (q.T @ r))
+
+
+def _ranking_copy(record: Record) -> Record:
+    """The copy of ``record`` the starts are ranked on: every q-th sample (about
+    :data:`RANK_RATE_HZ`; the record itself where it is sampled slower), and of a longer
+    copy the :data:`RANK_SAMPLES` samples of most voltage travel (the model runs from the
+    window's start, its h0 fitted there)."""
+    q = max(1, int(1.0 / (record.dt * RANK_RATE_HZ)))
+    copy = record.decimated(q) if q > 1 else record
+    if len(copy) <= RANK_SAMPLES:
+        return copy
+    travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(copy.u)))])
+    gained = travel[RANK_SAMPLES:] - travel[: len(copy) - RANK_SAMPLES]
+    start = int(np.argmax(gained))
+    return copy.part(start, start + RANK_SAMPLES)
+
+
+def _ranked(record: Record, current: Scored, starts: list[EffectSet], added: tuple[str, ...]) -> list[EffectSet]:
+    """``starts`` best first. A start is a local optimum's basin, and where the current
+    model has bent its hysteresis to imitate the effect (a lag, an electrostriction) a
+    first-order view from the bent model ranks a start that changes little first and the
+    start in the effect's own basin last: only a fit from the start tells which basin it
+    lies in. So the best :data:`RANK_SHORTLIST` by the first-order refit
+    (:func:`_first_order`) are each fitted from the current model's values on a copy of the
+    record (:func:`_ranking_copy`) for at most :data:`RANK_NFEV` trial points, and ranked by
+    the cost they reach there. These fits
+    only choose which starts are converged on the record; nothing is decided on them."""
+    if len(starts) > RANK_SHORTLIST:
+        first = [_first_order(record, current, s, added) for s in starts]
+        order = sorted(range(len(starts)), key=lambda k: (first[k], k))
+        starts = [starts[k] for k in order[:RANK_SHORTLIST] if math.isfinite(first[k])]
+    copy = _ranking_copy(record)
+    fit = current.fit
+
+    def cost(effects: EffectSet) -> float:
+        try:
+            out = solve_extended_record(copy, fit.params, effects, fit.h0, max_nfev=RANK_NFEV, reuse_jacobian=True)
+        except ValueError:
+            return math.inf
+        value = out.fit.rms_um
+        return value if math.isfinite(value) else math.inf
+
+    costs = [cost(s) for s in starts]
+    order = sorted(range(len(starts)), key=lambda k: (costs[k], k))
+    return [starts[k] for k in order if math.isfinite(costs[k])]
 
 
 def _starts(
@@ -415,9 +486,7 @@ def add(
     origin = current if dropped is None else dropped
     starts = _starts(record, origin, names, max_delay, warm)
     if len(starts) > STARTS:
-        costs = [_first_order(record, origin, s) for s in starts]
-        order = sorted(range(len(starts)), key=lambda k: (costs[k], k))
-        starts = [starts[k] for k in order[:STARTS] if math.isfinite(costs[k])]
+        starts = _ranked(record, origin, starts, names)[:STARTS]
     best: Solved | None = None
     for s in starts:
         try:
@@ -502,28 +571,35 @@ class Structure:
         return (self.name,)
 
 
-def oscillator(record: Record, folds: Folds, workers: int | None = 1) -> Structure | str:
+def oscillator(record: Record, folds: Folds, conv: Convergence) -> Structure | str:
     """The hysteretic oscillator fitted to ``record`` (u as the force [N], x [µm] as the
-    displacement, in m for the fit) and scored by converged refits on its folds; or why
+    displacement, in m for the fit) and scored like every model the judge compares (its
+    held-out errors screened, confirmed by refits where a decision needs them); or why
     there is none (the fit cannot run on the record)."""
     y = record.x * 1e-6
     try:
         whole = fit_oscillator(record.u, y, record.dt)
+        box, jac, run = linearised(whole, record.u, record.dt)
     except ValueError as exc:
         return f"the oscillator cannot be fitted: {exc}"
     x = whole.y * 1e6
 
-    def refit_fold(until: int) -> tuple[FloatArray | None, bool]:
+    def simulate(z: FloatArray, stop: int) -> FloatArray | None:
+        out = run(z, stop)
+        return None if out is None else out * 1e6
+
+    def refit_fold(train: slice) -> tuple[FloatArray | None, bool]:
+        weights = np.zeros(len(record))
+        weights[train] = 1.0
         try:
-            out = fit_oscillator(record.u[:until], y[:until], record.dt, start=whole.params, max_nfev=FOLD_NFEV)
+            out = fit_oscillator(record.u, y, record.dt, start=whole.params, weights=weights, max_nfev=FOLD_NFEV)
             x_k = simulate_oscillator(out.params, record.u, record.dt, out.y0, out.v0, out.z0) * 1e6
         except ValueError:
             return None, False
         return (x_k, out.success) if np.all(np.isfinite(x_k)) else (None, False)
 
-    nothing = np.zeros(0)
-    lo = Leaveout(nothing, np.zeros((0, 0)), nothing, nothing, nothing, lambda z, stop: None, refit_fold)
-    cv = held_out(record, lo, x, folds, True, workers)
+    lo = Leaveout(box.z, jac * 1e6, box.lower, box.upper, box.scale, simulate, refit_fold, conv.margin)
+    cv = held_out(record, lo, x, folds, not conv.screen)
     return Structure("oscillator", whole, x, cv, whole.success, len(OSCILLATOR_UNKNOWNS), lo)
 
 

@@ -49,9 +49,10 @@ number of bandwidth-long stretches the predicted samples hold, less one).
 
 A move is **accepted** when both
 
-1. DM > t₁₋ₐ(n/B − 1) with a = α / (R·m): the family error over the whole search is at
-   most α, R the most rounds the search can take and m the moves of a round
-   (Bonferroni over every move the search can judge); and
+1. the statistic > t₁₋ₐ at a = α·2⁻ʳ/m in round r of the search, m the moves of the
+   round: the rounds spend α/2, α/4, … of α (Bonferroni with weights halving from round
+   to round: the first round, where the effects of largest gain are tried, spends half),
+   so the family error over the whole search is at most α; and
 2. ḡ ≥ ``min_share`` · (MSE_r − σ̂²): it removes at least that share of what the
    reference leaves beyond the record's noise σ̂ (the base model's form is never exact;
    a reshaping of its misfit is significant on a long record but is no effect).
@@ -123,8 +124,6 @@ def excitation(record: Record) -> FloatArray:
     return np.asarray(0.5 * share + 0.5 * np.arange(n) / max(n - 1, 1))
 
 
-#: Chunks the record is cut into to accumulate its information.
-_INFO_CHUNKS = 256
 #: Eigenvalues of the record's information below this share of the largest belong to
 #: directions the record does not determine: the share of them the past holds is not
 #: asked for.
@@ -132,39 +131,23 @@ _INFO_RCOND = 1e-10
 
 
 def informed(jacobian: FloatArray, share: float) -> int:
-    """The first sample k such that the samples before it hold at least ``share`` of the
-    information the whole record holds about every unknown: the least generalised
-    eigenvalue of (J_[0,k)ᵀJ_[0,k), JᵀJ) reaches ``share`` (the directions JᵀJ
-    determines; ``jacobian`` J, one row per sample)."""
+    """The first sample k such that the samples before it hold on average ``share`` of
+    the information the whole record holds about each unknown: tr((JᵀJ)⁻¹·J_[0,k)ᵀJ_[0,k))
+    / p reaches ``share`` (over the directions JᵀJ determines, p of them; ``jacobian`` J,
+    one row per sample). The average, not the least: an unknown that only the record's
+    last burst tells about (a rate term, a fast mode) would otherwise push the origin to
+    the end, while the refits before it leave that unknown where the whole record put
+    it."""
     n, p = jacobian.shape
     if p == 0 or n < 2:
         return int(min(max(1, round(share * n)), max(n - 1, 1)))
     w, v = np.linalg.eigh(jacobian.T @ jacobian)
     keep = w > _INFO_RCOND * max(float(w[-1]), 1e-300)
-    whiten = v[:, keep] / np.sqrt(w[keep])
-    z = jacobian @ whiten
-
-    def least(k: int) -> float:
-        zk = z[:k]
-        return float(np.linalg.eigvalsh(zk.T @ zk)[0]) if k > 0 else 0.0
-
-    edges = np.linspace(0, n, min(_INFO_CHUNKS, n) + 1).round().astype(int)
-    total = np.zeros((z.shape[1], z.shape[1]))
-    lo, hi = 0, n
-    for a, b in zip(edges[:-1].tolist(), edges[1:].tolist()):
-        total += z[a:b].T @ z[a:b]
-        if float(np.linalg.eigvalsh(total)[0]) >= share:
-            hi = b
-            break
-        lo = b
-    # Within the chunk: the first sample where the share is reached.
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if least(mid) >= share:
-            hi = mid
-        else:
-            lo = mid
-    return int(min(max(hi, 1), n - 1))
+    z = jacobian @ (v[:, keep] / np.sqrt(w[keep]))
+    # Each sample's share of the information, summed over the directions: its leverage.
+    leverage = np.sum(z * z, axis=1) / z.shape[1]
+    k = int(np.searchsorted(np.cumsum(leverage), share - 1e-12, side="left")) + 1
+    return int(min(max(k, 1), n - 1))
 
 
 @dataclass(frozen=True)
@@ -183,10 +166,10 @@ class Folds:
     @classmethod
     def of(cls, record: Record, count: int, first_origin: float, jacobian: FloatArray) -> Folds:
         """``count`` folds of ``record`` (module docs): the first origin where the past
-        holds a share ``first_origin`` of what the record tells about every unknown of
-        the model whose Jacobian over the record is ``jacobian`` (the base model), the
-        others evenly in the record's excitation after it; fewer where the record cannot
-        hold them (each fold predicts at least one sample)."""
+        holds on average a share ``first_origin`` of what the record tells about each
+        unknown of the model whose Jacobian over the record is ``jacobian`` (the base
+        model), the others evenly in the record's excitation after it; fewer where the
+        record cannot hold them (each fold predicts at least one sample)."""
         n = len(record)
         first = informed(jacobian, first_origin)
         level = excitation(record)
@@ -202,6 +185,10 @@ class Folds:
     @property
     def count(self) -> int:
         return len(self.origins)
+
+    def train(self, k: int) -> slice:
+        """The samples fold ``k`` is refitted on: the record before its origin."""
+        return slice(0, self.origins[k])
 
     def test(self, k: int) -> slice:
         """The samples fold ``k`` predicts."""
@@ -232,7 +219,7 @@ class CrossValidation:
 
     Attributes:
         residual: held-out residual [µm], sample by sample (nan before the first origin:
-            those samples are never predicted).
+            no fold predicts those samples).
         folds: the folds.
         in_sample_rms_um: RMS of x − x̂ of the model fitted on the whole record [µm].
         rms_um: RMS of ``residual`` over the folds whose refit converged [µm] (nan where
@@ -358,31 +345,44 @@ def gain(candidate: CrossValidation, reference: CrossValidation) -> Gain:
     # d = 2·e_r·δ − δ², δ = x̂_c − x̂_r the difference of the predictions: given the two
     # models, the sampling error of its mean is that of 2·Σ e·δ/n over the residual
     # process e, Var = 4/n²·Σ_ℓ w_ℓ·γ_e(ℓ)·S_δ(ℓ), γ_e the autocovariance of the better
-    # model's residual, S_δ(ℓ) = Σᵢ δᵢ·δᵢ₊ℓ, Bartlett weights w_ℓ out to e's window.
-    better = rc if float(np.mean(rc**2)) <= float(np.mean(rr**2)) else rr
-    delta = rr - rc
-    e = better - np.mean(better)
-    lags = min(dependence_length(e), n - 1)
-    gamma = _autocovariance(e, lags) / n
-    s_delta = _autocovariance(delta, lags)
-    weights = np.concatenate([[1.0], 2.0 * (1.0 - np.arange(1, lags + 1) / (lags + 1))])
-    var = 4.0 * float(np.sum(weights * gamma * s_delta)) / n**2
+    # model's residual, S_δ(ℓ) = Σᵢ δᵢ·δᵢ₊ℓ, Bartlett weights w_ℓ out to e's window; each
+    # fold on its own (its refits are its own: the folds are independent), summed.
+    overall_better = float(np.mean(rc**2)) <= float(np.mean(rr**2))
+    var, terms, widest = 0.0, 0.0, 0
+    for k, ok in enumerate(usable):
+        if not ok:
+            continue
+        sl = folds.test(k)
+        ck, rk = candidate.residual[sl], reference.residual[sl]
+        if ck.size < 2:
+            continue
+        e = (ck if overall_better else rk) - np.mean(ck if overall_better else rk)
+        delta = rk - ck
+        lags = min(dependence_length(e), ck.size - 1)
+        gamma = _autocovariance(e, lags) / ck.size
+        s_delta = _autocovariance(delta, lags)
+        weights = np.concatenate([[1.0], 2.0 * (1.0 - np.arange(1, lags + 1) / (lags + 1))])
+        var += 4.0 * float(np.sum(weights * gamma * s_delta)) / n**2
+        # The independent terms of e·δ in the fold: its length over their integrated
+        # autocorrelation time.
+        rho = (gamma / gamma[0] if gamma[0] > 0 else np.zeros_like(gamma)) * (
+            s_delta / s_delta[0] if s_delta[0] > 0 else np.zeros_like(s_delta)
+        )
+        terms += ck.size / max(1.0, float(np.sum(weights * rho)))
+        widest = max(widest, lags)
     mean = float(np.mean(d))
     se = math.sqrt(max(var, 0.0))
     stat = mean / se if se > 0 else (0.0 if mean == 0 else math.copysign(math.inf, mean))
-    # The independent terms of e·δ: n over its integrated autocorrelation time.
-    rho = (gamma / gamma[0] if gamma[0] > 0 else np.zeros_like(gamma)) * (
-        s_delta / s_delta[0] if s_delta[0] > 0 else np.zeros_like(s_delta)
-    )
-    tau = max(1.0, float(np.sum(weights * rho)))
-    dof = max(int(n / tau) - 1, 1)
-    return Gain(mean, se, stat, lags, dof, n, per_fold, float(np.mean(rr**2)))
+    dof = max(int(terms) - 1, 1)
+    return Gain(mean, se, stat, widest, dof, n, per_fold, float(np.mean(rr**2)))
 
 
-def level(alpha: float, moves: int, rounds: int) -> float:
-    """The level of one move's test: α / (R·m), R the most rounds of the search and m
-    the moves of this round (module docs)."""
-    return alpha / (max(rounds, 1) * max(moves, 1))
+def level(alpha: float, moves: int, round_: int = 0) -> float:
+    """The level of one move's test: α·2⁻ʳ/m, r the round of the search (1, 2, …) and m
+    the moves of the round (module docs): the rounds spend α, α/2, α/4, … of which the
+    whole search spends at most α. ``round_`` 0: a family of its own, α/m (a validation
+    record's comparisons)."""
+    return alpha * 0.5 ** max(round_, 0) / max(moves, 1)
 
 
 def threshold(level_: float, dof: int) -> float:

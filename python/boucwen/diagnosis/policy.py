@@ -33,11 +33,11 @@ class DiagnosisPolicy:
             refit must see the input's range and a step's response, and the predicted
             part must still hold a share of both. A half.
         alpha: chance [-] (1e-6 … 0.5) that the whole search accepts a move which does
-            not improve the prediction of unseen samples: one move's test runs at level
-            α/(R·m), R the most rounds of the search (:attr:`rounds`) and m the moves of
-            its round (Bonferroni over every move the search can judge; conservative,
-            the moves of a round are correlated). 0.05, the conventional level: a
-            record the base model already explains gets no name in 19 cases of 20.
+            not improve the prediction of unseen samples: one move's test in round r runs
+            at level α·2⁻ʳ/m, m the moves of its round (the rounds spend α/2, α/4, …;
+            Bonferroni with weights, conservative: the moves of a round are correlated).
+            0.05, the conventional level: a record the base model already explains gets
+            no name in 19 cases of 20.
         min_share: least share [-] (0 … 1) of the current model's held-out mean-square
             error beyond the noise that a move must remove. The base model's form is
             never exact: on a long record a change of shape reshapes that misfit by a
@@ -50,8 +50,6 @@ class DiagnosisPolicy:
             the largest |screen − refits| of the statistic measured on the suite's
             development half (``python -m boucwen.experiments.judge_calibration``), with
             a margin.
-        exact: every held-out error from converged refits (the screen never used): the
-            judge the screen must agree with, for checking it.
         max_effects: most effects in a model [-] (0 … 8): each adds unknowns and a round
             of fits; no record of a piezo stack has needed more than four.
         max_delay_samples: largest whole-sample delay tried [samples] (1 … 1000). 8: a
@@ -78,7 +76,6 @@ class DiagnosisPolicy:
     alpha: float = 0.05
     min_share: float = 0.1
     screen_band: float = 3.0
-    exact: bool = False
     max_effects: int = 4
     max_delay_samples: int = 8
     bound_tolerance: float = 1e-6
@@ -92,8 +89,6 @@ class DiagnosisPolicy:
         check_number("alpha", self.alpha, 1e-6, 0.5)
         check_number("min_share", self.min_share, 0.0, 1.0)
         check_number("screen_band", self.screen_band, 0.0, 100.0)
-        if not isinstance(self.exact, bool):
-            raise TypeError(f"exact must be a bool, got {type(self.exact).__name__}")
         check_int("max_effects", self.max_effects, 0, 8)
         check_int("max_delay_samples", self.max_delay_samples, 1, 1000)
         check_number("bound_tolerance", self.bound_tolerance, 0.0, 0.5)

@@ -32,7 +32,7 @@ screen (the first Gauss–Newton step of each fold's refit); a decision is read 
 converged refits wherever it could go either way — every accepted move, every move whose
 statistic lies within ``screen_band`` of its threshold, every candidate that might share
 the best one's ambiguity set — and from the screen only where it is far from the
-threshold. With ``exact`` every decision reads converged refits.
+threshold. With ``Convergence(screen=False)`` every decision reads converged refits.
 
 **Screening on a copy** (records of more than :data:`SCREEN_MIN_SAMPLES` samples sampled
 faster than :data:`SCREEN_RATE_HZ`) wraps the fits; it never decides. Every move is first
@@ -252,7 +252,7 @@ def _candidate(
     if key in fitted:
         return fitted[key]
     if move.kind == "structure":
-        return fits.oscillator(record, folds, workers)
+        return fits.oscillator(record, folds, conv)
     if move.kind == "drop":
         assert move.drops is not None
         return fits.drop(record, current, move.drops, conv, folds)
@@ -405,10 +405,13 @@ class _Round:
         noise_um: float,
         policy: DiagnosisPolicy,
         workers: int | None,
+        screen: bool = True,
+        round_: int = 1,
     ):
         self.record, self.noise_um, self.policy, self.workers = record, noise_um, policy, workers
+        self.screen = screen
         self.current = current
-        self.level = level(policy.alpha, len(moves), policy.rounds)
+        self.level = level(policy.alpha, len(moves), round_)
         self.judged = _Judged(moves, candidates)
 
     def confirm(self, model: Model) -> Model:
@@ -425,7 +428,7 @@ class _Round:
         decided wrongly and each candidate that may share the best one's ambiguity set,
         until none is left (module docs)."""
         j, band = self.judged, self.policy.screen_band
-        if self.policy.exact:
+        if not self.screen:
             self.current = self.confirm(self.current)
             j.candidates = [c if isinstance(c, str) else self.confirm(c) for c in j.candidates]
         self.decide()
@@ -507,6 +510,7 @@ def _chosen_on_copy(
     policy: DiagnosisPolicy,
     noise_um: float,
     workers: int | None,
+    round_: int,
 ) -> tuple[list[bool], list[Decision], list[Any]]:
     """Which moves the full record fits (module docs), the decisions on the copy, and
     each move's fit on the copy (None where it has none) to start the full record's."""
@@ -515,7 +519,7 @@ def _chosen_on_copy(
     folds = on_copy.cv.folds
     cache: dict[frozenset[str], Model | str] = {}
     fitted = thread_map(lambda k: _candidate(copy, on_copy, moves[k], conv, policy, folds, cache, None), on, workers)
-    rnd = _Round(copy, on_copy, [moves[k] for k in on], fitted, noise_um, policy.replace(exact=False), workers)
+    rnd = _Round(copy, on_copy, [moves[k] for k in on], fitted, noise_um, policy, workers, True, round_)
     rnd.decide()
     chosen = set()
     # A move with no candidate on the copy is one the copy cannot hold.
@@ -584,7 +588,7 @@ def search(
         copied: list[Any] = [None] * len(moves)
         if on_copy is not None and copy is not None:
             wanted, screened, copied = _chosen_on_copy(
-                copy, on_copy, current, record, moves, conv, policy, noise_um, workers
+                copy, on_copy, current, record, moves, conv, policy, noise_um, workers, len(state.rounds) + 1
             )
 
         candidates = thread_map(
@@ -596,7 +600,7 @@ def search(
             [(current, m, w, c) for m, w, c in zip(moves, wanted, copied)],
             workers,
         )
-        rnd = _Round(record, current, moves, candidates, noise_um, policy, workers)
+        rnd = _Round(record, current, moves, candidates, noise_um, policy, workers, conv.screen, len(state.rounds) + 1)
         rnd.settle()
         # The round's fits, confirmed where it confirmed them, kept for the rest of the search.
         confirmed_current = rnd.current

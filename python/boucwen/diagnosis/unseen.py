@@ -195,7 +195,7 @@ def judged_on(
         for k in current.effects.names
         if not effect_class(k).of_record and not any(effect_class(o).partner == k for o in current.effects.names)
     ]
-    lvl = level(policy.alpha, len(names), 1)
+    lvl = level(policy.alpha, len(names))
     decisions: list[Decision] = []
     for name in names:
         with_it = carried(current, validation)
@@ -265,7 +265,7 @@ def settled(
     # Each pair is tested once, in both directions at once (a two-sided test at level α
     # over the pairs: α/2 per side).
     pairs = [(i, j) for i in cvs for j in cvs if i < j]
-    lvl = level(policy.alpha, 2 * max(len(pairs), 1), 1)
+    lvl = level(policy.alpha, 2 * max(len(pairs), 1))
     refuted: set[int] = set()
     decisions: list[Decision] = []
     for i, j in pairs:

@@ -113,7 +113,7 @@ def judge_moves(case: dict[str, Any], policy: DiagnosisPolicy, workers: int | No
         reference = got
     noise = noise_level(record.x).sigma_um
     moves = [m for m in proposals(reference.names, {}, policy.max_effects) if m.kind in ("add", "add_tied")]
-    lvl = move_level(policy.alpha, len(moves), policy.rounds)
+    lvl = move_level(policy.alpha, len(moves), 1)
     ref_exact = fitting.confirmed(record, reference, workers)
     rows = []
     for m in moves:
