@@ -134,7 +134,7 @@ def test_identify_without_init_fits_the_start_and_plots(measured, tmp_path, caps
     trace, figure = tmp_path / "trace.csv", tmp_path / "fig.png"
     assert main(["identify", str(measured), "--out", str(trace), "--plot", str(figure)]) == 0
     out = capsys.readouterr().out
-    assert "starting model: boucwen.fit on the first 1605 samples" in out
+    assert "starting model: boucwen.fit on samples 0 to 1604 (1605 samples" in out
     assert "blocks from t = 8.1 s" in out  # the starting fit's samples are not scored
     assert figure.stat().st_size > 10_000 and "input_lag.fc_hz" in _table(trace)
 
