@@ -12,10 +12,12 @@ Subcommands:
   record without time, ``--resample DT`` puts non-uniform time stamps on a uniform grid.
   A file of :mod:`boucwen.datasets` (e.g. ``Model_Vi_Do.dat``) is read as that record.
 * ``boucwen identify DATA.csv [--method horizon|rpem|paper] [--refine sync|cooperative|background]
-  [--init M.json] --out TRACE.csv [--plot FIG.png] [--model M.json]``: replays a record
-  through the online identifier (:mod:`boucwen.replay`); writes each sample's prediction,
-  estimates and status; prints the block-ahead error of the identified model beside the
-  fixed starting model's.
+  [--init M.json | --init-length S] --out TRACE.csv [--plot FIG.png] [--model M.json]``:
+  replays a record through the online identifier (:mod:`boucwen.replay`); writes each
+  sample's prediction, estimates and status; prints the block-ahead error of the
+  identified model beside the fixed starting model's. Without ``--init`` the starting
+  model is fitted on the record's first stretch with excitation (from where u starts to
+  move, :func:`boucwen.record.motion_onset`), and the samples it used are printed.
 * ``boucwen invert --model M.json --target XD.csv --out U.csv [--u-min V] [--u-max V]``:
   the feedforward voltage for a desired displacement, through the model's effects where
   they have an inverse; prints the predicted tracking error, the limit hits and the
