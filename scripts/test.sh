@@ -3,9 +3,10 @@
 #
 #   bash scripts/test.sh          every check and every test but the slow ones: formatting,
 #                                 lints, type checks and docs (Rust, then Python), the Rust unit
-#                                 and integration tests (release, built once: the examples, the
-#                                 C library of tests/test_embed.py and the extension reuse that
-#                                 build's dependencies), the examples, the no_std build, then
+#                                 and integration tests (cargo profile test-release: release code
+#                                 without LTO, built once; the example and the C library of
+#                                 tests/test_embed.py come from that build), the examples, the
+#                                 no_std build, then
 #                                 pytest on every core against the installed extension (the stub
 #                                 check with mypy.stubtest included), the tests marked slow left out
 #   bash scripts/test.sh --slow   the slow statistical checks: pytest -m slow on every core (the
@@ -59,11 +60,13 @@ step "cargo clippy --all-targets --all-features -- -D warnings"
 cargo clippy --all-targets --all-features -- -D warnings
 step "cargo doc --no-deps (warnings are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
-step "cargo test --release --features ffi"
-cargo test --release --features ffi
+# The Rust tests, the example and tests/test_embed.py's C library: one build (Cargo.toml,
+# profile test-release).
+export BOUCWEN_CARGO_PROFILE=test-release
+step "cargo test --profile $BOUCWEN_CARGO_PROFILE --features ffi"
+cargo test --profile "$BOUCWEN_CARGO_PROFILE" --features ffi
 step "examples"
-# Built by cargo test above (same profile and features): no second build.
-cargo run --release --features ffi --quiet --example identify
+cargo run --profile "$BOUCWEN_CARGO_PROFILE" --features ffi --quiet --example identify
 python examples/fit_and_identify.py
 step "no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
 rustup target add thumbv7em-none-eabihf
