@@ -33,16 +33,19 @@ settings.register_profile("explore", derandomize=False, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 #: Test modules whose every test runs the diagnosis on whole records and judges its
-#: statistics (the suite, the solvers' agreement, the judge, the measured records, the
-#: other model structure): minutes each on two cores, so all of them are ``slow``,
-#: whatever tests the modules hold.
+#: statistics (the suite, the solvers' agreement, the measured records, the other model
+#: structure, the screen against the refits, the judge's calibration): minutes each on
+#: two cores, so all of them are ``slow``, whatever tests the modules hold. The judge's
+#: own tests (tests/test_judge.py, tests/test_search.py) run on constructed numbers and
+#: small records in seconds, and stay in the quick command.
 SLOW_MODULES = frozenset(
     {
         "test_convergence.py",
         "test_diagnose.py",
+        "test_calibration.py",
         "test_diagnosis_suite.py",
-        "test_judge.py",
         "test_measured.py",
+        "test_screen.py",
         "test_structure.py",
     }
 )

@@ -114,6 +114,8 @@ RANK_SHORTLIST = 12
 #: direction only the future determined, and its fold is left out of every comparison
 #: (:mod:`~boucwen.diagnosis.judge`).
 FOLD_NFEV = 60
+#: Relative difference of two RMS errors within rounding of the same fit.
+_SAME = 1e-9
 #: Tries of the screen's step (each a quarter of the one before), as the solver's first
 #: trust regions.
 _SCREEN_TRIES = 4
@@ -497,6 +499,13 @@ def add(
             best = solved
     if best is None:
         return "no start can be simulated"
+    # An effect can always be set to change nothing (no lag, no delay, a gain of 0): a fit
+    # with it that ends worse on the record than the model without it did not find it.
+    if best.fit.rms_um > origin.fit.rms_um * (1.0 + _SAME):
+        return (
+            f"the fit with {' + '.join(names)} ends worse on the record ({best.fit.rms_um:.4g} µm) than the "
+            f"model without it ({origin.fit.rms_um:.4g} µm): the effect was not found"
+        )
     return _valid(record, best, folds, conv)
 
 
