@@ -41,7 +41,10 @@ not told what it contains, and selects a model by one loop under one judge:
    (``unexplained``), the held-out errors of the base and returned models (``unseen``),
    each name ``confident`` only where it has no rival and the model explains at least
    ``confident_share`` of the error beyond the noise (else ``tentative``, with the rivals),
-   every decision typed (``decisions``), and the parameters on a bound.
+   every decision typed (``decisions``), the parameters on a bound, and whether the
+   returned model stays bounded over the record's range (``boundedness``,
+   :func:`boucwen.boundedness.check`; every fit keeps to the admissible region, and a
+   candidate that fails the check is no candidate).
 
 9. **Where the record cannot decide**, design the experiment that can
    (:meth:`Diagnosis.next_experiment`, :mod:`~boucwen.diagnosis.experiment`): the input,
@@ -76,6 +79,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet
+from ..boundedness import check_model, check_oscillator
 from ..checks import FloatArray, check_int
 from ..effects import effect_class, effects_of
 from ..effects.base import without
@@ -360,6 +364,11 @@ def _outcome(
         unseen=unseen,
         explained=Explained(record, final, rivals, swaps, conv, policy, noise_um),
         structure=structure,
+        boundedness=(
+            check_oscillator(record, other.fit)
+            if other is not None
+            else check_model(record, final.fit.params, final.fit.effects, final.fit.h0)
+        ),
     )
     say(result.summary())
     return result
