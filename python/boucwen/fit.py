@@ -47,7 +47,11 @@ How it works:
   felt drives h on a slow input. A weak pull of weight ``DELTA_RIDGE`` towards 0 keeps
   it at 0 there: the row is ``DELTA_RIDGE`` times the h [µm] the δ term adds over the
   slowest sweep the record's length allows (mean |u| for half the record), so a µm of
-  that costs what a µm of h0 does.
+  that costs what a µm of h0 does. And δ is kept within
+  :func:`boucwen.region.delta_limit`: at the slowest full-range sweep the record's length
+  allows, the term may add at most :data:`~boucwen.region.DELTA_RATIO` times what the
+  loop's slope adds per volt (beyond, it stands in for something else and drives h alone
+  on slow inputs).
 """
 
 from __future__ import annotations
@@ -76,9 +80,9 @@ from .lsq import (
 from .metrics import max_abs, rms
 from .progress import Progress, reporter
 from .record import Record, validate_record
-from .region import SPLIT_JACOBIAN, check, pair, split
+from .region import SPLIT_JACOBIAN, check, delta_limit, pair, split
 
-__all__ = ["DELTA_RIDGE", "H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record"]
+__all__ = ["DELTA_RIDGE", "H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record", "record_delta_limit"]
 
 #: Bounds on the exponent n [-] during the fit.
 N_BOUNDS = (0.2, 6.0)
@@ -288,6 +292,14 @@ def _scales(u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
     return np.array([s_a, s_pair, s_pair, 1.0, s_delta, half_width])
 
 
+def record_delta_limit(record: Record) -> float:
+    """The largest |δ| [µm/(V·s)] a fit allows on ``record``: :func:`boucwen.region.delta_limit`
+    with the record's loop slope scale (that of A in :func:`fit`)."""
+    u = record.u
+    slope = float(_scales(u, record.x, record.dt)[0])
+    return delta_limit(slope, float(np.ptp(u)), float(np.max(np.abs(u))), record.duration_s)
+
+
 def _candidates(rng: np.random.Generator, count: int, half_width: float) -> FloatArray:
     """Random starting points in scaled units (A, β + γ, β − γ, n, δ, h0)."""
     z = np.zeros((count, 6))
@@ -328,19 +340,23 @@ def _local(
     tol: float,
     method: Method,
     margin: float = STATISTICAL_MARGIN,
+    delta_limit: float = math.inf,
 ) -> Solution:
     """The local solver ``method`` from ``z0`` (n kept in :data:`N_BOUNDS`, β ± γ ≥ 0: the
-    admissible region); with ``"lm"``, a Jacobian is kept while it predicts the steps and
-    the run stops where the remaining step is within ``margin`` squared standard errors
-    (:mod:`boucwen.levenberg`)."""
+    admissible region, |δ| ≤ ``delta_limit`` in scaled units); with ``"lm"``, a Jacobian
+    is kept while it predicts the steps and the run stops where the remaining step is
+    within ``margin`` squared standard errors (:mod:`boucwen.levenberg`)."""
     lb = np.full(nvar, -np.inf)
     ub = np.full(nvar, np.inf)
     lb[1] = lb[2] = 0.0
     lb[3], ub[3] = N_BOUNDS
+    lb[4], ub[4] = -delta_limit, delta_limit
     z0 = z0[:nvar].copy()
     z0[3] = min(max(z0[3], N_BOUNDS[0] + 1e-9), N_BOUNDS[1] - 1e-9)
-    # A start on the region's edge (β ± γ = 0: a linear start) just inside it.
+    # A start on the region's edge (β ± γ = 0: a linear start) just inside it; a δ beyond
+    # its limit at it.
     z0[1:3] = np.maximum(z0[1:3], 1e-9)
+    z0[4] = min(max(z0[4], -delta_limit * (1 - 1e-9)), delta_limit * (1 - 1e-9))
     return problem.solve(
         z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev, method=method, margin=margin, reuse_jacobian=True
     )
@@ -448,8 +464,10 @@ def fit_record(
     u, x, dt = record.u, record.x, record.dt
     scale = _scales(u, x, dt)
     q = decimate if decimate is not None else _decimation(u)
-    # The h [µm] per unit of δ over the slowest sweep the record's length allows.
+    # The h [µm] per unit of δ over the slowest sweep the record's length allows, and how
+    # far δ may go (scaled).
     delta_reach = float(np.mean(np.abs(u))) * 0.5 * record.duration_s
+    delta_z = record_delta_limit(record) / scale[4]
     with worker_threads(workers) as pool:
         full, hysteresis = _problem(record, scale, h0, delta_reach)
         coarse_record = record if q == 1 else record.decimated(q)
@@ -460,6 +478,7 @@ def fit_record(
         # Global stage: score random candidates with one simulation each.
         rng = np.random.default_rng(seed)
         cands = _candidates(rng, n_candidates, scale[5])
+        cands[:, 4] = np.clip(cands[:, 4], -delta_z, delta_z)
         if h0 is not None:
             cands[:, 5] = h0 / scale[5]
         starts: list[FloatArray] = []
@@ -486,7 +505,7 @@ def fit_record(
             group = starts[first : first + batch]
 
             def local(z0: FloatArray) -> Solution:
-                return _local(coarse, nvar, z0, max_nfev, 1e-8, method, margin)
+                return _local(coarse, nvar, z0, max_nfev, 1e-8, method, margin, delta_z)
 
             results = list(pool.map(local, group)) if pool is not None and len(group) > 1 else [local(z) for z in group]
             for k, res in enumerate(results, start=first):
@@ -512,7 +531,7 @@ def fit_record(
         # record's, so one pass and a step or two usually reach it.
         if coarse is not full:
             say(f"refining on {u.size} samples")
-            final = _local(full, nvar, best.x, max_nfev, 1e-10, method)
+            final = _local(full, nvar, best.x, max_nfev, 1e-10, method, delta_limit=delta_z)
             say(f"full record: {final.nfev} steps")
             stage = "full record"
         else:

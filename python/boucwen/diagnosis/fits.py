@@ -163,7 +163,7 @@ class Scored:
 
 
 def _layout(record: Record, effects: EffectSet) -> Layout:
-    return Layout.of(effects, record.dt, record.dt * max(len(record) - 1, 1))
+    return Layout.for_record(effects, record)
 
 
 def _converge(record: Record, fit: ExtendedFit, effects: EffectSet, conv: Convergence) -> Solved:
