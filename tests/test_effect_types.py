@@ -40,8 +40,8 @@ from boucwen.effects import (
     to_json,
 )
 from boucwen.effects.electrostriction import STROKE_BENDS
-from boucwen.fit import record_delta_limit
 from boucwen.effects.resonance import PEAK_ZETAS, residual_peaks_hz
+from boucwen.fit import record_delta_limit
 from boucwen.record import validate_record
 from conftest import EVERY_EFFECT, WHOLE_VOCABULARY
 

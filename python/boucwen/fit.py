@@ -41,17 +41,12 @@ How it works:
   initial transient; a weak pull of weight ``H0_RIDGE`` towards 0 keeps it defined
   when the record carries no information on it (e.g. it starts in periodic steady
   state). Pass ``h0=0.0`` (or any value) to fix it instead.
-* **δ where the record is silent on it.** The δ term acts per second of motion, not per
-  volt (docs/design.md, "The admissible region"): a record that moves only in fast
-  steps, or whose rises and falls cancel it, leaves δ undetermined, and a δ it never
-  felt drives h on a slow input. A weak pull of weight ``DELTA_RIDGE`` towards 0 keeps
-  it at 0 there: the row is ``DELTA_RIDGE`` times the h [µm] the δ term adds over the
-  slowest sweep the record's length allows (mean |u| for half the record), so a µm of
-  that costs what a µm of h0 does. And δ is kept within
-  :func:`boucwen.region.delta_limit`: at the slowest full-range sweep the record's length
-  allows, the term may add at most :data:`~boucwen.region.DELTA_RATIO` times what the
-  loop's slope adds per volt (beyond, it stands in for something else and drives h alone
-  on slow inputs).
+* **δ within its limit.** The δ term acts per second of motion, not per volt
+  (docs/design.md, "The admissible region"), so a δ the record's fast moves ask for drives
+  h on a slow input of the same range. δ is kept within :func:`record_delta_limit`: at
+  the slowest full-range sweep the record's length allows, the term may add at most
+  :data:`~boucwen.region.DELTA_RATIO` times what the loop's slope adds per volt (beyond,
+  it stands in for something else and drives h alone on slow inputs).
 """
 
 from __future__ import annotations
@@ -82,15 +77,12 @@ from .progress import Progress, reporter
 from .record import Record, validate_record
 from .region import SPLIT_JACOBIAN, check, delta_limit, pair, split
 
-__all__ = ["DELTA_RIDGE", "H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record", "record_delta_limit"]
+__all__ = ["H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record", "record_delta_limit"]
 
 #: Bounds on the exponent n [-] during the fit.
 N_BOUNDS = (0.2, 6.0)
 #: Weight [-] of the residual row ``H0_RIDGE · h0`` that pulls h0 towards 0 µm.
 H0_RIDGE = 1e-3
-#: Weight [-] of the residual row ``DELTA_RIDGE · δ · mean|u| · T/2`` [µm] that pulls δ
-#: towards 0 (module docs): the same weight per µm of h as :data:`H0_RIDGE`.
-DELTA_RIDGE = H0_RIDGE
 #: Target length of the decimated record used by the global stage [samples].
 _COARSE_LEN = 3000
 #: Largest change of u between decimated samples, as a fraction of the span of u.
@@ -236,18 +228,13 @@ class _Hysteresis:
         return h, ds
 
 
-def _problem(
-    record: Record, scale: FloatArray, fixed_h0: float | None, delta_reach: float
-) -> tuple[OutputErrorProblem, _Hysteresis]:
-    """The variable-projection problem on one (possibly decimated) record; ``delta_reach``
-    [V·s]: the h [µm] per unit of δ of the δ ridge (module docs)."""
+def _problem(record: Record, scale: FloatArray, fixed_h0: float | None) -> tuple[OutputErrorProblem, _Hysteresis]:
+    """The variable-projection problem on one (possibly decimated) record."""
     hysteresis = _Hysteresis(record.u, record.dt, scale, fixed_h0)
-    ridges = [Ridge(index=4, weight=DELTA_RIDGE, scale=float(scale[4]) * delta_reach)]
-    if fixed_h0 is None:
-        ridges.append(Ridge(index=5, weight=H0_RIDGE, scale=float(scale[5])))
+    ridge = Ridge(index=5, weight=H0_RIDGE, scale=float(scale[5])) if fixed_h0 is None else None
     basis = np.column_stack([record.u, np.ones_like(record.u)])
     problem = OutputErrorProblem(
-        hysteresis, hysteresis.with_jacobian, record.x, basis=basis, ridge=ridges, simulate_many=hysteresis.many
+        hysteresis, hysteresis.with_jacobian, record.x, basis=basis, ridge=ridge, simulate_many=hysteresis.many
     )
     return problem, hysteresis
 
@@ -464,21 +451,18 @@ def fit_record(
     u, x, dt = record.u, record.x, record.dt
     scale = _scales(u, x, dt)
     q = decimate if decimate is not None else _decimation(u)
-    # The h [µm] per unit of δ over the slowest sweep the record's length allows, and how
-    # far δ may go (scaled).
-    delta_reach = float(np.mean(np.abs(u))) * 0.5 * record.duration_s
+    # How far δ may go (scaled).
     delta_z = record_delta_limit(record) / scale[4]
     with worker_threads(workers) as pool:
-        full, hysteresis = _problem(record, scale, h0, delta_reach)
+        full, hysteresis = _problem(record, scale, h0)
         coarse_record = record if q == 1 else record.decimated(q)
-        coarse = full if q == 1 else _problem(coarse_record, scale, h0, delta_reach)[0]
+        coarse = full if q == 1 else _problem(coarse_record, scale, h0)[0]
         coarse_u_size = len(coarse_record)
         nvar = hysteresis.nvar
 
         # Global stage: score random candidates with one simulation each.
         rng = np.random.default_rng(seed)
         cands = _candidates(rng, n_candidates, scale[5])
-        cands[:, 4] = np.clip(cands[:, 4], -delta_z, delta_z)
         if h0 is not None:
             cands[:, 5] = h0 / scale[5]
         starts: list[FloatArray] = []
