@@ -75,7 +75,8 @@ impl Params {
                 return Err(Error::InvalidParameter {
                     name,
                     value,
-                    reason: "must be >= 0: h runs away on one branch of the loop (the admissible region, docs/design.md)",
+                    reason:
+                        "must be >= 0: h runs away on one branch of the loop (the admissible region, docs/design.md)",
                 });
             }
             if strict && value <= 0.0 {

@@ -41,6 +41,7 @@ from boucwen.effects import (
 )
 from boucwen.effects.electrostriction import STROKE_BENDS
 from boucwen.effects.resonance import PEAK_ZETAS, residual_peaks_hz
+from boucwen.fit import record_delta_limit
 from boucwen.record import validate_record
 from conftest import EVERY_EFFECT, WHOLE_VOCABULARY
 
@@ -98,8 +99,12 @@ def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
     gains = [0.003, 0.004] if kv > 0 else [-1e-09, -1e-09]
     assert seen["z0"].tolist() == [kv, *V0[1:8], *gains, *V0[10:]]
     sign_lo, sign_hi = ([0.0, 0.0], [INF, INF]) if kv > 0 else ([-INF, -INF], [0.0, 0.0])
-    assert seen["lower"].tolist() == [*LOWER[:8], *sign_lo, *LOWER[10:]]
-    assert seen["upper"].tolist() == [*UPPER[:8], *sign_hi, *UPPER[10:]]
+    # On a record, δ is kept within the record's limit (boucwen.fit.record_delta_limit).
+    limit = record_delta_limit(_record())
+    assert 0.0 < limit < INF
+    lower, upper = [*LOWER[:6], -limit, *LOWER[7:8]], [*UPPER[:6], limit, *UPPER[7:8]]
+    assert seen["lower"].tolist() == [*lower, *sign_lo, *LOWER[10:]]
+    assert seen["upper"].tolist() == [*upper, *sign_hi, *UPPER[10:]]
     gain_scales = gains if kv > 0 else [0.0015222222222222221] * 2
     assert seen["x_scale"].tolist() == [*TYPICAL, *gain_scales, *TYPICAL_EFFECTS]
 

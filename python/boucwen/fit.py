@@ -41,13 +41,12 @@ How it works:
   initial transient; a weak pull of weight ``H0_RIDGE`` towards 0 keeps it defined
   when the record carries no information on it (e.g. it starts in periodic steady
   state). Pass ``h0=0.0`` (or any value) to fix it instead.
-* **δ where the record is silent on it.** The δ term acts per second of motion, not per
-  volt (docs/design.md, "The admissible region"): a record that moves only in fast
-  steps, or whose rises and falls cancel it, leaves δ undetermined, and a δ it never
-  felt drives h on a slow input. A weak pull of weight ``DELTA_RIDGE`` towards 0 keeps
-  it at 0 there: the row is ``DELTA_RIDGE`` times the h [µm] the δ term adds over the
-  slowest sweep the record's length allows (mean |u| for half the record), so a µm of
-  that costs what a µm of h0 does.
+* **δ within its limit.** The δ term acts per second of motion, not per volt
+  (docs/design.md, "The admissible region"), so a δ the record's fast moves ask for drives
+  h on a slow input of the same range. δ is kept within :func:`record_delta_limit`: at
+  the slowest full-range sweep the record's length allows, the term may add at most
+  :data:`~boucwen.region.DELTA_RATIO` times what the loop's slope adds per volt (beyond,
+  it stands in for something else and drives h alone on slow inputs).
 """
 
 from __future__ import annotations
@@ -76,17 +75,14 @@ from .lsq import (
 from .metrics import max_abs, rms
 from .progress import Progress, reporter
 from .record import Record, validate_record
-from .region import SPLIT_JACOBIAN, check, pair, split
+from .region import SPLIT_JACOBIAN, check, delta_limit, pair, split
 
-__all__ = ["DELTA_RIDGE", "H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record"]
+__all__ = ["H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record", "record_delta_limit"]
 
 #: Bounds on the exponent n [-] during the fit.
 N_BOUNDS = (0.2, 6.0)
 #: Weight [-] of the residual row ``H0_RIDGE · h0`` that pulls h0 towards 0 µm.
 H0_RIDGE = 1e-3
-#: Weight [-] of the residual row ``DELTA_RIDGE · δ · mean|u| · T/2`` [µm] that pulls δ
-#: towards 0 (module docs): the same weight per µm of h as :data:`H0_RIDGE`.
-DELTA_RIDGE = H0_RIDGE
 #: Target length of the decimated record used by the global stage [samples].
 _COARSE_LEN = 3000
 #: Largest change of u between decimated samples, as a fraction of the span of u.
@@ -232,18 +228,13 @@ class _Hysteresis:
         return h, ds
 
 
-def _problem(
-    record: Record, scale: FloatArray, fixed_h0: float | None, delta_reach: float
-) -> tuple[OutputErrorProblem, _Hysteresis]:
-    """The variable-projection problem on one (possibly decimated) record; ``delta_reach``
-    [V·s]: the h [µm] per unit of δ of the δ ridge (module docs)."""
+def _problem(record: Record, scale: FloatArray, fixed_h0: float | None) -> tuple[OutputErrorProblem, _Hysteresis]:
+    """The variable-projection problem on one (possibly decimated) record."""
     hysteresis = _Hysteresis(record.u, record.dt, scale, fixed_h0)
-    ridges = [Ridge(index=4, weight=DELTA_RIDGE, scale=float(scale[4]) * delta_reach)]
-    if fixed_h0 is None:
-        ridges.append(Ridge(index=5, weight=H0_RIDGE, scale=float(scale[5])))
+    ridge = Ridge(index=5, weight=H0_RIDGE, scale=float(scale[5])) if fixed_h0 is None else None
     basis = np.column_stack([record.u, np.ones_like(record.u)])
     problem = OutputErrorProblem(
-        hysteresis, hysteresis.with_jacobian, record.x, basis=basis, ridge=ridges, simulate_many=hysteresis.many
+        hysteresis, hysteresis.with_jacobian, record.x, basis=basis, ridge=ridge, simulate_many=hysteresis.many
     )
     return problem, hysteresis
 
@@ -288,6 +279,14 @@ def _scales(u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
     return np.array([s_a, s_pair, s_pair, 1.0, s_delta, half_width])
 
 
+def record_delta_limit(record: Record) -> float:
+    """The largest |δ| [µm/(V·s)] a fit allows on ``record``: :func:`boucwen.region.delta_limit`
+    with the record's loop slope scale (that of A in :func:`fit`)."""
+    u = record.u
+    slope = float(_scales(u, record.x, record.dt)[0])
+    return delta_limit(slope, float(np.ptp(u)), float(np.max(np.abs(u))), record.duration_s)
+
+
 def _candidates(rng: np.random.Generator, count: int, half_width: float) -> FloatArray:
     """Random starting points in scaled units (A, β + γ, β − γ, n, δ, h0)."""
     z = np.zeros((count, 6))
@@ -328,19 +327,23 @@ def _local(
     tol: float,
     method: Method,
     margin: float = STATISTICAL_MARGIN,
+    delta_limit: float = math.inf,
 ) -> Solution:
     """The local solver ``method`` from ``z0`` (n kept in :data:`N_BOUNDS`, β ± γ ≥ 0: the
-    admissible region); with ``"lm"``, a Jacobian is kept while it predicts the steps and
-    the run stops where the remaining step is within ``margin`` squared standard errors
-    (:mod:`boucwen.levenberg`)."""
+    admissible region, |δ| ≤ ``delta_limit`` in scaled units); with ``"lm"``, a Jacobian
+    is kept while it predicts the steps and the run stops where the remaining step is
+    within ``margin`` squared standard errors (:mod:`boucwen.levenberg`)."""
     lb = np.full(nvar, -np.inf)
     ub = np.full(nvar, np.inf)
     lb[1] = lb[2] = 0.0
     lb[3], ub[3] = N_BOUNDS
+    lb[4], ub[4] = -delta_limit, delta_limit
     z0 = z0[:nvar].copy()
     z0[3] = min(max(z0[3], N_BOUNDS[0] + 1e-9), N_BOUNDS[1] - 1e-9)
-    # A start on the region's edge (β ± γ = 0: a linear start) just inside it.
+    # A start on the region's edge (β ± γ = 0: a linear start) just inside it; a δ beyond
+    # its limit at it.
     z0[1:3] = np.maximum(z0[1:3], 1e-9)
+    z0[4] = min(max(z0[4], -delta_limit * (1 - 1e-9)), delta_limit * (1 - 1e-9))
     return problem.solve(
         z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev, method=method, margin=margin, reuse_jacobian=True
     )
@@ -448,12 +451,12 @@ def fit_record(
     u, x, dt = record.u, record.x, record.dt
     scale = _scales(u, x, dt)
     q = decimate if decimate is not None else _decimation(u)
-    # The h [µm] per unit of δ over the slowest sweep the record's length allows.
-    delta_reach = float(np.mean(np.abs(u))) * 0.5 * record.duration_s
+    # How far δ may go (scaled).
+    delta_z = record_delta_limit(record) / scale[4]
     with worker_threads(workers) as pool:
-        full, hysteresis = _problem(record, scale, h0, delta_reach)
+        full, hysteresis = _problem(record, scale, h0)
         coarse_record = record if q == 1 else record.decimated(q)
-        coarse = full if q == 1 else _problem(coarse_record, scale, h0, delta_reach)[0]
+        coarse = full if q == 1 else _problem(coarse_record, scale, h0)[0]
         coarse_u_size = len(coarse_record)
         nvar = hysteresis.nvar
 
@@ -486,7 +489,7 @@ def fit_record(
             group = starts[first : first + batch]
 
             def local(z0: FloatArray) -> Solution:
-                return _local(coarse, nvar, z0, max_nfev, 1e-8, method, margin)
+                return _local(coarse, nvar, z0, max_nfev, 1e-8, method, margin, delta_z)
 
             results = list(pool.map(local, group)) if pool is not None and len(group) > 1 else [local(z) for z in group]
             for k, res in enumerate(results, start=first):
@@ -512,7 +515,7 @@ def fit_record(
         # record's, so one pass and a step or two usually reach it.
         if coarse is not full:
             say(f"refining on {u.size} samples")
-            final = _local(full, nvar, best.x, max_nfev, 1e-10, method)
+            final = _local(full, nvar, best.x, max_nfev, 1e-10, method, delta_limit=delta_z)
             say(f"full record: {final.nfev} steps")
             stage = "full record"
         else:

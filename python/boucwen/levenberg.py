@@ -106,7 +106,11 @@ class _Normal:
     diag(scale), diagonalised once: S·H·S = V·diag(w)·Vᵀ."""
 
     def __init__(self, jac: FloatArray, scale: FloatArray):
-        self.h = jac.T @ jac
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.h = jac.T @ jac
+        if not np.all(np.isfinite(self.h)):
+            # A finite Jacobian whose products overflow: no step can be solved from it.
+            raise FloatingPointError("the normal equations overflow")
         self.scale = scale
         w, self.v = np.linalg.eigh(self.h * scale[:, None] * scale[None, :])
         self.w = np.maximum(w, 0.0)
@@ -267,7 +271,10 @@ def levenberg_marquardt(
     r, jac = first
     cost = 0.5 * float(r @ r)
     fresh = True
-    normal = _Normal(jac, scale)
+    try:
+        normal = _Normal(jac, scale)
+    except FloatingPointError:
+        return Solution(z, cost, jac, nfev, njev, False, "the start cannot be linearised")
     message, success = f"{max_nfev} trial points, the limit", False
     last_remaining = np.inf
     stalled = 0
@@ -278,8 +285,12 @@ def levenberg_marquardt(
         njev += 1
         if out is None:  # pragma: no cover - z was simulated just before
             return False
+        try:
+            fresh_normal = _Normal(out[1], scale)
+        except FloatingPointError:
+            return False
         r, jac = out
-        normal, fresh = _Normal(jac, scale), True
+        normal, fresh = fresh_normal, True
         return True
 
     while True:

@@ -7,8 +7,9 @@ Both fits minimise the *output* error of a model simulated from the voltage alon
 
 over their unknowns z, where s(z) is the simulated signal, y the measured one and
 P either the identity or the projection off span{basis} (the variable projection of
-:func:`boucwen.fit`, whose linear part is solved separately). Optional :class:`Ridge`
-rows each pull one unknown towards 0. The engine owns what the two fits share:
+:func:`boucwen.fit`, whose linear part is solved separately). An optional
+:class:`Ridge` row pulls one unknown towards 0. The engine owns what the two fits
+share:
 
 * the residual, from one simulation, and its Jacobian P·∂s/∂z, from one pass of the
   Rust core that returns the simulated signal with its exact derivatives
@@ -164,7 +165,7 @@ class OutputErrorProblem:
         target: the measured signal [µm].
         basis: columns whose span is projected out of the residual (variable
             projection), or None.
-        ridge: extra residual rows (one :class:`Ridge` or several), or None.
+        ridge: an extra residual row, or None.
         simulate_many: several unknowns → their simulated signals (each or None) in
             one batch, for :meth:`costs`; None to run ``simulate`` in threads.
     """
@@ -176,16 +177,16 @@ class OutputErrorProblem:
         target: FloatArray,
         *,
         basis: FloatArray | None = None,
-        ridge: Ridge | Sequence[Ridge] | None = None,
+        ridge: Ridge | None = None,
         simulate_many: ManySimulator | None = None,
     ):
         self._simulate = simulate
         self._simulate_many = simulate_many
         self._simulate_with_jacobian = simulate_with_jacobian
         self.target = target
-        self.ridges: tuple[Ridge, ...] = () if ridge is None else (ridge,) if isinstance(ridge, Ridge) else tuple(ridge)
+        self.ridge = ridge
         self._q: FloatArray | None = orthonormal(basis) if basis is not None else None
-        self._rows = target.size + len(self.ridges)
+        self._rows = target.size + (1 if ridge is not None else 0)
         self._lock = threading.Lock()
         self._count = 0
 
@@ -217,11 +218,11 @@ class OutputErrorProblem:
         return self._residual_of(s, z)
 
     def _residual_of(self, s: FloatArray, z: FloatArray) -> FloatArray:
-        """r(z) from the signal ``s`` simulated at z: P·(s − target), the ridge rows appended."""
+        """r(z) from the signal ``s`` simulated at z: P·(s − target), the ridge row appended."""
         r = self._project(s - self.target)
-        if not self.ridges:
+        if self.ridge is None:
             return r
-        return np.append(r, [g.weight * z[g.index] * g.scale for g in self.ridges])
+        return np.append(r, self.ridge.weight * z[self.ridge.index] * self.ridge.scale)
 
     def linearise(self, z: FloatArray) -> tuple[FloatArray, FloatArray] | None:
         """(r(z), ∂r/∂z = P·∂s/∂z) from one simulation with the Jacobian, or None where z
@@ -234,15 +235,14 @@ class OutputErrorProblem:
         return self._residual_of(s, z), self._jacobian_rows(ds)
 
     def _jacobian_rows(self, ds: FloatArray) -> FloatArray:
-        """P·ds with the ridge rows appended (``ds`` projected in place when no row is added)."""
-        if not self.ridges:
+        """P·ds with the ridge row appended (``ds`` projected in place when no row is added)."""
+        if self.ridge is None:
             return self._project(np.require(ds, requirements=["C", "W"]))
         jac = np.empty((self._rows, ds.shape[1]))
         jac[: self.target.size] = ds
         self._project(jac[: self.target.size])
-        jac[self.target.size :] = 0.0
-        for k, g in enumerate(self.ridges):
-            jac[self.target.size + k, g.index] = g.weight * g.scale
+        jac[-1] = 0.0
+        jac[-1, self.ridge.index] = self.ridge.weight * self.ridge.scale
         return jac
 
     def jacobian(self, z: FloatArray) -> FloatArray:

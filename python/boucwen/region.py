@@ -15,6 +15,7 @@ only for inputs that do not creep (docs/design.md, "The admissible region", deri
   region is a box (both ≥ 0); :data:`SPLIT_JACOBIAN` turns ∂/∂(β, γ) into ∂/∂(β + γ, β − γ).
 * :func:`hysteresis_bound`: the bound on |h| the region guarantees for an input of a
   given voltage range and slowest slew.
+* :func:`delta_limit`: how large a fit lets δ grow on a record (:data:`DELTA_RATIO`).
 """
 
 from __future__ import annotations
@@ -26,10 +27,31 @@ import numpy as np
 from ._core import Params
 from .checks import FloatArray
 
-__all__ = ["PAIR_NAMES", "SPLIT_JACOBIAN", "check", "hysteresis_bound", "pair", "split", "travel_bound"]
+__all__ = [
+    "DELTA_RATIO",
+    "PAIR_NAMES",
+    "SPLIT_JACOBIAN",
+    "check",
+    "delta_limit",
+    "hysteresis_bound",
+    "pair",
+    "split",
+    "travel_bound",
+]
 
 #: The names of the fits' coordinates (β + γ, β − γ), in place of ``beta`` and ``gamma``.
 PAIR_NAMES = ("beta_plus_gamma", "beta_minus_gamma")
+
+#: At the slowest full-range sweep a record's length allows (v = 2·span/T: one triangle
+#: over the record), a fit's δ term may add at most this many times what the loop's
+#: slope adds per volt (|δ|·max|u|/v ≤ ratio × slope). δ·u·sgn(u̇) is the model's small
+#: asymmetry (at the paper's 1 Hz record, 3 s long, its δ·U/v is 0.16 of |A|); a fit that
+#: makes it many times the rate term there uses it for something else — on a staircase,
+#: the δ·u·dt of each fast step as a level-dependent jump — and on a slow input of the
+#: range the term then drives h alone. Within the ratio, A + δ·u/|u̇| grows at most
+#: (1 + ratio)-fold at that sweep and hₛ with it (1 + ratio)^(1/n)-fold (5× at n = 1.5),
+#: inside the boundedness check's multiple (:mod:`boucwen.boundedness`).
+DELTA_RATIO = 10.0
 
 #: ∂(β, γ)/∂(β + γ, β − γ): the columns ∂/∂β, ∂/∂γ of a Jacobian times this give
 #: ∂/∂(β + γ), ∂/∂(β − γ).
@@ -89,3 +111,13 @@ def hysteresis_bound(params: Params, h0: float, u_max_abs_v: float, slowest_slew
             return math.inf
         levels.append((drive / dissipation) ** (1.0 / params.n))
     return max(levels)
+
+
+def delta_limit(slope_um_per_v: float, u_span_v: float, u_max_abs_v: float, duration_s: float) -> float:
+    """The largest |δ| [µm/(V·s)] a fit allows on a record whose voltage spans
+    ``u_span_v`` [V] with |u| ≤ ``u_max_abs_v`` over ``duration_s`` [s], its loop's slope
+    ``slope_um_per_v`` [µm/V] (:data:`DELTA_RATIO`); ``inf`` for a record at 0 V."""
+    if not (u_max_abs_v > 0.0 and duration_s > 0.0):
+        return math.inf
+    slowest = 2.0 * u_span_v / duration_s
+    return DELTA_RATIO * abs(slope_um_per_v) * slowest / u_max_abs_v

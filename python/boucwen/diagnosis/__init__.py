@@ -41,9 +41,11 @@ not told what it contains, and selects a model by one loop under one judge:
 8. **Report**: the returned model's errors before and after, what it leaves
    (``unexplained``), the held-out errors of the base and returned models (``unseen``),
    each name ``confident`` only where it has no rival and the model removes at least
-   ``confident_share`` of the base model's held-out error beyond the noise (else
-   ``tentative``, with the rivals),
-   every decision typed (``decisions``), and the parameters on a bound.
+   ``confident_share`` of the base model's error beyond the noise (else ``tentative``,
+   with the rivals), every decision typed (``decisions``), the parameters on a bound,
+   and whether the returned model stays bounded over the record's range
+   (``boundedness``, :func:`boucwen.boundedness.check`; every fit keeps to the admissible
+   region, and a candidate that fails the check is no candidate).
 
 9. **Where the record cannot decide**, design the experiment that can
    (:meth:`Diagnosis.next_experiment`, :mod:`~boucwen.diagnosis.experiment`): the input,
@@ -78,6 +80,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet
+from ..boundedness import check_model, check_oscillator
 from ..checks import check_int
 from ..effects import effects_of
 from ..effects.base import without
@@ -346,6 +349,11 @@ def _outcome(
         unseen=unseen,
         explained=Explained(record, final, rivals, swaps, conv, policy, noise_um),
         structure=structure,
+        boundedness=(
+            check_oscillator(record, other.fit)
+            if other is not None
+            else check_model(record, final.fit.params, final.fit.effects, final.fit.h0)
+        ),
     )
     say(result.summary())
     return result

@@ -43,6 +43,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .._core import EffectSet
+from ..boundedness import check_model
 from ..checks import FloatArray
 from ..effects import (
     ExtendedFit,
@@ -281,7 +282,7 @@ class Scored:
 
 
 def _layout(record: Record, effects: EffectSet) -> Layout:
-    return Layout.of(effects, record.dt, record.dt * max(len(record) - 1, 1))
+    return Layout.for_record(effects, record)
 
 
 def _converge(record: Record, fit: ExtendedFit, effects: EffectSet, conv: Convergence) -> Solved:
@@ -523,11 +524,17 @@ def swap(
 def _valid(record: Record, solved: Solved, folds: Folds, conv: Convergence) -> Scored | str:
     """The candidate ``solved`` scored, or why it is none: an effect whose fitted values
     make it something other than its name says (:meth:`boucwen.effects.Effect.rejects`:
-    a resonance without a peak)."""
+    a resonance without a peak), or a model that the fit kept inside the admissible
+    region but that leaves the record's range on inputs within its limits
+    (:func:`boucwen.boundedness.check_model`)."""
     for effect in effects_of(solved.fit.effects):
         why = effect.rejects()
         if why is not None:
             return why
+    fit = solved.fit
+    bounded = check_model(record, fit.params, fit.effects, fit.h0)
+    if not bounded.passed:
+        return f"the fitted model is not bounded over the record's range: {bounded.summary()}"
     return scored(record, solved, folds, conv)
 
 

@@ -13,7 +13,9 @@ declares (:meth:`~boucwen.effects.Effect.unknowns`: the creep gains, ln fc, ln f
 ln ζ, the drift rate; the creep time constants and the delay are held fixed), with
 their bounds, typical sizes and sign constraints. β + γ and β − γ are bounded below by
 0: a fit cannot leave the admissible region, where h stays bounded
-(:mod:`boucwen.region`), and a start outside it is refused (:class:`boucwen.InvalidParams`).
+(:mod:`boucwen.region`), and a start outside it is refused (:class:`boucwen.InvalidParams`);
+on a record (:meth:`Layout.for_record`) |δ| is kept within the limit of
+:func:`boucwen.fit.record_delta_limit`, as in :func:`boucwen.fit`.
 
 Residual, Jacobian (exact, from the Rust core in one pass with the simulation:
 :func:`boucwen._core.simulate_extended_with_jacobian`, whose columns are these unknowns
@@ -23,6 +25,7 @@ in this order) and optimiser are those of :mod:`boucwen.lsq`, shared with
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,7 +35,7 @@ from numpy.typing import ArrayLike
 
 from .._core import EffectSet, Params, simulate_extended, simulate_extended_with_jacobian
 from ..checks import FloatArray
-from ..fit import N_BOUNDS
+from ..fit import N_BOUNDS, record_delta_limit
 from ..levenberg import STATISTICAL_MARGIN
 from ..lsq import Method, OutputErrorProblem, with_jacobian_or_none
 from ..metrics import max_abs, rms
@@ -71,15 +74,24 @@ class Layout:
             not unknowns (creep τ_i, delay) stay as they are here.
         dt: sampling interval [s].
         duration_s: record length [s].
+        delta_limit: the largest |δ| [µm/(V·s)] of a fit on the record
+            (:func:`boucwen.fit.record_delta_limit`; inf: no limit).
     """
 
     effects: tuple[Effect, ...]
     dt: float
     duration_s: float
+    delta_limit: float = math.inf
 
     @classmethod
     def of(cls, effects: EffectSet, dt: float, duration_s: float) -> Layout:
         return cls(effects=effects_of(effects), dt=float(dt), duration_s=float(duration_s))
+
+    @classmethod
+    def for_record(cls, effects: EffectSet, record: Record) -> Layout:
+        """The layout of a fit of ``effects`` on ``record``, δ within its limit there."""
+        dt = record.dt
+        return cls(effects_of(effects), float(dt), dt * max(len(record) - 1, 1), record_delta_limit(record))
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -142,10 +154,12 @@ class Layout:
         return out
 
     def bounds(self) -> tuple[FloatArray, FloatArray]:
-        """Lower and upper bounds of the unknowns (β ± γ ≥ 0: the admissible region)."""
+        """Lower and upper bounds of the unknowns (β ± γ ≥ 0: the admissible region; |δ|
+        within :attr:`delta_limit`)."""
         base = [(-np.inf, np.inf)] * len(_BASE)
         base[3] = base[4] = (0.0, np.inf)
         base[5] = N_BOUNDS
+        base[6] = (-self.delta_limit, self.delta_limit)
         return _columns(base, [b for e in self.effects for b in e.bounds(self.context)])
 
     def sign_bounds(self, static_gain: float) -> tuple[FloatArray, FloatArray]:
@@ -342,8 +356,8 @@ class Box:
 
 def fit_box(record: Record, params: Params, effects: EffectSet, h0: float) -> Box:
     """The :class:`Box` of a fit of ``record`` started at (params, effects, h0)."""
-    u, x, dt = record.u, record.x, record.dt
-    layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
+    u, x = record.u, record.x
+    layout = Layout.for_record(effects, record)
     v0 = layout.pack(params, effects, h0)
     lo, hi = layout.bounds()
     sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))

@@ -34,7 +34,9 @@ Targets (the tracker's issue), checked on the RMS errors:
 1. where the in-record fit improves by at least :data:`IN_RECORD_GAIN` (20 %), the
    unseen-data error falls by at least :data:`UNSEEN_GAIN` (15 %);
 2. nowhere does the returned model predict unseen data worse than the base model by more
-   than :data:`WORSE_TOLERANCE` (2 %).
+   than :data:`WORSE_TOLERANCE` (2 %);
+3. a piezo record's returned model is the input-driven one;
+4. every returned model passes the boundedness check (:func:`boucwen.boundedness.check`).
 
 ``python -m boucwen.experiments.measured [--out DIR] [--progress]`` prints one table per
 case and whether the targets hold, and writes ``DIR/results.json``; it exits with status
@@ -280,6 +282,7 @@ def run_case(
         "offset_reestimated": not case.continued,
         "params": result.to_dict()["params"],
         "structure": None if result.structure is None else result.structure.name,
+        "boundedness": None if result.boundedness is None else result.boundedness.to_dict(),
         "next_experiment": {**experiment.to_dict(), "summary": experiment.summary()},
         "figure": None if figure is None or not experiment.ambiguous else str(figure),
     }
@@ -296,6 +299,7 @@ def check_targets(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
         > WORSE_TOLERANCE
     ]
     third = [r["case"] for r in rows if r.get("structure") is not None]
+    fourth = [r["case"] for r in rows if not (r.get("boundedness") or {"passed": True})["passed"]]
     return {
         "unseen_falls_where_fit_improves": {
             "rule": f"in-record RMS −{IN_RECORD_GAIN:.0%} or more ⇒ unseen RMS −{UNSEEN_GAIN:.0%} or more",
@@ -314,6 +318,12 @@ def check_targets(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
             "cases": len(rows),
             "holds": not third,
             "broken_by": third,
+        },
+        "returned_models_bounded": {
+            "rule": "the returned model passes the boundedness check over its record's range",
+            "cases": len(rows),
+            "holds": not fourth,
+            "broken_by": fourth,
         },
     }
 
@@ -345,6 +355,8 @@ def print_case(row: dict[str, Any], out: TextIO) -> None:
         file=out,
     )
     print(f"effects: {named}; diagnosis {row['time_s']:.1f} s", file=out)
+    if row.get("boundedness"):
+        print(f"returned model: {row['boundedness']['summary']}", file=out)
     if "next_experiment" in row:
         print(f"next experiment ({EXPERIMENT_S:g} s): {row['next_experiment']['summary']}", file=out)
     if row.get("figure"):
