@@ -85,7 +85,9 @@ def test_a_piezo_record_keeps_the_input_driven_model_the_oscillator_tried_and_re
     x = simulate_extended(Params.paper_1hz(), EffectSet(creep={"tau_s": [0.02], "gain_um_per_v": [0.01]}), u, dt)
     d = diagnose(u, x + np.random.default_rng(1).normal(0, 0.005, u.size), dt)
     assert d.structure is None and "creep" in d.effects
-    # The other structure is one more move of the round: judged, and not accepted.
+    # The other structure is one more move of every round: judged, never taken, and
+    # refuted against the model returned.
     tried = [x for x in d.decisions if x.move == "structure"]
-    assert tried and not any(x.accepted for x in tried)
+    assert tried and not tried[-1].accepted and tried[-1].gain.statistic < 0
+    assert all(x.move != "structure" for x in d.taken)
     assert d.evidence["structure"]["tried"] is True

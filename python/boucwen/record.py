@@ -13,6 +13,7 @@ Every public entry point that takes data (:func:`boucwen.fit`,
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -185,6 +186,35 @@ def motion_onset(u: Any) -> Onset:
     left = np.flatnonzero(np.abs(arr - arr[0]) > band)
     start = int(left[0]) - 1 if left.size else int(arr.size)
     return Onset(max(start, 0), band, sigma)
+
+
+#: The voltage's travel is counted on u smoothed over this time [s]: a millisecond, above
+#: the bandwidth of any actuator drive's noise and below every effect's time scale but a
+#: delay's.
+TRAVEL_SMOOTHING_S = 1e-3
+#: Increments of the smoothed u within this many standard deviations of their noise are
+#: rest (no travel).
+TRAVEL_DEADBAND = 3.0
+
+
+def travel_steps(record: Record) -> FloatArray:
+    """The voltage's travel [V] from each sample to the next (n − 1 of them): the
+    increments of u smoothed over :data:`TRAVEL_SMOOTHING_S`, those within
+    :data:`TRAVEL_DEADBAND` noise standard deviations of u counted as none (a rest, a
+    hold). A u whose differences are mostly zero (a command held between steps) has no
+    noise at the sample level."""
+    from scipy.ndimage import uniform_filter1d
+
+    from .residual.noise import noise_level  # deferred: boucwen.residual imports this module
+
+    u = record.u
+    m = max(1, round(TRAVEL_SMOOTHING_S / record.dt))
+    smooth = uniform_filter1d(u, m, mode="nearest") if m > 1 else u
+    steps = np.abs(np.diff(smooth))
+    level = noise_level(u) if u.size > 8 else None
+    sigma = (level.sigma_um if level is not None and level.order > 0 else 0.0) * math.sqrt(2.0) / math.sqrt(m)
+    out: FloatArray = np.where(steps > TRAVEL_DEADBAND * sigma, steps, 0.0)
+    return out
 
 
 def validate_record(u: Any, x: Any, dt: Any, name: str = "") -> Record:

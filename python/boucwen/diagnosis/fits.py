@@ -53,6 +53,7 @@ from ..effects import (
     effect_class,
     effects_of,
     fit_box,
+    simulate_chain,
     solve_extended_record,
 )
 from ..effects.base import with_effect, without
@@ -117,6 +118,9 @@ RANK_SHORTLIST = 12
 FOLD_NFEV = 60
 #: Relative difference of two RMS errors within rounding of the same fit.
 _SAME = 1e-9
+#: An added effect that changes the fit's prediction of the record by less than this
+#: share of its residual RMS changes nothing the record holds.
+_UNSEEN_SHARE = 1e-3
 #: Tries of the screen's step (each a quarter of the one before), as the solver's first
 #: trust regions.
 _SCREEN_TRIES = 4
@@ -507,6 +511,22 @@ def add(
             f"the fit with {' + '.join(names)} ends worse on the record ({best.fit.rms_um:.4g} µm) than the "
             f"model without it ({origin.fit.rms_um:.4g} µm): the effect was not found"
         )
+    # An effect is named for what it does to the record: one that changes the fitted
+    # model's prediction of the record by less than a thousandth of what the fit leaves (a
+    # clip above every sample) is not in the record, whatever it does where the model is
+    # carried beyond it.
+    fit = best.fit
+    rest = fit.effects
+    for k in names:
+        rest = without(rest, k)
+    plain = simulate_chain(fit.params, rest, record.u, record.dt, fit.h0)
+    if plain is not None:
+        if rms(best.x - plain) < _UNSEEN_SHARE * max(fit.rms_um, 1e-300):
+            return f"{' + '.join(names)} changes nothing the record holds: it is not in the record"
+        for effect in effects_of(fit.effects):
+            why = effect.rejects_on(record, plain) if effect.name in names else None
+            if why is not None:
+                return why
     return _valid(record, best, folds, conv)
 
 

@@ -72,12 +72,10 @@ from typing import Any
 
 import numpy as np
 from scipy import stats
-from scipy.ndimage import uniform_filter1d
 
 from ..checks import FloatArray
 from ..metrics import rms
-from ..record import Record
-from ..residual import noise_level
+from ..record import Record, travel_steps
 
 __all__ = [
     "CrossValidation",
@@ -94,12 +92,6 @@ __all__ = [
     "threshold",
 ]
 
-#: Smoothing of u before its travel is counted [s]: a millisecond, above the bandwidth
-#: of any actuator drive's noise and below every effect's time scale but a delay's.
-_TRAVEL_SMOOTHING_S = 1e-3
-#: Increments of the smoothed u within this many standard deviations of their noise count
-#: no travel (a rest, a hold).
-_TRAVEL_DEADBAND = 3.0
 #: Sokal's window constant: the autocorrelation is summed out to the first lag W with
 #: W ≥ c·τ_int(W) (c = 5 keeps the truncation bias below e⁻⁵ for an exponential decay).
 _SOKAL_C = 5.0
@@ -107,18 +99,10 @@ _SOKAL_C = 5.0
 
 def excitation(record: Record) -> FloatArray:
     """The record's excitation so far, M(k) for k = 0 … n − 1 (module docs): half its
-    voltage travel share, half its elapsed time share, rising from 0 to 1."""
+    voltage travel share (:func:`boucwen.record.travel_steps`: a rest adds none), half
+    its elapsed time share, rising from 0 to 1."""
     n = len(record)
-    u = record.u
-    m = max(1, round(_TRAVEL_SMOOTHING_S / record.dt))
-    smooth = uniform_filter1d(u, m, mode="nearest") if m > 1 else u
-    steps = np.abs(np.diff(smooth))
-    # The noise of the logged u; a u whose differences are mostly zero (a command held
-    # between steps) has none at the sample level.
-    level = noise_level(u)
-    sigma = (level.sigma_um if level.order > 0 else 0.0) * math.sqrt(2.0) / math.sqrt(m)
-    steps = np.where(steps > _TRAVEL_DEADBAND * sigma, steps, 0.0)
-    travel = np.concatenate([[0.0], np.cumsum(steps)])
+    travel = np.concatenate([[0.0], np.cumsum(travel_steps(record))])
     total = float(travel[-1])
     share = travel / total if total > 0 else np.zeros(n)
     return np.asarray(0.5 * share + 0.5 * np.arange(n) / max(n - 1, 1))
