@@ -427,13 +427,6 @@ def test_diagnose_many_on_a_long_table(two_diagnosed):
     assert doc["detail"]["effects"] == table.loc[creep.channel, "effects"].split(",")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known: on this record the refit without the first block leaves h0 undetermined (it runs to "
-    "199 µm, the block's held-out RMS 119 µm, the base model's cross-validation 60 µm), so the judge's "
-    "gains here follow that block and the named set follows the solver's path: creep while the fits "
-    "could leave the admissible region, saturation (tentative) since they keep to it",
-)
 def test_diagnose_many_names_the_creep(two_diagnosed):
     table, creep, _ = two_diagnosed
     assert "creep" in table.loc[creep.channel, "effects"].split(",")
