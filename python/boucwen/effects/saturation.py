@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..checks import FloatArray
-from ..record import Record, travel_steps
+from ..record import TRAVEL_SMOOTHING_S, Record, travel_steps
 from .base import Context, Effect, Start
 
 __all__ = ["Saturation"]
@@ -48,14 +48,21 @@ class Saturation(Effect):
         return (1e-2 * span_x, 1e-2 * span_x)
 
     def rejects_on(self, record: Record, before: FloatArray) -> str | None:
-        """A clip is seen where the motion runs into the range's end: one that no sample
-        of a moving voltage reaches (all it clips is held at rest, a level the base
-        model's offset holds) is no saturation."""
+        """A clip is seen where the input keeps moving while the reading stays at the
+        range's end. One that holds no such stretch (all it clips is held at rest, or a
+        rest beside a step's edge: a level the base model's offset and the effects' own
+        states hold as well) is no saturation. The input's travel is smoothed over
+        :data:`~boucwen.record.TRAVEL_SMOOTHING_S`, so a sample counts only where the
+        whole smoothing window about it is clipped: a step's edge spreads its travel
+        onto the held samples beside it."""
+        from scipy.ndimage import minimum_filter1d
+
         clipped = (before > self.max_um) | (before < self.min_um)
+        m = max(1, round(TRAVEL_SMOOTHING_S / record.dt))
+        inside = minimum_filter1d(clipped.astype(np.uint8), 2 * m + 1, mode="nearest").astype(bool)
         steps = travel_steps(record)
-        moving = np.concatenate([[False], steps > 0]) | np.concatenate([steps > 0, [False]])
-        if not np.any(clipped & moving):
-            return "the fitted clip holds no moving sample: it is no saturation the record shows"
+        if not np.any(inside[:-1] & inside[1:] & (steps > 0)):
+            return "the fitted clip holds no stretch of moving input: it is no saturation the record shows"
         return None
 
     @classmethod
