@@ -24,6 +24,7 @@
 //! it (a fit fixes β and identifies γ and δ).
 
 pub mod integrator;
+pub mod newmark;
 
 use alloc::vec;
 use alloc::vec::Vec;
