@@ -447,6 +447,12 @@ class _DelayParams(TypedDict):
 
     samples: int
 
+class _BetweenSamplesParams(TypedDict):
+    """``between_samples``: what the command does between samples (``"hold"``,
+    ``"linear"``, ``"bandlimited"``)."""
+
+    input: str
+
 class _EffectParams(TypedDict, total=False):
     """``EffectSet.to_dict()``: the effects present, each with its parameters."""
 
@@ -460,6 +466,7 @@ class _EffectParams(TypedDict, total=False):
     delay: _DelayParams
     pickup: _PickupParams
     saturation: _SaturationParams
+    between_samples: _BetweenSamplesParams
 
 @final
 class Bank:
@@ -532,7 +539,9 @@ class EffectSet:
     resonance={"fn_hz": Hz, "zeta": -}, resonance2={"fn_hz": Hz, "zeta": -},
     drift={"rate_um_per_s": µm/s}, delay={"samples": int ≥ 0},
     pickup={"line_hz": Hz, "sin_um": [µm…], "cos_um": [µm…]},
-    saturation={"min_um": µm, "max_um": µm}; None = absent. Invalid values raise ValueError.
+    saturation={"min_um": µm, "max_um": µm},
+    between_samples={"input": "hold" | "linear" | "bandlimited"}; None = absent. Invalid
+    values raise ValueError.
     Typed: boucwen.effect_set(InputLag(650.0), …) and boucwen.effects_of(s)."""
 
     vocabulary: ClassVar[list[str]]
@@ -549,6 +558,7 @@ class EffectSet:
         delay: _DelayParams | None = None,
         pickup: _PickupParams | None = None,
         saturation: _SaturationParams | None = None,
+        between_samples: _BetweenSamplesParams | None = None,
     ) -> EffectSet: ...
     @property
     def names(self) -> list[str]:
