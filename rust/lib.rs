@@ -13,6 +13,8 @@
 //! u: voltage \[V\]; x: displacement \[µm\]; h: hysteresis state \[µm\]; t: time \[s\].
 //!
 //! - [`Params`]: the seven parameters and their units.
+//! - [`reconstruction`]: what the input does between samples (hold, linear, band-limited),
+//!   read by the integrators of both model classes.
 //! - [`oscillator`]: a second model class, the hysteretic oscillator of the Noël & Schoukens
 //!   benchmark (a mass, spring and damper with a Bouc–Wen spring driven by its motion).
 //! - [`model`]: the operator, its integrator, the per-sample [`Model`] and [`simulate`].
@@ -40,6 +42,7 @@ pub mod math;
 pub mod model;
 pub mod oscillator;
 pub mod params;
+pub mod reconstruction;
 
 #[cfg(feature = "ffi")]
 pub mod ffi;

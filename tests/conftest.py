@@ -92,6 +92,7 @@ WHOLE_VOCABULARY: dict[str, Any] = dict(
     delay=EVERY_EFFECT["delay"],
     pickup={"line_hz": 50.0, "sin_um": [0.1, 0.0], "cos_um": [0.02, 0.01]},
     saturation={"min_um": -1.0, "max_um": 30.0},
+    between_samples={"input": "hold"},
 )
 
 

@@ -12,6 +12,7 @@ import pytest
 import boucwen
 import boucwen.lsq
 from boucwen import (
+    BetweenSamples,
     Creep,
     Delay,
     Drift,
@@ -210,6 +211,7 @@ TYPED = (
     Delay(samples=2),
     Pickup(line_hz=50.0, sin_um=(0.1, 0.0), cos_um=(0.02, 0.01)),
     Saturation(min_um=-1.0, max_um=30.0),
+    BetweenSamples(input="hold"),
 )
 #: The typed effects of PINNED.
 TYPED_PINNED = tuple(e for e in TYPED if e.name in PINNED)
@@ -363,3 +365,12 @@ def test_starts_of_the_new_effects():
     got = [s.to_dict()["pickup"] for s in candidate_starts("pickup", coarse, P, EffectSet(), 0.0)]
     assert [(p["line_hz"], len(p["sin_um"])) for p in got] == [(50.0, 1), (60.0, 1)]
     assert n == 3001
+
+
+def test_the_measurement_chain_is_given_to_a_fit_not_proposed_by_the_search():
+    from boucwen.diagnosis.search import proposals
+
+    added = {m.adds[-1] for m in proposals((), {}, 3) if m.kind in ("add", "add_tied")}
+    assert "between_samples" not in added
+    assert added == {cls.name for cls in EFFECTS if cls.proposed}
+    assert [cls.name for cls in EFFECTS if not cls.proposed] == ["between_samples"]

@@ -29,7 +29,7 @@ def test_round_trips_and_vocabulary():
     assert e.names == ["creep", "input_lag", "resonance", "drift", "delay"]
     assert EffectSet.vocabulary == [
         *["creep", "input_lag", "gain_drift", "electrostriction", "resonance", "resonance2"],
-        *["drift", "delay", "pickup", "saturation"],
+        *["drift", "delay", "pickup", "saturation", "between_samples"],
     ]
     whole = EffectSet(**WHOLE_VOCABULARY)
     assert whole.names == EffectSet.vocabulary

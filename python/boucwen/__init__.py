@@ -16,8 +16,8 @@ Precision Engineering 38 (2014) 921–927).
 - :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
   each effect is a typed object (:class:`Creep`, :class:`InputLag`, :class:`GainDrift`,
   :class:`Electrostriction`, :class:`Resonance`, :class:`Resonance2`, :class:`Drift`,
-  :class:`Delay`, :class:`Pickup`, :class:`Saturation`; :func:`effect_set` and
-  :func:`effects_of` convert);
+  :class:`Delay`, :class:`Pickup`, :class:`Saturation`, and what the command does between
+  samples, :class:`BetweenSamples`; :func:`effect_set` and :func:`effects_of` convert);
 - :class:`Inverse` and :func:`invert` give the voltage for a desired displacement,
   :class:`Compensator` does so in a control loop with online identification and feedback;
 - every bad input raises a ``ValueError``, named by its kind: :class:`InvalidParams`,
@@ -52,6 +52,7 @@ from ._core import (
 from .config import HorizonConfig, PaperConfig, RpemConfig
 from .diagnosis import Diagnosis, DiagnosisPolicy, ModelFit, NamedEffect, diagnose
 from .effects import (
+    BetweenSamples,
     Creep,
     Delay,
     Drift,
@@ -72,6 +73,7 @@ from .status import HorizonStatus, PaperStatus, RpemStatus, StepStatus
 __all__ = [
     "INVERSE_TOLERANCE_UM",
     "Bank",
+    "BetweenSamples",
     "Compensator",
     "CorruptSnapshot",
     "Creep",

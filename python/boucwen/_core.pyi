@@ -32,7 +32,8 @@ part is one new section (and one line in ``__all__``):
 - compensation: ``_Clip``, ``_InverseStatus``, ``_CompensatorStatus``,
   ``_CompensatorGains`` (type-only), ``Inverse``, ``invert``, ``Compensator``
 - the hysteretic oscillator (a second model class): ``OSCILLATOR_UNKNOWNS``,
-  ``oscillator_simulate``, ``oscillator_simulate_with_jacobian``
+  ``oscillator_simulate``, ``oscillator_simulate_with_jacobian``, ``oscillator_newmark``
+- the input between samples: ``INPUT_CHOICES``, ``InputPath``, ``bandlimited_error_bound``
 """
 
 from collections.abc import Sequence
@@ -46,6 +47,7 @@ if TYPE_CHECKING:  # type-only: the compiled core does not import the config mod
     from .status import HorizonStatus, PaperStatus, RpemStatus
 
 __all__ = [
+    "INPUT_CHOICES",
     "INVERSE_TOLERANCE_UM",
     "OSCILLATOR_UNKNOWNS",
     "RESONANCE_SUBSTEPS",
@@ -55,6 +57,7 @@ __all__ = [
     "EffectSet",
     "ExtendedState",
     "Identifier",
+    "InputPath",
     "InvalidConfig",
     "InvalidParams",
     "InvalidRecord",
@@ -66,7 +69,9 @@ __all__ = [
     "_config_defaults",
     "_substep_plan",
     "_validate_config",
+    "bandlimited_error_bound",
     "invert",
+    "oscillator_newmark",
     "oscillator_simulate",
     "oscillator_simulate_with_jacobian",
     "paper_input",
@@ -446,6 +451,12 @@ class _DelayParams(TypedDict):
 
     samples: int
 
+class _BetweenSamplesParams(TypedDict):
+    """``between_samples``: what the command does between samples (``"hold"``,
+    ``"linear"``, ``"bandlimited"``)."""
+
+    input: str
+
 class _EffectParams(TypedDict, total=False):
     """``EffectSet.to_dict()``: the effects present, each with its parameters."""
 
@@ -459,6 +470,7 @@ class _EffectParams(TypedDict, total=False):
     delay: _DelayParams
     pickup: _PickupParams
     saturation: _SaturationParams
+    between_samples: _BetweenSamplesParams
 
 @final
 class Bank:
@@ -531,7 +543,9 @@ class EffectSet:
     resonance={"fn_hz": Hz, "zeta": -}, resonance2={"fn_hz": Hz, "zeta": -},
     drift={"rate_um_per_s": µm/s}, delay={"samples": int ≥ 0},
     pickup={"line_hz": Hz, "sin_um": [µm…], "cos_um": [µm…]},
-    saturation={"min_um": µm, "max_um": µm}; None = absent. Invalid values raise ValueError.
+    saturation={"min_um": µm, "max_um": µm},
+    between_samples={"input": "hold" | "linear" | "bandlimited"}; None = absent. Invalid
+    values raise ValueError.
     Typed: boucwen.effect_set(InputLag(650.0), …) and boucwen.effects_of(s)."""
 
     vocabulary: ClassVar[list[str]]
@@ -548,6 +562,7 @@ class EffectSet:
         delay: _DelayParams | None = None,
         pickup: _PickupParams | None = None,
         saturation: _SaturationParams | None = None,
+        between_samples: _BetweenSamplesParams | None = None,
     ) -> EffectSet: ...
     @property
     def names(self) -> list[str]:
@@ -929,28 +944,84 @@ gamma, delta, nu, y0, v0, z0 (β has none: it enters only as β·γ and β·δ).
 
 def oscillator_simulate(
     params: Sequence[float],
-    force: ArrayLike,
+    force: ArrayLike | InputPath,
     dt: float,
     y0: float = 0.0,
     v0: float = 0.0,
     z0: float = 0.0,
+    *,
+    input: str | None = None,
+    periodic: bool | None = None,
 ) -> NDArray[np.float64]:
-    """The displacement y [m] of the hysteretic oscillator driven by ``force`` [N] (linear
-    between samples ``dt`` [s] apart) from the state (y0 [m], v0 [m/s], z0 [N]) at sample 0.
+    """The displacement y [m] of the hysteretic oscillator driven by ``force`` [N] (samples
+    ``dt`` [s] apart, between samples as ``input`` says: ``"hold"``, ``"linear"`` (the
+    default) or ``"bandlimited"``, ``periodic`` for a record of whole periods; or an
+    :class:`InputPath`, then ``input`` and ``periodic`` unset) from the state (y0 [m],
+    v0 [m/s], z0 [N]) at sample 0.
 
     Raises:
         InvalidParams: not 8 parameters, or one out of its domain (named).
         InvalidRecord: a non-finite force sample or initial state.
-        InvalidConfig: dt not finite and > 0.
+        InvalidConfig: dt not finite and > 0; an unknown ``input``; ``input`` or
+            ``periodic`` given with an :class:`InputPath`.
     """
 
 def oscillator_simulate_with_jacobian(
     params: Sequence[float],
-    force: ArrayLike,
+    force: ArrayLike | InputPath,
     dt: float,
     y0: float = 0.0,
     v0: float = 0.0,
     z0: float = 0.0,
+    *,
+    input: str | None = None,
+    periodic: bool | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``(y, jac)``: :func:`oscillator_simulate` and ∂y/∂θ of shape (samples, 10), θ =
     :data:`OSCILLATOR_UNKNOWNS`, from one forward-mode pass with the same sub-steps."""
+
+def oscillator_newmark(
+    params: Sequence[float],
+    force: ArrayLike,
+    h: float,
+    y0: float = 0.0,
+    v0: float = 0.0,
+    z0: float = 0.0,
+) -> NDArray[np.float64]:
+    """The benchmark's own integration: Newmark's average-acceleration scheme (a = 0.5,
+    b = 0.25), z by the trapezoidal rule, Newton at every step; ``force`` [N] every ``h``
+    [s] (the integration's step), y [m] at every step. For replicating the benchmark's
+    records (second order, no Jacobian)."""
+
+# ---------------------------------------------------------------- the input between samples
+
+INPUT_CHOICES: list[str]
+"""What the input does between samples: ``["hold", "linear", "bandlimited"]``."""
+
+@final
+class InputPath:
+    """A sampled input as a function of time over its record: ``input`` ``"hold"``
+    (zero-order hold), ``"linear"`` or ``"bandlimited"`` (the exact Fourier interpolation
+    where ``periodic``, else a Kaiser-windowed sinc of 32 samples on either side). Built
+    once per record and passed to the simulators in place of the samples."""
+
+    def __new__(cls, samples: ArrayLike, input: str = "linear", periodic: bool = False) -> InputPath: ...
+    @property
+    def input(self) -> str:
+        """``"hold"``, ``"linear"`` or ``"bandlimited"``."""
+    @property
+    def periodic(self) -> bool:
+        """Whether the record was taken as a whole number of periods."""
+    @property
+    def band(self) -> float:
+        """The band-limited path's content reaches this fraction of the sample rate (0
+        for hold and linear)."""
+    def __len__(self) -> int: ...
+    def values(self, per_interval: int = 8) -> NDArray[np.float64]:
+        """The input at ``per_interval`` equally spaced points of every interval, the first
+        sample first: (len − 1)·per_interval + 1 values."""
+
+def bandlimited_error_bound(band: float) -> float:
+    """The largest error of the band-limited reconstruction of a record that is not
+    periodic, as a fraction of the line amplitudes, for content up to ``band`` × the
+    Nyquist frequency (0 < band < 1), 32 samples or more from either end."""

@@ -715,7 +715,12 @@ def _cmd_invert(args: argparse.Namespace) -> int:
         print(f"{', '.join(modes)}: inverted by the mode's own inverse on the target (x_d + 2ζ/ω·ẋ_d + ẍ_d/ω²)")
     if ignored:
         print(f"{', '.join(ignored)}: in the reading only; the inverse ignores it (the predicted error includes it)")
-    inverted = set_of({k: v for k, v in present.items() if k not in _MODES})
+    if "between_samples" in present:
+        print(
+            f"between_samples ({present['between_samples']['input']}): the inverse takes the command as a straight "
+            "line between samples (the predicted error, the model run on the voltage, includes the difference)"
+        )
+    inverted = set_of({k: v for k, v in present.items() if k not in (*_MODES, "between_samples")})
     ahead = _through_modes(x_d, dt, [present[k] for k in modes], present.get("drift"))
     u, _ = invert(model.params, ahead, dt, model.h0_um, u_min=args.u_min, u_max=args.u_max, effects=inverted)
     x_model = model.simulate(u, dt)

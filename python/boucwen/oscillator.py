@@ -8,15 +8,22 @@ motion (the hysteretic benchmark of Noël & Schoukens, 2016)::
 
 F: applied force [N]; y: displacement [m]; z: hysteretic force [N]; t: time [s]. A
 second model class beside the piezo model of :mod:`boucwen.fit` (whose hysteresis is
-driven by the input): the Rust core integrates it (F linear between samples, RK4 with
-sub-steps set by the spring–mass mode and by the relaxation of z, linearly implicit
-Euler where those would be too many) and gives the exact Jacobian of y from the same
-pass (``_core.oscillator_simulate_with_jacobian``).
+driven by the input): the Rust core integrates it (F between samples as the
+measurement chain says, RK6 with sub-steps set by the spring–mass mode, the relaxation
+of z and the force's band, kinks of |ẏ| and |z| located, linearly implicit Euler where
+those would be too many) and gives the exact Jacobian of y from the same pass
+(``_core.oscillator_simulate_with_jacobian``).
 
 * :class:`OscillatorParams`: the eight parameters, validated, with their units.
 * :func:`simulate`: y [m] from F [N].
 * :func:`fit`: the output-error fit (Levenberg–Marquardt of :mod:`boucwen.levenberg` on
   the exact Jacobian) from physically scaled starts; :class:`OscillatorFit` its result.
+
+The measurement chain (:mod:`boucwen.measurement`) is part of the model: ``input`` says
+what the force did between samples (``"hold"``, ``"linear"``, ``"bandlimited"``;
+``periodic`` for a record of whole periods, whose band-limited force is then exactly its
+Fourier interpolation) and ``output`` is the logger's filter on y (an
+:class:`boucwen.measurement.OutputFilter`, e.g. the benchmark's FIR decimation).
 
 Units follow the record's: F in N, y in m, dt in s. Nothing is rescaled on the way in or
 out (the fit scales its unknowns internally for the conditioning of its steps only).
@@ -34,6 +41,7 @@ import numpy as np
 
 from ._core import (
     OSCILLATOR_UNKNOWNS,
+    InputPath,
     InvalidParams,
     InvalidRecord,
     oscillator_simulate,
@@ -42,6 +50,7 @@ from ._core import (
 from .checks import FloatArray, as_float_vector, check_dt, check_finite, check_int
 from .effects.resonance import FN_MAX_NYQUIST_FRACTION
 from .levenberg import levenberg_marquardt
+from .measurement import OutputFilter, check_input
 from .metrics import rms
 from .progress import Progress, reporter
 
@@ -130,28 +139,39 @@ def simulate(
     y0: float = 0.0,
     v0: float = 0.0,
     z0: float = 0.0,
+    *,
+    input: str = "linear",
+    periodic: bool = False,
+    output: OutputFilter | None = None,
 ) -> FloatArray:
     """The displacement y [m] of the oscillator driven by the force ``F`` [N].
 
     Args:
         params: the model.
-        F: force samples [N], ``dt`` [s] apart, taken as linear between samples.
+        F: force samples [N], ``dt`` [s] apart.
         dt: sampling interval [s].
         y0, v0, z0: the state at sample 0: displacement [m], velocity [m/s], hysteretic
             force [N].
+        input: what F does between samples: ``"hold"``, ``"linear"`` or
+            ``"bandlimited"`` (:mod:`boucwen.measurement`).
+        periodic: the record is a whole number of periods of F (its band-limited path is
+            then exactly the Fourier interpolation).
+        output: the logger's filter on y, or None.
 
     Returns:
-        y [m], one value per sample of ``F`` (y[0] = ``y0``).
+        y [m], one value per sample of ``F`` (before ``output``, y[0] = ``y0``).
 
     Raises:
         InvalidRecord: ``F`` empty, not 1-D, or with a NaN or infinite sample.
-        InvalidConfig: ``dt`` not finite and > 0, or a non-finite initial state.
+        InvalidConfig: ``dt`` not finite and > 0, a non-finite initial state, or an
+            unknown ``input``.
     """
     force = as_float_vector(F, "F")
     dt = check_dt(dt)
     state = [check_finite(name, value) for name, value in (("y0", y0), ("v0", v0), ("z0", z0))]
-    y: FloatArray = oscillator_simulate(params.to_list(), force, dt, *state)
-    return y
+    path = InputPath(force, check_input(input), bool(periodic))
+    y: FloatArray = oscillator_simulate(params.to_list(), path, dt, *state)
+    return y if output is None else output.apply(y)
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,6 +192,12 @@ class OscillatorFit:
         seconds: wall time of the fit [s].
         jacobian: ∂y/∂θ [m per unit of θ] at the end point, shape (samples, 10), the
             columns :data:`UNKNOWNS`; None unless asked for.
+        std_errors: the standard error of each unknown of :data:`UNKNOWNS` [its unit]:
+            σ̂·√diag((JᵀJ)⁻¹) on the samples of weight 1, σ̂² = RSS/(rows − 10), the
+            Jacobian the solver's last (white noise assumed: a coloured noise makes
+            them larger).
+        input, periodic, output: the measurement chain the model was fitted with
+            (:func:`simulate`'s arguments).
     """
 
     params: OscillatorParams
@@ -185,6 +211,25 @@ class OscillatorFit:
     message: str
     seconds: float
     jacobian: FloatArray | None = field(default=None, repr=False)
+    std_errors: dict[str, float] = field(default_factory=dict)
+    input: str = "linear"
+    periodic: bool = False
+    output: OutputFilter | None = field(default=None, repr=False)
+
+    def simulate(self, F: Any, dt: float) -> FloatArray:
+        """The fitted model's y [m] for the force ``F`` [N] from the fitted initial state,
+        through the measurement chain it was fitted with."""
+        return simulate(
+            self.params,
+            F,
+            dt,
+            self.y0,
+            self.v0,
+            self.z0,
+            input=self.input,
+            periodic=self.periodic,
+            output=self.output,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (without ``y`` and ``jacobian``)."""
@@ -193,6 +238,10 @@ class OscillatorFit:
             "y0_m": self.y0,
             "v0_m_s": self.v0,
             "z0_N": self.z0,
+            "std_errors": dict(self.std_errors),
+            "input": self.input,
+            "periodic": self.periodic,
+            "output": None if self.output is None else self.output.name,
             "rms_m": self.rms,
             "nfev": self.nfev,
             "success": self.success,
@@ -345,20 +394,28 @@ def linearised(
     """A fitted oscillator in the fit's own unknowns, for a first-order view of refits
     from it: its :class:`Box`, the Jacobian ∂y/∂z [m per unit] over ``F`` (columns in
     the box's order), and z, stop → y [m] over the first ``stop`` samples (None where it
-    cannot be simulated)."""
+    cannot be simulated); all through the measurement chain the model was fitted with."""
     force = as_float_vector(F, "F")
     box = _box(fit.params, (fit.y0, fit.v0, fit.z0), fit.y, dt)
-    jac = oscillator_simulate_with_jacobian(fit.params.to_list(), force, dt, fit.y0, fit.v0, fit.z0)[1]
+    path = InputPath(force, fit.input, fit.periodic)
+    jac = oscillator_simulate_with_jacobian(fit.params.to_list(), path, dt, fit.y0, fit.v0, fit.z0)[1]
+    if fit.output is not None:
+        jac = fit.output.apply(jac)
     jac[:, 4:6] = jac[:, 4:6] @ _REGION_JACOBIAN
+    # With F a straight line between samples and no filter on y, the first stop samples
+    # depend on the first stop forces only; a band-limited path or a filter looks ahead,
+    # so the whole record is run and cut.
+    causal = fit.input != "bandlimited" and fit.output is None
 
     def run(z: FloatArray, stop: int) -> FloatArray | None:
+        state = (float(v) for v in z[7:])
         try:
-            out = np.asarray(
-                oscillator_simulate(_params(z, box.beta).to_list(), force[:stop], dt, *(float(v) for v in z[7:])),
-                dtype=np.float64,
-            )
+            y = oscillator_simulate(_params(z, box.beta).to_list(), force[:stop] if causal else path, dt, *state)
         except ValueError:
             return None
+        if fit.output is not None:
+            y = fit.output.apply(y)
+        out = np.asarray(y[:stop], dtype=np.float64)
         return out if bool(np.all(np.isfinite(out))) else None
 
     return box, np.asarray(jac, dtype=np.float64), run
@@ -379,6 +436,9 @@ def fit(
     max_nfev: int = 200,
     progress: Progress = False,
     jacobian: bool = False,
+    input: str = "linear",
+    periodic: bool = False,
+    output: OutputFilter | None = None,
 ) -> OscillatorFit:
     """Fits the oscillator to a record by output error: the model simulated from ``F``
     alone, never from the measured y.
@@ -410,6 +470,10 @@ def fit(
         max_nfev: most trial points of the solver.
         progress: True prints progress lines to stderr; a callable receives them.
         jacobian: keep ∂y/∂θ at the end point in the result.
+        input, periodic, output: the measurement chain (:func:`simulate`): what F does
+            between samples, whether the record is a whole number of periods, the
+            logger's filter on y. The start candidates are scored with F linear between
+            samples (their differences are far larger than the chain's).
 
     Returns:
         :class:`OscillatorFit`.
@@ -438,6 +502,12 @@ def fit(
             raise InvalidRecord("weights must be >= 0 with at least one > 0")
     kept = w > 0.0
     nfev = 0
+    input = check_input(input)
+    path = InputPath(force, input, bool(periodic))
+
+    def chain(y_sim: FloatArray) -> FloatArray:
+        return y_sim if output is None else output.apply(y_sim)
+
     if start is not None:
         check_admissible(start)
 
@@ -461,10 +531,10 @@ def fit(
 
     def run(z: FloatArray) -> FloatArray | None:
         try:
-            out: FloatArray = oscillator_simulate(_params(z, beta).to_list(), force, dt, *(float(v) for v in z[7:]))
+            out: FloatArray = oscillator_simulate(_params(z, beta).to_list(), path, dt, *(float(v) for v in z[7:]))
         except ValueError:
             return None
-        return out
+        return chain(out)
 
     def residual(z: FloatArray) -> FloatArray:
         nonlocal nfev
@@ -480,10 +550,11 @@ def fit(
         nfev += 1
         try:
             sim, jac = oscillator_simulate_with_jacobian(
-                _params(z, beta).to_list(), force, dt, *(float(v) for v in z[7:])
+                _params(z, beta).to_list(), path, dt, *(float(v) for v in z[7:])
             )
         except ValueError:
             return None
+        sim, jac = chain(sim), chain(jac)
         if not (np.all(np.isfinite(sim)) and np.all(np.isfinite(jac))):
             return None
         say(f"pass {nfev}: RMS {rms((sim - meas)[kept]):.4e} m")
@@ -495,11 +566,16 @@ def fit(
     )
     params = _params(sol.x, beta)
     state = tuple(float(v) for v in sol.x[7:])
-    y_fit = simulate(params, force, dt, *state)
+    y_fit = chain(oscillator_simulate(params.to_list(), path, dt, *state))
     err = rms((y_fit - meas)[kept])
     jac = None
     if jacobian:
-        jac = oscillator_simulate_with_jacobian(params.to_list(), force, dt, *state)[1]
+        jac = chain(oscillator_simulate_with_jacobian(params.to_list(), path, dt, *state)[1])
+    # The solver's Jacobian is in γ and γ − δ; the standard errors are of γ and δ
+    # (_REGION_JACOBIAN is its own inverse).
+    region_jac = np.array(sol.jac, dtype=np.float64)
+    region_jac[:, 4:6] = region_jac[:, 4:6] @ _REGION_JACOBIAN
+    std_errors = _standard_errors(region_jac, y_fit - meas, kept)
     seconds = time.perf_counter() - started
     say(f"done: RMS {err:.4e} m, {nfev} simulations, {sol.message}")
     return OscillatorFit(
@@ -514,4 +590,23 @@ def fit(
         message=sol.message,
         seconds=seconds,
         jacobian=jac,
+        std_errors=std_errors,
+        input=input,
+        periodic=bool(periodic),
+        output=output,
     )
+
+
+def _standard_errors(jac: FloatArray, residual: FloatArray, kept: Any) -> dict[str, float]:
+    """σ̂·√diag((JᵀJ)⁻¹) per unknown on the kept rows, σ̂² = RSS/(rows − unknowns) (the
+    weights are 0 or 1: the rows of weight 0 are zero in J); NaN where JᵀJ is singular."""
+    rows = int(np.count_nonzero(kept))
+    p = jac.shape[1]
+    if rows <= p:
+        return {name: math.nan for name in UNKNOWNS}
+    sigma2 = float(residual[kept] @ residual[kept]) / (rows - p)
+    try:
+        cov = sigma2 * np.linalg.inv(jac.T @ jac)
+    except np.linalg.LinAlgError:
+        return {name: math.nan for name in UNKNOWNS}
+    return {name: math.sqrt(max(float(cov[i, i]), 0.0)) for i, name in enumerate(UNKNOWNS)}

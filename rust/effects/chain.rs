@@ -25,6 +25,7 @@ use crate::error::Result;
 use crate::model::integrator::{abs_pow, advance_h_carrying, advance_seeded_carrying, Drive, Power};
 use crate::model::scalar::{Dual, Scalar};
 use crate::params::Params;
+use crate::reconstruction::{InputPath, Reconstruction, KNOTS, PIECES};
 
 /// Derivative slots of the hysteresis state: A, β, γ, n, δ, h0, ln fc.
 pub(crate) const NARROW: usize = 7;
@@ -139,6 +140,17 @@ impl ChainScalar for f64 {
     }
 }
 
+/// What the command does over one sample interval.
+enum Between {
+    /// A straight line from the last sample to this one.
+    Line,
+    /// The last sample held, this one taken at the interval's end.
+    Hold,
+    /// Straight lines through the band-limited values at the [`KNOTS`] points of the
+    /// interval.
+    Knots([f64; KNOTS]),
+}
+
 /// The first [`NARROW`] slots of a wide dual.
 #[inline(always)]
 fn narrow<const M: usize>(v: Dual<M>) -> NarrowDual {
@@ -198,6 +210,8 @@ pub(crate) struct Chain<S> {
     kv: S,
     x0: S,
     h0: S,
+    /// What the command does between samples.
+    input: Reconstruction,
     substeps: u32,
     lag: Option<LagStage<S>>,
     creep: Option<CreepStage<S>>,
@@ -230,7 +244,14 @@ impl<S: ChainScalar> Chain<S> {
     /// every `dt` \[s\] from h = `h0` \[µm\], the unknowns at `slots`.
     pub(crate) fn new(params: Params, effects: &EffectSet, dt: f64, h0: f64, slots: &Slots) -> Result<Self> {
         let resonant = effects.resonance.is_some() || effects.resonance2.is_some();
-        let substeps = if resonant { RESONANCE_SUBSTEPS } else { 1 };
+        let input = effects.input();
+        let substeps = if input == Reconstruction::Bandlimited {
+            PIECES as u32
+        } else if resonant {
+            RESONANCE_SUBSTEPS
+        } else {
+            1
+        };
         let dt_sub = dt / substeps as f64;
         let mode = |fn_hz: f64, zeta: f64, names: ModeNames, first: usize| -> Result<ResonanceStage<S>> {
             S::mode_stage((fn_hz, zeta), dt, names, (first, first + 1))?; // fn below the samples' Nyquist frequency
@@ -258,6 +279,7 @@ impl<S: ChainScalar> Chain<S> {
             kv: S::unknown(params.kv, SLOT_KV),
             x0: S::unknown(params.x0, SLOT_X0),
             h0,
+            input,
             substeps,
             lag: effects.input_lag.map(|l| S::lag_stage(&l, dt_sub)),
             creep_states: vec![S::cst(0.0); effects.creep.as_ref().map_or(0, |c| c.tau_s.len())],
@@ -301,8 +323,30 @@ impl<S: ChainScalar> Chain<S> {
     }
 
     /// Takes the commanded voltage `u` \[V\] (finite) of the next sample; returns the
-    /// sensor's displacement x \[µm\].
+    /// sensor's displacement x \[µm\]. The command between the samples is held or a
+    /// straight line (a band-limited one needs the record: [`Chain::step_along`]).
     pub(crate) fn step(&mut self, u: f64) -> S {
+        match self.input {
+            Reconstruction::Hold => self.step_between(u, Between::Hold),
+            _ => self.step_between(u, Between::Line),
+        }
+    }
+
+    /// [`Chain::step`] for sample `k` of a record whose band-limited `path` (the
+    /// command's, where the input between samples is band-limited) gives the command
+    /// between samples.
+    pub(crate) fn step_along(&mut self, u: f64, path: Option<&InputPath>, k: usize) -> S {
+        match path {
+            // The first sample of a record that continues a state runs from the state's
+            // last command, which the path does not hold: a straight line there.
+            Some(path) if k >= 1 => self.step_between(u, Between::Knots(path.knots(k))),
+            Some(_) => self.step_between(u, Between::Line),
+            None => self.step(u),
+        }
+    }
+
+    /// The step of [`Chain::step`] with the command between the samples given.
+    fn step_between(&mut self, u: f64, between: Between) -> S {
         let t = self.samples as f64 * self.dt;
         let y = if !self.started {
             self.started = true;
@@ -321,16 +365,23 @@ impl<S: ChainScalar> Chain<S> {
             let dt_sub = self.dt / m as f64;
             let mut y = self.y_prev;
             let t_prev = t - self.dt;
+            let mut c = self.creep_states.iter().fold(S::cst(0.0), |a, &c| a + c);
             for j in 1..=m {
-                let u0 = self.u_prev + (u - self.u_prev) * ((j - 1) as f64 / m as f64);
-                let u1 = if j == m { u } else { self.u_prev + (u - self.u_prev) * (j as f64 / m as f64) };
+                let (u0, u1) = match &between {
+                    Between::Line => {
+                        let u0 = self.u_prev + (u - self.u_prev) * ((j - 1) as f64 / m as f64);
+                        (u0, if j == m { u } else { self.u_prev + (u - self.u_prev) * (j as f64 / m as f64) })
+                    }
+                    Between::Hold => (self.u_prev, self.u_prev),
+                    Between::Knots(knots) => (knots[j as usize - 1], knots[j as usize]),
+                };
                 let ua = match &self.lag {
                     Some(lag) => lag.advance(self.ua_prev, S::cst(u0), S::cst(u1), dt_sub),
                     None => S::cst(u1),
                 };
                 let drive = Drive::of(u0, u1);
                 (self.h, self.power) = S::advance_h(&self.params, self.h, self.power, self.ua_prev, ua, dt_sub, drive);
-                let c = match &self.creep {
+                c = match &self.creep {
                     Some(creep) => creep.advance(&mut self.creep_states, self.ua_prev, ua, dt_sub),
                     None => S::cst(0.0),
                 };
@@ -346,6 +397,19 @@ impl<S: ChainScalar> Chain<S> {
                 }
                 self.ua_prev = ua;
                 y = y_next;
+            }
+            if matches!(between, Between::Hold) && self.lag.is_none() && u != self.u_prev {
+                // The held command steps to u at t_k and the stack with it: h follows the
+                // step along the loop (the δ term, a rate, adds nothing in no time); the
+                // creep and the modes, continuous, do not move in no time.
+                let ua = S::cst(u);
+                (self.h, self.power) =
+                    S::advance_h(&self.params, self.h, self.power, self.ua_prev, ua, dt_sub, Drive::Held);
+                self.ua_prev = ua;
+                y = self.stack_output(ua, self.h, t) + c;
+                if self.resonance.is_none() {
+                    self.z = [y, S::cst(0.0)];
+                }
             }
             y
         };

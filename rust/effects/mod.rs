@@ -14,10 +14,12 @@
 //! Each effect is optional; with none, the chain is the base model exactly. The
 //! names of [`EffectSet::NAMES`] (`creep`, `input_lag`, `gain_drift`,
 //! `electrostriction`, `resonance`, `resonance2`, `drift`, `delay`, `pickup`,
-//! `saturation`) are the vocabulary of the diagnosis. Every effect validates its own
+//! `saturation`, `between_samples`) are the vocabulary of the diagnosis. Every effect validates its own
 //! parameters ([`Effect::validate`]) with a message that names the parameter.
 //!
-//! The voltage is a straight line between samples; the first-order stages (lag,
+//! What the command does between samples is the measurement chain's input end,
+//! `between_samples` ([`BetweenSamples`]: held, a straight line, band-limited); without
+//! it, a straight line. For a straight line the first-order stages (lag,
 //! creep) and the resonances are stepped exactly for such an input (the second mode's
 //! input, the first mode's output, to within its curvature over a sub-step). With a
 //! resonance, the chain runs on [`RESONANCE_SUBSTEPS`] sub-intervals per sample,
@@ -28,6 +30,7 @@
 //! first sample: u_a = u\[0\], c_i = g_i·u\[0\], z = y\[0\], ż = 0, no trend, the
 //! delay line full of the first value.
 
+pub mod between_samples;
 pub(crate) mod chain;
 pub mod creep;
 pub mod delay;
@@ -45,6 +48,7 @@ pub mod state;
 use alloc::vec;
 use alloc::vec::Vec;
 
+pub use between_samples::BetweenSamples;
 pub use creep::Creep;
 pub use delay::Delay;
 pub use drift::Drift;
@@ -58,6 +62,7 @@ pub use saturation::Saturation;
 pub use state::ExtendedState;
 
 use crate::error::{finite_sample, positive_dt, Error, Result};
+use crate::reconstruction::{InputPath, Reconstruction};
 use core::ops::Mul;
 
 use crate::model::scalar::Scalar;
@@ -112,11 +117,13 @@ pub struct EffectSet {
     pub delay: Option<Delay>,
     pub pickup: Option<Pickup>,
     pub saturation: Option<Saturation>,
+    pub between_samples: Option<BetweenSamples>,
 }
 
 impl EffectSet {
-    /// The vocabulary, in the order of the signal chain.
-    pub const NAMES: [&'static str; 10] = [
+    /// The vocabulary, in the order of the signal chain (the measurement chain's input
+    /// end last: it decides no parameter of the device).
+    pub const NAMES: [&'static str; 11] = [
         Creep::NAME,
         InputLag::NAME,
         GainDrift::NAME,
@@ -127,6 +134,7 @@ impl EffectSet {
         Delay::NAME,
         Pickup::NAME,
         Saturation::NAME,
+        BetweenSamples::NAME,
     ];
 
     /// No effect: the base model.
@@ -147,6 +155,7 @@ impl EffectSet {
             name_if(&self.delay),
             name_if(&self.pickup),
             name_if(&self.saturation),
+            name_if(&self.between_samples),
         ];
         present.into_iter().flatten().collect()
     }
@@ -162,7 +171,13 @@ impl EffectSet {
         validate_if(&self.drift)?;
         validate_if(&self.delay)?;
         validate_if(&self.pickup)?;
-        validate_if(&self.saturation)
+        validate_if(&self.saturation)?;
+        validate_if(&self.between_samples)
+    }
+
+    /// What the command does between samples (`between_samples`; linear without it).
+    pub fn input(&self) -> Reconstruction {
+        self.between_samples.map_or(Reconstruction::Linear, |b| b.input)
     }
 
     /// The names of the effects present that are not among `supported`, for the
@@ -213,9 +228,14 @@ impl ExtendedModel {
     }
 
     /// Takes the commanded voltage `u` \[V\] of the next sample; returns the sensor's
-    /// displacement x \[µm\]. A non-finite `u` is rejected and the state kept.
+    /// displacement x \[µm\]. A non-finite `u` is rejected and the state kept; so is
+    /// every sample of a band-limited input between samples, which depends on later
+    /// samples (simulate the record: [`simulate_extended`]).
     pub fn step(&mut self, u: f64) -> Result<f64> {
         finite_sample("u", u)?;
+        if self.effects.input().needs_the_record() {
+            return Err(needs_the_record());
+        }
         Ok(self.chain.step(u))
     }
 
@@ -268,19 +288,36 @@ pub fn simulate_extended_into(
         return Err(Error::LengthMismatch { what: "simulate_extended output", expected: u.len(), found: x_out.len() });
     }
     let mut model = ExtendedModel::new(*params, effects.clone(), dt, h0)?;
+    let path = record_path(effects, u)?;
+    for (k, (x, &v)) in x_out.iter_mut().zip(u).enumerate() {
+        *x = model.chain.step_along(v, path.as_ref(), k);
+    }
+    Ok(())
+}
+
+/// The band-limited path of a record's commanded voltage `u` where `effects` say the
+/// input is band-limited between samples (`None` otherwise); rejects a non-finite sample.
+pub(crate) fn record_path(effects: &EffectSet, u: &[f64]) -> Result<Option<InputPath>> {
     for &v in u {
         finite_sample("u", v)?;
     }
-    for (x, &v) in x_out.iter_mut().zip(u) {
-        *x = model.step(v)?;
+    Ok(if effects.input().needs_the_record() { Some(InputPath::new(u, effects.input(), false)?) } else { None })
+}
+
+/// The error of a sample-by-sample step under a band-limited input.
+fn needs_the_record() -> Error {
+    Error::InvalidConfig {
+        name: "between_samples",
+        value: f64::from(Reconstruction::Bandlimited.code()),
+        reason: "a band-limited input between samples depends on later samples: simulate the whole record",
     }
-    Ok(())
 }
 
 /// [`simulate_extended`] continuing from `state` ([`ExtendedState::initial`] for a
 /// record's start); also returns the state after the last sample, so that
 /// simulating a record in pieces, each from the state the previous piece returned,
-/// gives the same numbers as one call, bit for bit.
+/// gives the same numbers as one call, bit for bit (but for a band-limited input
+/// between samples, whose path near a cut sees only its own piece).
 pub fn simulate_extended_from(
     params: &Params,
     effects: &EffectSet,
@@ -291,10 +328,8 @@ pub fn simulate_extended_from(
     // The state brings its own h (checked by set_state).
     let mut model = ExtendedModel::new(*params, effects.clone(), dt, 0.0)?;
     model.set_state(state)?;
-    for &v in u {
-        finite_sample("u", v)?;
-    }
-    let x = u.iter().map(|&v| model.chain.step(v)).collect();
+    let path = record_path(effects, u)?;
+    let x = u.iter().enumerate().map(|(k, &v)| model.chain.step_along(v, path.as_ref(), k)).collect();
     Ok((x, model.state()))
 }
 
@@ -387,10 +422,11 @@ mod tests {
             resonance2: Some(Resonance2 { fn_hz: 300.0, zeta: 0.2 }),
             pickup: Some(Pickup { line_hz: 50.0, sin_um: vec![0.1], cos_um: vec![0.0] }),
             saturation: Some(Saturation { min_um: -1.0, max_um: 30.0 }),
+            between_samples: Some(BetweenSamples { input: Reconstruction::Hold }),
         };
         assert_eq!(all.names(), EffectSet::NAMES.to_vec());
         assert!(all.validate().is_ok());
-        assert_eq!(all.unsupported(&["creep", "input_lag", "drift", "delay", "resonance", "resonance2"]).len(), 4);
+        assert_eq!(all.unsupported(&["creep", "input_lag", "drift", "delay", "resonance", "resonance2"]).len(), 5);
     }
 
     fn sine_record(n: usize) -> Vec<f64> {
@@ -480,6 +516,7 @@ mod tests {
             delay: Some(Delay { samples: 3 }),
             pickup: Some(Pickup { line_hz: 50.0, sin_um: vec![0.01], cos_um: vec![0.02] }),
             saturation: None,
+            between_samples: None,
         }
     }
 

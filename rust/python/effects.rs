@@ -7,10 +7,12 @@ use pyo3::types::{PyDict, PyTuple};
 
 use super::extended_state::PyExtendedState;
 use super::params::PyParams;
+use super::reconstruction::reconstruction;
 use super::{samples, value_error, InvalidConfig, InvalidParams};
 use crate::effects::jacobian::Jacobian;
 use crate::effects::{
-    Creep, Delay, Drift, EffectSet, Electrostriction, GainDrift, InputLag, Pickup, Resonance, Resonance2, Saturation,
+    BetweenSamples, Creep, Delay, Drift, EffectSet, Electrostriction, GainDrift, InputLag, Pickup, Resonance,
+    Resonance2, Saturation,
 };
 
 /// Which effects surround the base model, with their parameters.
@@ -32,7 +34,9 @@ use crate::effects::{
 /// - ``pickup={"line_hz": f, "sin_um": [a_k …], "cos_um": [b_k …]}``:
 ///   x += Σ_k a_k·sin(2π·k·f·t) + b_k·cos(2π·k·f·t), k = 1 … K ≤ 8, f \[Hz\],
 ///   a_k, b_k \[µm\];
-/// - ``saturation={"min_um": lo, "max_um": hi}``: x = clip(x, lo, hi) \[µm\].
+/// - ``saturation={"min_um": lo, "max_um": hi}``: x = clip(x, lo, hi) \[µm\];
+/// - ``between_samples={"input": "hold" | "linear" | "bandlimited"}``: what the command
+///   does between samples (the measurement chain's input end; absent: a straight line).
 ///
 /// Immutable, comparable, picklable; ``to_dict``/``from_dict`` round-trip. The typed
 /// form (``InputLag(fc_hz=650.0)``, …) is in :mod:`boucwen.effects`:
@@ -72,7 +76,7 @@ fn as_dict<'py>(obj: &Bound<'py, PyAny>, effect: &str, keys: &[&str]) -> PyResul
 }
 
 /// The value given for each effect (None: absent), in vocabulary order.
-type Given<'py> = [Option<Bound<'py, PyAny>>; 10];
+type Given<'py> = [Option<Bound<'py, PyAny>>; 11];
 
 fn float_list(d: &Bound<'_, PyDict>, effect: &str, key: &str) -> PyResult<Vec<f64>> {
     let item =
@@ -81,7 +85,7 @@ fn float_list(d: &Bound<'_, PyDict>, effect: &str, key: &str) -> PyResult<Vec<f6
 }
 
 fn parse(given: &Given<'_>) -> PyResult<EffectSet> {
-    let [creep, input_lag, gain_drift, electrostriction, resonance, resonance2, drift, delay, pickup, saturation] =
+    let [creep, input_lag, gain_drift, electrostriction, resonance, resonance2, drift, delay, pickup, saturation, between_samples] =
         given.each_ref().map(|o| o.as_ref().filter(|o| !o.is_none()));
     let mut set = EffectSet::none();
     if let Some(o) = creep {
@@ -148,6 +152,16 @@ fn parse(given: &Given<'_>) -> PyResult<EffectSet> {
             max_um: get_f64(&d, "saturation", "max_um")?,
         });
     }
+    if let Some(o) = between_samples {
+        let d = as_dict(o, "between_samples", &["input"])?;
+        let item = d
+            .get_item("input")?
+            .ok_or_else(|| InvalidParams::new_err("between_samples: missing parameter \"input\""))?;
+        let name: String = item.extract().map_err(|_| {
+            PyTypeError::new_err(format!("between_samples.input must be a string, got {}", type_name(&item)))
+        })?;
+        set.between_samples = Some(BetweenSamples { input: reconstruction(&name)? });
+    }
     set.validate().map_err(value_error)?;
     Ok(set)
 }
@@ -157,7 +171,7 @@ impl PyEffectSet {
     #[new]
     #[pyo3(signature = (
         *, creep = None, input_lag = None, gain_drift = None, electrostriction = None, resonance = None,
-        resonance2 = None, drift = None, delay = None, pickup = None, saturation = None
+        resonance2 = None, drift = None, delay = None, pickup = None, saturation = None, between_samples = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new<'py>(
@@ -171,9 +185,21 @@ impl PyEffectSet {
         delay: Option<Bound<'py, PyAny>>,
         pickup: Option<Bound<'py, PyAny>>,
         saturation: Option<Bound<'py, PyAny>>,
+        between_samples: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Self> {
-        let given =
-            [creep, input_lag, gain_drift, electrostriction, resonance, resonance2, drift, delay, pickup, saturation];
+        let given = [
+            creep,
+            input_lag,
+            gain_drift,
+            electrostriction,
+            resonance,
+            resonance2,
+            drift,
+            delay,
+            pickup,
+            saturation,
+            between_samples,
+        ];
         parse(&given).map(|inner| PyEffectSet { inner })
     }
 
@@ -255,6 +281,11 @@ impl PyEffectSet {
             d.set_item("min_um", s.min_um)?;
             d.set_item("max_um", s.max_um)?;
             out.set_item("saturation", d)?;
+        }
+        if let Some(b) = &e.between_samples {
+            let d = PyDict::new(py);
+            d.set_item("input", b.input.name())?;
+            out.set_item("between_samples", d)?;
         }
         Ok(out)
     }

@@ -11,6 +11,7 @@ mod identifier;
 mod model;
 mod oscillator;
 mod params;
+mod reconstruction;
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
@@ -78,7 +79,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(compensate::invert, m)?)?;
     m.add_function(wrap_pyfunction!(oscillator::oscillator_simulate, m)?)?;
     m.add_function(wrap_pyfunction!(oscillator::oscillator_simulate_with_jacobian, m)?)?;
+    m.add_function(wrap_pyfunction!(oscillator::oscillator_newmark, m)?)?;
     m.add("OSCILLATOR_UNKNOWNS", crate::oscillator::UNKNOWNS.to_vec())?;
+    m.add_class::<reconstruction::PyInputPath>()?;
+    m.add_function(wrap_pyfunction!(reconstruction::bandlimited_error_bound, m)?)?;
+    m.add("INPUT_CHOICES", crate::reconstruction::Reconstruction::NAMES.to_vec())?;
     m.add_class::<compensate::PyCompensator>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("INVERSE_TOLERANCE_UM", crate::compensate::inverse::TOLERANCE_UM)?;

@@ -194,7 +194,7 @@ def proposals(names: tuple[str, ...], rivals: dict[str, set[str]], max_effects: 
     moves: list[Move] = []
     if len(names) < max_effects:
         for name in VOCABULARY:
-            if name in names:
+            if name in names or not effect_class(name).proposed:
                 continue
             partner = effect_class(name).partner
             if partner is None or partner in names:

@@ -18,6 +18,7 @@ class                         name                   parameters
 :class:`Delay`                ``delay``              ``samples`` [samples]
 :class:`Pickup`               ``pickup``             ``line_hz`` [Hz], ``sin_um``, ``cos_um`` [µm]
 :class:`Saturation`           ``saturation``         ``min_um``, ``max_um`` [µm]
+:class:`BetweenSamples`       ``between_samples``    ``input``: ``"hold"``, ``"linear"``, ``"bandlimited"``
 ============================  =====================  ===========================
 
 The simulation is the Rust core's (:class:`boucwen.EffectSet`,
@@ -36,6 +37,7 @@ core.
 """
 
 from .base import Context, Effect, Start, simulate_chain
+from .between_samples import BetweenSamples
 from .creep import Creep, creep_time_constants
 from .delay import Delay, best_delay
 from .drift import Drift
@@ -66,6 +68,7 @@ __all__ = [
     "MAX_START_HARMONICS",
     "VOCABULARY",
     "ZETA_BOUNDS",
+    "BetweenSamples",
     "Context",
     "Creep",
     "Delay",

@@ -126,6 +126,11 @@ class Effect(ABC):
     #: :data:`boucwen._core.RESONANCE_SUBSTEPS` sub-intervals per sample (a mode), so a
     #: pass with it costs that many times one without.
     substepped: ClassVar[bool] = False
+    #: The diagnosis's search proposes it in every round (:func:`boucwen.diagnosis.search.proposals`).
+    #: False for a choice of the measurement chain, which holds no parameter of the device
+    #: and no unknown: it is given to a fit (or compared by fitting under each choice),
+    #: not proposed to every record.
+    proposed: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         raw = {f.name: getattr(self, f.name) for f in fields(self)}

@@ -9,6 +9,7 @@ from typing import Any
 
 from .._core import EffectSet, InvalidParams
 from .base import Effect, params_of, set_of
+from .between_samples import BetweenSamples
 from .creep import Creep
 from .delay import Delay
 from .drift import Drift
@@ -34,6 +35,7 @@ EFFECTS: tuple[type[Effect], ...] = (
     Delay,
     Pickup,
     Saturation,
+    BetweenSamples,
 )
 #: The effect names, in signal-chain order.
 VOCABULARY: tuple[str, ...] = tuple(cls.name for cls in EFFECTS)
