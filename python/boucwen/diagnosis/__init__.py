@@ -228,7 +228,17 @@ def diagnose_record(
         f"base model: RMS {base.fit.rms_um:.4g} µm, held-out {base.cv.rms_um:.4g} µm "
         f"({forward.count} forward folds from sample {forward.tested.start})"
     )
-    state = search(record, base, noise_um=noise_um, policy=policy, conv=conv, workers=workers, say=say)
+    resolution_um = fits.resolution(record, base.fit)
+    state = search(
+        record,
+        base,
+        noise_um=noise_um,
+        policy=policy,
+        conv=conv,
+        workers=workers,
+        say=say,
+        resolution_um=resolution_um,
+    )
     say(f"search ended: {state.stopped}")
     return _outcome(record, base, state, validate, policy, conv, noise_um, say, started, workers)
 

@@ -460,10 +460,14 @@ def judge(
     min_share: float,
     unknowns: int,
     exact: bool = True,
+    resolution_um: float = 0.0,
 ) -> Decision:
     """The verdict on a move whose candidate gains ``g`` over the reference (module
     docs), at the move's level ``level_`` (:func:`level`); ``noise_um`` the record's
-    noise σ̂ [µm]. A gain that cannot be computed (no fold compared) never accepts."""
+    noise σ̂ [µm]; ``resolution_um`` the model's own error from stepping at the
+    record's sampling interval [µm RMS] (:func:`boucwen.diagnosis.fits.resolution`): a
+    gain below its mean square may be a candidate reshaping that error, and is not
+    enough. A gain that cannot be computed (no fold compared) never accepts."""
     if not math.isfinite(g.mean_um2) or math.isnan(g.statistic):
         return Decision(
             move,
@@ -479,7 +483,7 @@ def judge(
             exact,
         )
     t_min = threshold(level_, g.dof)
-    needed = min_share * max(g.reference_mse_um2 - noise_um**2, 0.0)
+    needed = max(min_share * max(g.reference_mse_um2 - noise_um**2, 0.0), resolution_um**2)
     significant = g.statistic > t_min
     enough = g.mean_um2 >= needed and g.mean_um2 > 0
     if significant and enough:
@@ -489,7 +493,11 @@ def judge(
     elif not significant:
         reason = f"held-out gain {g.statistic:.3g} standard errors, within its sampling error (≤ {t_min:.3g})"
     else:
-        reason = f"held-out gain significant but {_share(g, noise_um)} beyond the noise (< {min_share:.0%})"
+        reason = (
+            f"held-out gain significant but {_share(g, noise_um)} beyond the noise (< {min_share:.0%})"
+            if needed > resolution_um**2
+            else f"held-out gain significant but below the model's own sampling-rate error ({resolution_um:.2g} µm RMS)"
+        )
     return Decision(
         move, effects, candidate, reference, g, t_min, needed, significant and enough, reason, unknowns, exact
     )

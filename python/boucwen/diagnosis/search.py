@@ -277,7 +277,13 @@ def _candidate(
 
 
 def _decide(
-    move: Move, fitted: Model, current: Model, noise_um: float, policy: DiagnosisPolicy, lvl: float
+    move: Move,
+    fitted: Model,
+    current: Model,
+    noise_um: float,
+    policy: DiagnosisPolicy,
+    lvl: float,
+    resolution_um: float = 0.0,
 ) -> Decision:
     """The judge's verdict on ``move`` at level ``lvl``. A drop is judged the other way
     round: the effect keeps its place only where the current model is accepted against
@@ -297,6 +303,7 @@ def _decide(
             min_share=policy.min_share,
             unknowns=added,
             exact=exact,
+            resolution_um=resolution_um,
         )
     else:
         keep = judge(
@@ -310,6 +317,7 @@ def _decide(
             min_share=policy.min_share,
             unknowns=-added,
             exact=exact,
+            resolution_um=resolution_um,
         )
         judged = math.isfinite(keep.gain.statistic)
         if not judged:
@@ -407,8 +415,10 @@ class _Round:
         workers: int | None,
         screen: bool = True,
         round_: int = 1,
+        resolution_um: float = 0.0,
     ):
         self.record, self.noise_um, self.policy, self.workers = record, noise_um, policy, workers
+        self.resolution_um = resolution_um
         self.screen = screen
         self.current = current
         self.level = level(policy.alpha, len(moves), round_)
@@ -421,7 +431,7 @@ class _Round:
         j = self.judged
         for k, (m, c) in enumerate(zip(j.moves, j.candidates)):
             if not isinstance(c, str):
-                j.decisions[k] = _decide(m, c, self.current, self.noise_um, self.policy, self.level)
+                j.decisions[k] = _decide(m, c, self.current, self.noise_um, self.policy, self.level, self.resolution_um)
 
     def settle(self) -> None:
         """Decide every move, then confirm by refits each decision the screen may have
@@ -511,6 +521,7 @@ def _chosen_on_copy(
     noise_um: float,
     workers: int | None,
     round_: int,
+    resolution_um: float = 0.0,
 ) -> tuple[list[bool], list[Decision], list[Any]]:
     """Which moves the full record fits (module docs), the decisions on the copy, and
     each move's fit on the copy (None where it has none) to start the full record's."""
@@ -519,7 +530,7 @@ def _chosen_on_copy(
     folds = on_copy.cv.folds
     cache: dict[frozenset[str], Model | str] = {}
     fitted = thread_map(lambda k: _candidate(copy, on_copy, moves[k], conv, policy, folds, cache, None), on, workers)
-    rnd = _Round(copy, on_copy, [moves[k] for k in on], fitted, noise_um, policy, workers, True, round_)
+    rnd = _Round(copy, on_copy, [moves[k] for k in on], fitted, noise_um, policy, workers, True, round_, resolution_um)
     rnd.decide()
     chosen = set()
     # A move with no candidate on the copy is one the copy cannot hold.
@@ -554,8 +565,11 @@ def search(
     conv: Convergence,
     workers: int | None,
     say: Callable[[str], None],
+    resolution_um: float = 0.0,
 ) -> Search:
-    """The loop of moves (module docs) from the base model ``base``."""
+    """The loop of moves (module docs) from the base model ``base``; ``resolution_um``
+    the model's own sampling-rate error [µm RMS], below which a gain is not enough
+    (:func:`boucwen.diagnosis.judge.judge`)."""
     state = Search(base, base)
     state.fitted[frozenset(base.names)] = base
     seen = {frozenset(base.names)}
@@ -588,7 +602,17 @@ def search(
         copied: list[Any] = [None] * len(moves)
         if on_copy is not None and copy is not None:
             wanted, screened, copied = _chosen_on_copy(
-                copy, on_copy, current, record, moves, conv, policy, noise_um, workers, len(state.rounds) + 1
+                copy,
+                on_copy,
+                current,
+                record,
+                moves,
+                conv,
+                policy,
+                noise_um,
+                workers,
+                len(state.rounds) + 1,
+                resolution_um,
             )
 
         candidates = thread_map(
@@ -600,7 +624,18 @@ def search(
             [(current, m, w, c) for m, w, c in zip(moves, wanted, copied)],
             workers,
         )
-        rnd = _Round(record, current, moves, candidates, noise_um, policy, workers, conv.screen, len(state.rounds) + 1)
+        rnd = _Round(
+            record,
+            current,
+            moves,
+            candidates,
+            noise_um,
+            policy,
+            workers,
+            conv.screen,
+            len(state.rounds) + 1,
+            resolution_um,
+        )
         rnd.settle()
         # The round's fits, confirmed where it confirmed them, kept for the rest of the search.
         confirmed_current = rnd.current
