@@ -207,10 +207,20 @@ def test_two_tied_effects_added_at_once_have_no_rival_when_none_is_within_the_ma
     assert state.rivals == {"resonance": set(), "resonance2": set()}
 
 
-def test_the_other_structure_taken_keeps_the_input_driven_effects_as_its_rivals():
+def test_the_other_structure_waits_while_an_input_driven_move_is_accepted():
+    # The oscillator predicts best, but an input-driven move is accepted too: that class
+    # is still improving, and the structure (which ends the search) waits.
     current = _scored(("resonance",), 0.1, 10)
     osc = _scored((), 0.0, 10)
     lag = _scored(("resonance", "input_lag"), 0.05, 11)
+    round_, _ = _round(current, [(Move("structure", (OSCILLATOR,)), osc), (Move("add", ("input_lag",)), lag)])
+    assert round_.taken is not None and round_.taken.move == "add" and round_.taken.effects == ("input_lag",)
+
+
+def test_the_other_structure_taken_keeps_the_input_driven_effects_as_its_rivals():
+    current = _scored(("resonance",), 0.1, 10)
+    osc = _scored((), 0.0, 10)
+    lag = _scored(("resonance", "input_lag"), 0.1, 11, phase=0.3)  # no better than the current model
     round_, state = _round(current, [(Move("structure", (OSCILLATOR,)), osc), (Move("add", ("input_lag",)), lag)])
     assert round_.taken is not None and round_.taken.move == "structure"
     assert OSCILLATOR in state.rivals["resonance"]

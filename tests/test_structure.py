@@ -50,8 +50,10 @@ def test_a_record_whose_hysteresis_follows_its_own_motion_is_returned_as_the_osc
     # Against the input-driven model: its effects are the refuted rival's, tentative.
     assert all(e.level == "tentative" and "oscillator" in e.rivals for e in d.named_effects)
     assert d.rms_after_um < 2.0 * noise_m * 1e6 < d.rms_before_um / 10
+    # Proposed every round, it waits while an input-driven move is still accepted, and is
+    # taken once: the last structure decision.
     swap = [x for x in d.decisions if x.candidate == ("oscillator",)]
-    assert len(swap) == 1 and swap[0].accepted
+    assert swap[-1].accepted and [x for x in d.taken if x.move == "structure"] == [swap[-1]]
     p = d.structure.fit.params
     assert p.k == pytest.approx(OscillatorParams.benchmark().k, rel=0.05)
     assert d.to_dict()["structure"]["name"] == "oscillator"

@@ -479,6 +479,13 @@ class _Round:
         ]
         if not accepted:
             return None
+        # The other structure ends the search, so it is compared with the input-driven
+        # model at its best: while an input-driven move is still accepted, that class
+        # is still improving, and the structure waits for a later round (it is proposed
+        # every round). A step record's relaxation (creep, a lag) is otherwise taken
+        # for an overdamped mode of the oscillator against the bare base model.
+        driven = [k for k in accepted if j.moves[k].kind != "structure"]
+        accepted = driven or accepted
         best = max(accepted, key=lambda k: (j.decisions[k].gain.statistic, -k))
         for _ in range(len(accepted)):
             bcv = self._model(best).cv
@@ -712,7 +719,10 @@ def _take(
     assert not isinstance(best, str)
     growing = [(m, d, f) for m, d, f in rows if m.kind != "drop"]
     tied = [t for t in growing if t[2] is best or not apart(t[2].cv, best.cv, rnd.level)]
-    eligible = [t for t in tied if t[1].accepted]
+    # The structure is taken only as the round's best (Round.best: it waits while an
+    # input-driven move is accepted); within the set it stays the taken move's rival.
+    structure_best = j.moves[best_k].kind == "structure"
+    eligible = [t for t in tied if t[1].accepted and (structure_best or t[0].kind != "structure")]
     move, decision, _ = min(eligible, key=lambda t: (t[2].unknowns, -t[1].gain.statistic))
     added = set(move.adds)
     others = {k for mm, _, _ in tied for k in mm.adds if k not in added}
