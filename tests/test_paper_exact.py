@@ -62,3 +62,32 @@ def test_the_record_shows_where_the_method_breaks(quick):
     for f in ("1", "10", "100", "200"):
         assert np.isfinite(chosen["period_ahead"][f]) and np.isfinite(chosen["one_step"][f])
         assert set(chosen["table2"][f]) == {"kv", "x0", "A", "beta", "gamma", "n", "delta"}
+
+
+def test_the_second_plant_reads_with_the_other_quantiser():
+    spec = ((10.0, 0.2),)
+    _, x_true, x, _ = paper_exact.exact_plant(1e-4, spec, **paper_exact.SECOND_PLANT)
+    _, x_true0, x0, _ = paper_exact.exact_plant(1e-4, spec)
+    np.testing.assert_array_equal(x_true, x_true0)
+    q = paper_exact.RESOLUTION_UM
+    # Mid-riser: every reading is an odd multiple of half the resolution.
+    np.testing.assert_allclose(x / q - 0.5, np.round(x / q - 0.5), atol=1e-6)
+    assert not np.array_equal(x, x0)
+    assert 0.9e-3 < np.std(x - x_true) < 1.3e-3
+    with pytest.raises(ValueError, match="quantiser"):
+        paper_exact.exact_plant(1e-4, spec, quantiser="dither")
+
+
+def test_the_bound_falls_as_one_over_root_n_over_whole_periods_and_is_infinite_on_a_chord():
+    # 200 Hz at 10 kHz: 50 samples a period; four periods carry four times the
+    # information of one, so every bound halves (the unknowns are then fixed by each
+    # period alike).
+    one, four = paper_exact.window_bound(200.0, 50), paper_exact.window_bound(200.0, 200)
+    for q in paper_exact.BOUND_QUANTITIES:
+        assert four[q] == pytest.approx(one[q] / 2.0, rel=0.05), q
+    # 5 ms of a 1 Hz loop is a chord: the window cannot separate the unknowns.
+    assert all(v == float("inf") for v in paper_exact.window_bound(1.0, 50).values())
+    # The bound is in the units of the parameters and at the record's noise: A from one
+    # 200 Hz period to about 1e-4 µm/V with 1.15 nm noise.
+    assert 1e-5 < one["A"] < 1e-3
+    assert paper_exact.record_noise_um() == pytest.approx(1.1547e-3, rel=1e-3)

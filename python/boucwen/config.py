@@ -160,6 +160,14 @@ class PaperConfig:
     the starting model's saturation amplitude (``math.inf``: no bound)."""
     max_delta_ratio: float = _PAPER["max_delta_ratio"]
     """Step 2 keeps a fitted δ only while |δ|·rms(u) ≤ this × |A + kv|·rms(u̇) over its points."""
+    output_gate: float = _PAPER["output_gate"]
+    """A step's update is held (reason "worse_output") when it raises the window's own
+    output error Σ(x − x̂)² (the model simulated over the window from h at its oldest
+    point) by more than this × k·σ̂² over holding, k the unknowns it changes, σ̂² the
+    window's noise variance of x (``math.inf``: no gate)."""
+    min_stroke_frac: float = _PAPER["min_stroke_frac"]
+    """Every step holds (reason "no_spread") while the window's u spans less than this
+    fraction of the range of u seen since the start (0: no bound)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "n_bounds", tuple(self.n_bounds))

@@ -34,14 +34,14 @@ import argparse
 import json
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from .. import evaluation, plant
-from .._core import Identifier, Params, simulate
+from .._core import Identifier, Params, simulate, simulate_extended_with_jacobian
 from ..config import PaperConfig
 from ..io import jsonable
 from .reproduce import (
@@ -56,19 +56,29 @@ from .reproduce import (
 )
 
 __all__ = [
+    "BOUND_PHASES",
+    "BOUND_QUANTITIES",
+    "BOUND_UNKNOWNS",
+    "BOUND_WINDOWS",
     "DEFAULT_OUT",
     "HYSTERESIS_OFFSET",
     "NOISE_UM",
     "PASS_UM",
+    "QUANTISERS",
     "QUICK_WINDOWS",
     "RESOLUTION_UM",
+    "SECOND_PLANT",
     "WINDOWS",
+    "bound_table",
     "exact_plant",
+    "format_plant",
     "main",
+    "record_noise_um",
     "run",
     "run_window",
     "start_params",
     "step_budget",
+    "window_bound",
 ]
 
 #: Default output directory.
@@ -80,8 +90,17 @@ RESOLUTION_UM = 0.002
 HYSTERESIS_OFFSET = 0.2
 #: The paper's online row of Table 1 is at most 0.49 µm; the pass mark is 0.5 µm.
 PASS_UM = 0.5
-#: Windows N of the sweep [samples] (5 ms to 1 s at 10 kHz).
-WINDOWS: tuple[int, ...] = (50, 100, 200, 500, 1000, 2000, 5000, 10000)
+#: How the sensor's reading is quantised (:func:`exact_plant`).
+QUANTISERS: tuple[str, ...] = ("mid_tread", "mid_riser")
+#: The second paper-exact plant: another noise seed and the other quantiser.
+SECOND_PLANT: dict[str, Any] = {"seed": 1, "quantiser": "mid_riser"}
+#: Windows N of the sweep [samples] (5 to 200 ms at 10 kHz). The method's output gate
+#: simulates the window at every push (O(N) per sample), and a window longer than the
+#: 10 Hz part (3000 samples) holds more than one frequency in every later part.
+WINDOWS: tuple[int, ...] = (50, 100, 200, 500, 1000, 2000)
+#: Windows N of the bound (:func:`bound_table`): the sweep's and two longer ones (what a
+#: window the sweep does not run would tell).
+BOUND_WINDOWS: tuple[int, ...] = (*WINDOWS, 5000, 10000)
 #: Windows of ``--quick`` (CI).
 QUICK_WINDOWS: tuple[int, ...] = (2000,)
 
@@ -99,13 +118,23 @@ def exact_plant(
     dt: float = plant.DEFAULT_DT,
     segments: Sequence[tuple[float, float]] = SEGMENTS,
     seed: int = 0,
+    quantiser: str = "mid_tread",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, int, int]]]:
     """The paper's input, its model with Table 2's row per frequency, and its sensor.
 
     Returns ``(u [V], x_true [µm], x_measured [µm], segments)``: the model switches to
     each frequency's row at the switch (h continuous), and the reading is x_true plus
-    white noise of :data:`NOISE_UM`, rounded to :data:`RESOLUTION_UM`.
+    white noise of :data:`NOISE_UM` (generator seeded with `seed`), read to
+    :data:`RESOLUTION_UM` by the `quantiser` (:data:`QUANTISERS`): ``"mid_tread"``
+    rounds to the nearest multiple of the resolution (0 is a level), ``"mid_riser"``
+    to the nearest odd multiple of half of it (0 is a threshold). Both are the
+    paper's 2 nm resolution; they differ in where the levels sit.
+
+    Raises:
+        ValueError: an unknown `quantiser`.
     """
+    if quantiser not in QUANTISERS:
+        raise ValueError(f"unknown quantiser {quantiser!r} (known: {', '.join(QUANTISERS)})")
     _, u, segs = plant.paper_input(dt, segments)
     x = np.empty_like(u)
     h = 0.0
@@ -114,8 +143,99 @@ def exact_plant(
         xs, h = simulate(p, u[lo:hi], dt, h, None if lo == 0 else float(u[lo - 1]))
         x[lo:hi] = xs
     noise = NOISE_UM * np.random.default_rng(seed).standard_normal(x.size)
-    measured = RESOLUTION_UM * np.round((x + noise) / RESOLUTION_UM)
-    return u, x, measured, segs
+    cells = (x + noise) / RESOLUTION_UM
+    levels = np.round(cells) if quantiser == "mid_tread" else np.floor(cells) + 0.5
+    return u, x, RESOLUTION_UM * levels, segs
+
+
+#: Unknowns of the bound, in the order of the core's Jacobian columns: the model's seven
+#: parameters and h at the window's first sample.
+BOUND_UNKNOWNS: tuple[str, ...] = ("kv", "x0", "A", "beta", "gamma", "n", "delta", "h0")
+#: The combinations the bound is reported for (coefficients on :data:`BOUND_UNKNOWNS`):
+#: the unknowns of steps 2 (A, δ) and 3 (n, β + γ), and the slope A + kv that step 2
+#: measures at the crossings.
+BOUND_QUANTITIES: dict[str, tuple[float, ...]] = {
+    "A": (0, 0, 1, 0, 0, 0, 0, 0),
+    "delta": (0, 0, 0, 0, 0, 0, 1, 0),
+    "n": (0, 0, 0, 0, 0, 1, 0, 0),
+    "beta+gamma": (0, 0, 0, 1, 1, 0, 0, 0),
+    "A+kv": (1, 0, 1, 0, 0, 0, 0, 0),
+}
+#: Window placements tried per period for the bound (the best is reported).
+BOUND_PHASES = 8
+
+
+def record_noise_um() -> float:
+    """Standard deviation of the sensor's error [µm]: the white noise and the
+    quantisation's uniform error (resolution²/12), independent: 1.15 nm."""
+    return float(np.sqrt(NOISE_UM**2 + RESOLUTION_UM**2 / 12.0))
+
+
+def window_bound(f_hz: float, window: int, dt: float = plant.DEFAULT_DT) -> dict[str, float]:
+    """The Cramér–Rao bound from one window of `window` samples of the paper's input at
+    `f_hz` [Hz], the plant the paper's Table 2 row of that frequency, the sensor's noise
+    :func:`record_noise_um` (white, Gaussian): the least standard deviation any unbiased
+    estimate of each :data:`BOUND_QUANTITIES` entry can have from that window's data.
+
+    The Fisher information is JᵀJ/σ², J = ∂x̂/∂θ over the window (the core's exact
+    Jacobian, :func:`boucwen.simulate_extended_with_jacobian`), θ the seven parameters and
+    h at the window's start (:data:`BOUND_UNKNOWNS`): everything a window does not know.
+    The window sits on the steady-state loop (three periods after the start); shorter
+    than a period, what it can tell depends on where it sits, and the best of
+    :data:`BOUND_PHASES` placements over a period is reported, so the bound is the most
+    a window of that length can tell. ``inf`` where the information is singular to
+    double precision (the window cannot separate the unknowns at all)."""
+    p = Params.from_dict(PAPER_TABLE2[f"{f_hz:g}"])
+    period = evaluation.period_samples(f_hz, dt)
+    settle = 3 * period
+    t = np.arange(settle + period + window) * dt
+    u = 50.0 + 50.0 * np.sin(2.0 * np.pi * f_hz * t - np.pi / 2.0)
+    x, _ = simulate(p, u, dt, 0.0)
+    h = np.asarray(x) - p.kv * u - p.x0
+    sigma = record_noise_um()
+    best = {name: float("inf") for name in BOUND_QUANTITIES}
+    for j in range(BOUND_PHASES):
+        start = settle + (j * period) // BOUND_PHASES
+        _, jac = simulate_extended_with_jacobian(p, None, u[start : start + window], dt, float(h[start]))
+        scale = np.linalg.norm(jac, axis=0)
+        if not np.all(scale > 0.0):
+            continue
+        info = (jac / scale).T @ (jac / scale)
+        # Singular to double precision: no unbiased estimate separates the unknowns.
+        if np.linalg.cond(info) > 1.0 / np.finfo(np.float64).eps:
+            continue
+        cov = sigma**2 * np.linalg.inv(info) / np.outer(scale, scale)
+        for name, coef in BOUND_QUANTITIES.items():
+            e = np.asarray(coef, dtype=np.float64)
+            best[name] = min(best[name], float(np.sqrt(max(e @ cov @ e, 0.0))))
+    return best
+
+
+def bound_table(
+    windows: Sequence[int], freqs: Sequence[float], sweep: Mapping[str, Any] | None = None
+) -> dict[str, dict[str, dict[str, dict[str, float]]]]:
+    """:func:`window_bound` for each window N and frequency, beside the error the
+    implementation reaches (|estimate − plant's value| at the end of the frequency's
+    part, from ``sweep[N]["table2"]``, where given): ``out[N][f][quantity] =
+    {"bound": …, "reached": …}``."""
+    out: dict[str, dict[str, dict[str, dict[str, float]]]] = {}
+    for w in windows:
+        out[str(w)] = {}
+        for f in freqs:
+            key = f"{f:g}"
+            bound = window_bound(f, w)
+            row: dict[str, dict[str, float]] = {}
+            for name, coef in BOUND_QUANTITIES.items():
+                entry = {"bound": bound[name]}
+                if sweep is not None and str(w) in sweep:
+                    est, truth = sweep[str(w)]["table2"][key], PAPER_TABLE2[key]
+                    names = BOUND_UNKNOWNS[:7]
+                    value = sum(c * est[n] for c, n in zip(coef, names))
+                    true = sum(c * truth[n] for c, n in zip(coef, names))
+                    entry["reached"] = abs(value - true)
+                row[name] = entry
+            out[str(w)][key] = row
+    return out
 
 
 def _sg_slope(v: np.ndarray, m: int, dt: float) -> np.ndarray:
@@ -209,26 +329,49 @@ def _row(name: str, values: Sequence[float], fmt: str = "{:>9.3f}") -> str:
     return f"{name:<34}" + "".join(fmt.format(v) for v in values)
 
 
-def run(
-    out_dir: str | os.PathLike[str] = DEFAULT_OUT,
-    *,
-    quick: bool = False,
-    windows: Sequence[int] | None = None,
-    seed: int = 0,
-    log: Callable[[str], None] | None = print,
+def format_plant(name: str, r: Mapping[str, Any], freqs: Sequence[str]) -> list[str]:
+    """The sweep, Table 1 at the chosen N and Table 2 of one plant's results."""
+    best = r["sweep"][str(r["chosen_window"])]
+    heads = "".join(f"{f + ' Hz':>9}" for f in freqs)
+    lines = ["", f"Window sweep on the {name}: max |x - x_hat| [µm] per frequency, period-ahead | one step"]
+    lines += format_window_sweep(r["sweep"], freqs)
+    lines += ["", f"Table 1 on the {name}, N = {r['chosen_window']} [µm]", f"{'method':<34}{heads}"]
+    lines.append(_row("online paper, period-ahead", [best["period_ahead"][f] for f in freqs]))
+    lines.append(_row("online paper, one step", [best["one_step"][f] for f in freqs]))
+    lines.append(_row("online (paper's Table 1)", [PAPER_TABLE1["online"][f] for f in freqs]))
+    lines.append(_row("persistence x[k-1]", [r["baselines"]["persistence"][f] for f in freqs]))
+    lines.append(_row("two-tap 2x[k-1] - x[k-2]", [r["baselines"]["two_tap"][f] for f in freqs]))
+    lines.append(
+        f"pass (<= {PASS_UM} µm at every frequency): one step {r['passed']['one_step']}, "
+        f"period-ahead {r['passed']['period_ahead']}"
+    )
+    lines += ["", "Table 2: estimates at the end of each frequency (plant's value, the paper's Table 2, in brackets)"]
+    lines.append(f"{'f':>6}" + "".join(f"{n:>20}" for n in _NAMES))
+    for f in freqs:
+        est = best["table2"][f]
+        lines.append(
+            f"{f + ' Hz':>6}" + "".join(f"{est[n]:>11.4g} ({PAPER_TABLE2[f][n]:.3g})".rjust(20) for n in _NAMES)
+        )
+    return lines
+
+
+def _sweep_plant(
+    dt: float,
+    seg_spec: Sequence[tuple[float, float]],
+    windows: Sequence[int],
+    init: Params,
+    seed: int,
+    quantiser: str,
+    say: Callable[[str], None],
+    started: float,
 ) -> dict[str, Any]:
-    """Runs the sweep, prints the tables and writes ``results.json`` (module docs)."""
-    say = log or (lambda _msg: None)
-    started = time.perf_counter()
-    dt = plant.DEFAULT_DT
-    seg_spec = QUICK_SEGMENTS if quick else SEGMENTS
-    windows = tuple(windows) if windows else (QUICK_WINDOWS if quick else WINDOWS)
-    u, x_true, x, segs = exact_plant(dt, seg_spec, seed)
+    """One paper-exact plant (:func:`exact_plant`), the sweep over `windows` on it and
+    the chosen N (smallest worst period-ahead error over the frequencies)."""
+    u, x_true, x, segs = exact_plant(dt, seg_spec, seed, quantiser)
     freqs = [f"{f:g}" for f, _, _ in segs]
-    init = start_params()
     say(
-        f"paper-exact plant: {u.size} samples at {1 / dt:.0f} Hz; sensor {NOISE_UM * 1e3:g} nm noise, "
-        f"{RESOLUTION_UM * 1e3:g} nm resolution; start {init!r}"
+        f"paper-exact plant (seed {seed}, {quantiser} quantiser): {u.size} samples at {1 / dt:.0f} Hz; "
+        f"sensor {NOISE_UM * 1e3:g} nm noise, {RESOLUTION_UM * 1e3:g} nm resolution; start {init!r}"
     )
     sweep = {}
     for w in windows:
@@ -236,24 +379,59 @@ def run(
         say(f"[{time.perf_counter() - started:6.1f} s] N = {w}")
     chosen = min(sweep, key=lambda w: max(sweep[w]["period_ahead"].values()))
     best = sweep[chosen]
-    baselines = evaluation.one_step_baselines(x, segs, dt)
-    budget = step_budget(u, x_true, x, dt, segs)
-    passed = {
-        "one_step": all(best["one_step"][f] <= PASS_UM for f in freqs),
-        "period_ahead": all(best["period_ahead"][f] <= PASS_UM for f in freqs),
-    }
-    results = {
+    return {
         "plant": {
             "model": "eq. 5, Table 2 row per frequency, switched at the paper's switch times",
             "noise_um": NOISE_UM,
             "resolution_um": RESOLUTION_UM,
+            "quantiser": quantiser,
             "dt_s": dt,
             "segments": [{"f_hz": f, "start": lo, "stop": hi} for f, lo, hi in segs],
-            "quick": quick,
             "seed": seed,
         },
-        "start": {k: float(v) for k, v in init.to_dict().items()},
         "sensor_noise_check_um": float(np.std(x - x_true)),
+        "chosen_window": int(chosen),
+        "sweep": sweep,
+        "baselines": evaluation.one_step_baselines(x, segs, dt),
+        "passed": {
+            "one_step": all(best["one_step"][f] <= PASS_UM for f in freqs),
+            "period_ahead": all(best["period_ahead"][f] <= PASS_UM for f in freqs),
+        },
+        "signals": (u, x_true, x, segs),
+    }
+
+
+def run(
+    out_dir: str | os.PathLike[str] = DEFAULT_OUT,
+    *,
+    quick: bool = False,
+    windows: Sequence[int] | None = None,
+    seed: int = 0,
+    quantiser: str = "mid_tread",
+    second: bool = True,
+    log: Callable[[str], None] | None = print,
+) -> dict[str, Any]:
+    """Runs the sweep, prints the tables and writes ``results.json`` (module docs).
+
+    With `second`, the sweep runs again on a second plant built the same way with
+    :data:`SECOND_PLANT`'s noise seed and quantiser (``results["second"]``)."""
+    say = log or (lambda _msg: None)
+    started = time.perf_counter()
+    dt = plant.DEFAULT_DT
+    seg_spec = QUICK_SEGMENTS if quick else SEGMENTS
+    windows = tuple(windows) if windows else (QUICK_WINDOWS if quick else WINDOWS)
+    init = start_params()
+    first = _sweep_plant(dt, seg_spec, windows, init, seed, quantiser, say, started)
+    u, x_true, x, segs = first.pop("signals")
+    freqs = [f"{f:g}" for f, _, _ in segs]
+    sweep, chosen = first["sweep"], str(first["chosen_window"])
+    best = sweep[chosen]
+    baselines, passed = first["baselines"], first["passed"]
+    budget = step_budget(u, x_true, x, dt, segs)
+    results = {
+        "plant": {**first["plant"], "quick": quick},
+        "start": {k: float(v) for k, v in init.to_dict().items()},
+        "sensor_noise_check_um": first["sensor_noise_check_um"],
         "windows": list(windows),
         "chosen_window": int(chosen),
         "choice": "smallest worst period-ahead error over the frequencies",
@@ -264,34 +442,26 @@ def run(
         "passed": passed,
         "paper": {"table1": PAPER_TABLE1, "table2": PAPER_TABLE2},
     }
+    say(f"[{time.perf_counter() - started:6.1f} s] the Cramér–Rao bound of one window")
+    results["bound"] = {
+        "noise_um": record_noise_um(),
+        "unknowns": list(BOUND_UNKNOWNS),
+        "phases": BOUND_PHASES,
+        "windows": bound_table(sorted({*windows, *(() if quick else BOUND_WINDOWS)}), [f for f, _, _ in segs], sweep),
+    }
+    if second:
+        other = _sweep_plant(dt, seg_spec, windows, init, SECOND_PLANT["seed"], SECOND_PLANT["quantiser"], say, started)
+        other.pop("signals")
+        results["second"] = other
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "results.json", "w", encoding="utf-8") as fh:
         json.dump(jsonable(results), fh, indent=2, allow_nan=False)
 
-    heads = "".join(f"{f + ' Hz':>9}" for f in freqs)
-    say("")
-    say("Window sweep: max |x - x_hat| [µm] per frequency, period-ahead | one step")
-    for line in format_window_sweep(sweep, freqs):
-        say(line)
-    say("")
-    say(f"Table 1 on the paper-exact plant, N = {chosen} [µm]")
-    say(f"{'method':<34}{heads}")
-    say(_row("online paper, period-ahead", [best["period_ahead"][f] for f in freqs]))
-    say(_row("online paper, one step", [best["one_step"][f] for f in freqs]))
-    say(_row("online (paper's Table 1)", [PAPER_TABLE1["online"][f] for f in freqs]))
-    say(_row("persistence x[k-1]", [baselines["persistence"][f] for f in freqs]))
-    say(_row("two-tap 2x[k-1] - x[k-2]", [baselines["two_tap"][f] for f in freqs]))
-    say(
-        f"pass (<= {PASS_UM} µm at every frequency): one step {passed['one_step']}, "
-        f"period-ahead {passed['period_ahead']}"
-    )
-    say("")
-    say("Table 2: estimates at the end of each frequency (plant's value, the paper's Table 2, in brackets)")
-    say(f"{'f':>6}" + "".join(f"{n:>20}" for n in _NAMES))
-    for f in freqs:
-        est = best["table2"][f]
-        say(f"{f + ' Hz':>6}" + "".join(f"{est[n]:>11.4g} ({PAPER_TABLE2[f][n]:.3g})".rjust(20) for n in _NAMES))
+    for name, r in (("paper-exact plant", results), ("second paper-exact plant", results.get("second"))):
+        if r is not None:
+            for line in format_plant(name, r, freqs):
+                say(line)
     say("")
     for line in format_step_shares(best["steps"], freqs):
         say(line)
@@ -313,6 +483,15 @@ def run(
                 f"{step:<12}{f + ' Hz':>8}{b['points']:>8} points  signal {b['signal']:.2e}  "
                 f"noise {b['noise']:.2e}  bias {b['bias']:.2e}  m = {b['half_width']}"
             )
+    say("")
+    say(f"Cramér–Rao bound from one window (noise {record_noise_um() * 1e3:.3g} nm) | error reached, per frequency")
+    for w, rows in results["bound"]["windows"].items():
+        for f in freqs:
+            cells = "  ".join(
+                f"{q} {e['bound']:.2e}" + (f" | {e['reached']:.2e}" if "reached" in e else "")
+                for q, e in rows[f].items()
+            )
+            say(f"N = {w:>5} {f + ' Hz':>7}  {cells}")
     say(f"[{time.perf_counter() - started:6.1f} s] wrote {out / 'results.json'}")
     return results
 
@@ -324,8 +503,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="shortened record and one window (CI)")
     ap.add_argument("--windows", type=int, nargs="+", help="windows N of the sweep [samples]")
     ap.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
+    ap.add_argument("--quantiser", choices=QUANTISERS, default="mid_tread", help="the sensor's quantiser")
+    ap.add_argument("--no-second", action="store_true", help="skip the second plant (SECOND_PLANT)")
     args = ap.parse_args(argv)
-    run(args.out, quick=args.quick, windows=args.windows, seed=args.seed)
+    run(
+        args.out,
+        quick=args.quick,
+        windows=args.windows,
+        seed=args.seed,
+        quantiser=args.quantiser,
+        second=not args.no_second,
+    )
     return 0
 
 

@@ -82,10 +82,16 @@ def _table1(r: Mapping[str, Any], rows: Sequence[tuple[str, str, bool]]) -> str:
         "oracle": r["refit_oracle"],
         "best_fixed": r["best_fixed_per_frequency"],
     }
+    # The paper method's row at the window its sweep chose (the run's window without a sweep).
+    chosen = r.get("paper_window", {}).get("chosen", r["window"]["samples"])
+    sweep = r.get("window_sweep") or {}
+    sources["paper_chosen"] = sweep[str(chosen)]["period_ahead"] if str(chosen) in sweep else t1["online_paper"]
     lines = [_HEAD.format("method")]
     for key, label, bold in rows:
         values = sources.get(key) or t1[key]
-        lines.append(_freq_row(label, values, bold=bold, fmt="{:.2f}" if key.startswith("paper") else "{:.3f}"))
+        label = label.replace("{paper_window}", str(chosen))
+        fmt = "{:.2f}" if key in ("paper", "paper_online") else "{:.3f}"
+        lines.append(_freq_row(label, values, bold=bold, fmt=fmt))
     return "\n".join(lines)
 
 
@@ -102,7 +108,7 @@ _README_TABLE1 = (
     ("paper", "traditional, paper", False),
     ("online_horizon", "online `horizon` (library default, input lag identified)", True),
     ("online_rpem", "online `rpem`", False),
-    ("online_paper", "online `paper` (the paper's method, N = 50)", False),
+    ("paper_chosen", "online `paper` (the paper's method, N = {paper_window} chosen by its sweep)", False),
     ("oracle", "refit oracle (offline fit on the 2 periods before)", False),
 )
 _RESULTS_TABLE1 = (
@@ -116,6 +122,7 @@ _RESULTS_TABLE1 = (
     ("online_horizon_base", "online `horizon`, seven parameters only (`Identifier.horizon`)", False),
     ("online_rpem", "online `rpem` (recursive prediction error)", False),
     ("online_paper", "online `paper` (the paper's method, default repair, N = 50)", False),
+    ("paper_chosen", "online `paper`, N = {paper_window} (chosen by its window sweep)", False),
     ("online_paper_literal", "online `paper`, literal line decomposition", False),
     ("paper_online", "online, paper", False),
     ("oracle", "refit oracle: offline fit on the 2 periods before the scored one", False),
@@ -220,6 +227,29 @@ def _exact_budget(r: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _exact_bound(r: Mapping[str, Any]) -> str:
+    """The Cramér–Rao bound of one window beside the error reached (``paper_exact``)."""
+    quantities = (("A", "A"), ("delta", "δ"), ("n", "n"), ("beta+gamma", "β + γ"), ("A+kv", "A + kv"))
+    lines = [
+        "| N | f | " + " | ".join(label for _, label in quantities) + " |",
+        "|---|---|" + "---|" * len(quantities),
+    ]
+    for w, rows in r["bound"]["windows"].items():
+        for f in FREQUENCIES:
+            cells = []
+            for q, _ in quantities:
+                e = rows[f][q]
+                bound = "∞" if e["bound"] == float("inf") else f"{e['bound']:.1e}"
+                cells.append(bound + (f" / {e['reached']:.1e}" if "reached" in e else ""))
+            lines.append(f"| {w} | {f} Hz | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _second(r: Mapping[str, Any]) -> dict[str, Any]:
+    """The second paper-exact plant's results with the paper's tables beside them."""
+    return {**r["second"], "paper": r["paper"]}
+
+
 #: Every table the documents may hold, by marker name.
 BLOCKS: dict[str, Block] = {
     "readme_table1": Block("reproduce", lambda r: _table1(r, _README_TABLE1)),
@@ -253,6 +283,10 @@ BLOCKS: dict[str, Block] = {
     "exact_table2": Block("paper_exact", _exact_table2),
     "exact_steps": Block("paper_exact", lambda r: _steps(r["sweep"][str(r["chosen_window"])]["steps"])),
     "exact_budget": Block("paper_exact", _exact_budget),
+    "exact_bound": Block("paper_exact", _exact_bound),
+    "exact_second_sweep": Block("paper_exact", lambda r: _exact_sweep(_second(r))),
+    "exact_second_table1": Block("paper_exact", lambda r: _exact_table1(_second(r))),
+    "exact_second_table2": Block("paper_exact", lambda r: _exact_table2(_second(r))),
 }
 
 #: The online methods of the plant family's table, in its order, with their labels.

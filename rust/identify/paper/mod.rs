@@ -64,7 +64,7 @@ pub mod window;
 use super::OnlineIdentifier;
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::math;
-use crate::model::{advance_h, output};
+use crate::model::{advance_h, output, simulate_into};
 use crate::params::Params;
 pub use config::{Decomposition, PaperConfig};
 pub use status::{PaperStatus, Reason, StepStatus, SubFit};
@@ -410,6 +410,87 @@ fn hysteresis_bounded(cfg: &PaperConfig, init: &Params, beta: f64, gamma: f64, n
     }
 }
 
+/// Work buffers of the output gate (the window's inputs and the simulated outputs). A
+/// pure cache: not saved in snapshots, never compared (two identifiers in the same
+/// state are equal whatever their buffers hold).
+#[derive(Debug, Clone, Default)]
+struct Scratch {
+    u: Vec<f64>,
+    x: Vec<f64>,
+}
+
+impl PartialEq for Scratch {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
+}
+
+/// The window's own output error of the estimates `p` (the output gate,
+/// [`PaperConfig::output_gate`]): Σ (x − x̂)² over the window's points, x̂ the model `p`
+/// simulated over the window's inputs (`scratch.u`, filled by the caller) from h at
+/// the oldest point as `p` reads it there, x − kv·u − x0. Infinite where the model
+/// cannot be simulated or leaves the finite numbers.
+fn window_sse(window: &Ring<Point>, scratch: &mut Scratch, dt: f64, p: &Params) -> f64 {
+    let Some(first) = window.iter().next() else {
+        return 0.0;
+    };
+    let h0 = first.x - p.kv * first.u - p.x0;
+    scratch.x.resize(scratch.u.len(), 0.0);
+    if simulate_into(p, &scratch.u, dt, h0, None, &mut scratch.x).is_err() {
+        return f64::INFINITY;
+    }
+    let sse = window.iter().zip(&scratch.x).fold(0.0, |acc, (q, xs)| {
+        let e = q.x - xs;
+        acc + e * e
+    });
+    if sse.is_finite() {
+        sse
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The output gate's state within one refit: the window's output error of the
+/// estimates taken so far (computed when first needed) and the tolerance per unknown.
+struct Gate {
+    on: bool,
+    /// `scratch.u` holds this refit's window inputs.
+    filled: bool,
+    held_sse: Option<f64>,
+    /// `output_gate`·σ̂² \[µm²\]: the rise of the sum allowed per unknown changed.
+    per_unknown: f64,
+}
+
+impl Gate {
+    /// Whether `candidate` (changing `k` unknowns of `held`) is taken; on yes, its error
+    /// becomes the one to beat.
+    fn accepts(
+        &mut self,
+        window: &Ring<Point>,
+        scratch: &mut Scratch,
+        dt: f64,
+        held: &Params,
+        candidate: &Params,
+        k: f64,
+    ) -> bool {
+        if !self.on || candidate == held {
+            return true;
+        }
+        if !self.filled {
+            scratch.u.clear();
+            scratch.u.extend(window.iter().map(|q| q.u));
+            self.filled = true;
+        }
+        let before = *self.held_sse.get_or_insert_with(|| window_sse(window, scratch, dt, held));
+        let after = window_sse(window, scratch, dt, candidate);
+        let taken = after.is_finite() && (before == f64::INFINITY || after <= before + k * self.per_unknown);
+        if taken {
+            self.held_sse = Some(after);
+        }
+        taken
+    }
+}
+
 /// Savitzky–Golay sums of a stencil of half-width m: S = Σₖ k² over −m … m, and the
 /// centre weight w₀ of the local quadratic's value with its numerator constant c₀ and
 /// denominator (weights wₖ = (c₀ − 15k²)/den).
@@ -443,6 +524,9 @@ pub struct PaperIdentifier {
     /// Point classes that entered or left since the last refit ([`TOUCH_ALL`] after a refresh).
     touched: u8,
     cache: SubFitCache,
+    scratch: Scratch,
+    /// Least and greatest u seen since construction or reset \[V\] (the stroke).
+    u_seen: (f64, f64),
 }
 
 impl PaperIdentifier {
@@ -468,6 +552,8 @@ impl PaperIdentifier {
             status: PaperStatus::default(),
             touched: TOUCH_ALL,
             cache: SubFitCache::default(),
+            scratch: Scratch::default(),
+            u_seen: (f64::INFINITY, f64::NEG_INFINITY),
         })
     }
 
@@ -611,6 +697,27 @@ impl PaperIdentifier {
         let mut p = self.params;
         let mut status = self.status;
         let count = s[CNT];
+        // The output gate (`output_gate`): each step's update against the estimates the
+        // steps before it left, on the window's own output error.
+        let mut gate = Gate {
+            on: cfg.output_gate != f64::INFINITY,
+            filled: false,
+            held_sse: None,
+            per_unknown: cfg.output_gate * self.x_noise2(),
+        };
+
+        // A window that spans too little of the stroke holds every step (`min_stroke_frac`).
+        if self.window.is_full() && cfg.min_stroke_frac > 0.0 {
+            let (lo, hi) =
+                self.window.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| (lo.min(q.u), hi.max(q.u)));
+            if !(hi - lo >= cfg.min_stroke_frac * (self.u_seen.1 - self.u_seen.0)) {
+                let narrow = StepStatus::held(Reason::NoSpread, count_u32(count));
+                let none = StepStatus::held(Reason::NoSpread, 0);
+                (status.line_fit, status.rate_fit, status.shape_fit, status.return_fit, status.split_fit) =
+                    (narrow, none, none, none, none);
+                return (p, status);
+            }
+        }
 
         // Step 1.
         let var_u = s[SUU] / count - math::powi(s[SU] / count, 2);
@@ -633,11 +740,15 @@ impl PaperIdentifier {
             let rss = (s[SYY] - kv * s[SUY] - x0 * s[SY]).max(0.0);
             let se_kv = if count > 2.0 { math::sqrt(rss / (count - 2.0) / (count * var_u)) } else { f64::INFINITY };
             if self.rls.active && kv.abs() >= cfg.min_line_t * se_kv {
-                p.kv = kv;
-                p.x0 = x0;
-                let noise = math::sqrt(rss / (count - 2.0));
-                status.line_fit =
-                    StepStatus { fit: SubFit::Ran, reason: Reason::None, points: count_u32(count), noise };
+                let candidate = Params { kv, x0, ..p };
+                if gate.accepts(&self.window, &mut self.scratch, self.dt, &p, &candidate, 2.0) {
+                    p = candidate;
+                    let noise = math::sqrt(rss / (count - 2.0));
+                    status.line_fit =
+                        StepStatus { fit: SubFit::Ran, reason: Reason::None, points: count_u32(count), noise };
+                } else {
+                    status.line_fit.reason = Reason::WorseOutput;
+                }
             } else {
                 status.line_fit.reason = Reason::Noise;
             }
@@ -666,8 +777,13 @@ impl PaperIdentifier {
         let rate = *self.cache.rate.get_or_insert_with(|| rate_fit(&cfg, s, p.delta, span));
         status.rate_fit = rate.status;
         if rate.status.fit != SubFit::Held {
-            p.a = rate.a_plus_kv - p.kv;
-            p.delta = rate.delta_out;
+            let candidate = Params { a: rate.a_plus_kv - p.kv, delta: rate.delta_out, ..p };
+            let unknowns = if rate.status.fit == SubFit::Ran { 2.0 } else { 1.0 };
+            if gate.accepts(&self.window, &mut self.scratch, self.dt, &p, &candidate, unknowns) {
+                p = candidate;
+            } else {
+                status.rate_fit = StepStatus::held(Reason::WorseOutput, rate.status.points);
+            }
         }
 
         if touched & TOUCH_LOADING != 0 {
@@ -676,16 +792,12 @@ impl PaperIdentifier {
         let shape = *self.cache.shape.get_or_insert_with(|| shape_fit(&cfg, s));
         status.shape_fit = shape.status;
         let shape_ran = shape.status.fit == SubFit::Ran;
-        let mut sum_bg = p.beta + p.gamma;
-        if shape_ran {
-            p.n = shape.n;
-            sum_bg = shape.sum_bg;
-        }
+        let (n, sum_bg) = if shape_ran { (shape.n, shape.sum_bg) } else { (p.n, p.beta + p.gamma) };
 
-        if touched & TOUCH_UNLOADING != 0 || self.cache.ret.is_some_and(|r| r.n_in != p.n) {
+        if touched & TOUCH_UNLOADING != 0 || self.cache.ret.is_some_and(|r| r.n_in != n) {
             self.cache.ret = None;
         }
-        let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, s, p.n));
+        let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, s, n));
         status.return_fit = ret.status;
         let ret_ran = ret.status.fit == SubFit::Ran;
         let diff_gb = if ret_ran { ret.diff_gb } else { p.gamma - p.beta };
@@ -696,13 +808,16 @@ impl PaperIdentifier {
         let (beta, gamma) = (0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb));
         if !(shape_ran || ret_ran) {
             status.split_fit = StepStatus::held(Reason::Upstream, 0);
-        } else if beta + gamma > 0.0 && beta - gamma > 0.0 && hysteresis_bounded(&cfg, &self.init, beta, gamma, p.n) {
-            p.beta = beta;
-            p.gamma = gamma;
-            status.split_fit = StepStatus { fit: SubFit::Ran, ..StepStatus::default() };
+        } else if beta + gamma > 0.0 && beta - gamma > 0.0 && hysteresis_bounded(&cfg, &self.init, beta, gamma, n) {
+            let candidate = Params { beta, gamma, n, ..p };
+            if gate.accepts(&self.window, &mut self.scratch, self.dt, &p, &candidate, 3.0) {
+                p = candidate;
+                status.split_fit = StepStatus { fit: SubFit::Ran, ..StepStatus::default() };
+            } else {
+                status.split_fit = StepStatus::held(Reason::WorseOutput, 0);
+            }
         } else {
             status.split_fit = StepStatus::held(Reason::OutOfBounds, 0);
-            p.n = self.params.n;
         }
         if p.validate().is_err() {
             status.split_fit = StepStatus::held(Reason::OutOfBounds, 0);
@@ -719,6 +834,7 @@ impl OnlineIdentifier for PaperIdentifier {
         finite_sample("u", u)?;
         finite_sample("x", x)?;
 
+        self.u_seen = (self.u_seen.0.min(u), self.u_seen.1.max(u));
         // Predict with the estimates from before this sample.
         if let Some(prev) = self.raw.last() {
             self.h_model = advance_h(&self.params, self.h_model, prev.u, u, self.dt);
@@ -800,5 +916,6 @@ impl OnlineIdentifier for PaperIdentifier {
         self.status = PaperStatus::default();
         self.touched = TOUCH_ALL;
         self.cache = SubFitCache::default();
+        self.u_seen = (f64::INFINITY, f64::NEG_INFINITY);
     }
 }

@@ -33,6 +33,8 @@ impl Snapshot for PaperIdentifier {
             c.n_bounds.1,
             c.max_hysteresis_gain,
             c.max_delta_ratio,
+            c.output_gate,
+            c.min_stroke_frac,
         ]);
         w.u64(c.max_half_width as u64);
         w.f64(self.dt);
@@ -40,6 +42,7 @@ impl Snapshot for PaperIdentifier {
         w.f64(self.h0);
         w.params(&self.params);
         w.f64(self.h_model);
+        w.f64s(&[self.u_seen.0, self.u_seen.1]);
         w.u64(self.raw.len() as u64);
         for r in self.raw.iter() {
             w.f64s(&[r.u, r.x, r.h_model]);
@@ -95,8 +98,8 @@ impl Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, derivative_phase, min_delta_t, min_u_std_v, n_lo, n_hi, max_hysteresis_gain, max_delta_ratio] =
-            r.f64s::<13>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, derivative_phase, min_delta_t, min_u_std_v, n_lo, n_hi, max_hysteresis_gain, max_delta_ratio, output_gate, min_stroke_frac] =
+            r.f64s::<15>()?;
         let at = r.offset();
         let max_half_width = usize::try_from(r.u64()?)
             .ok()
@@ -121,6 +124,8 @@ impl Snapshot for PaperIdentifier {
             n_bounds: (n_lo, n_hi),
             max_hysteresis_gain,
             max_delta_ratio,
+            output_gate,
+            min_stroke_frac,
         };
         let dt = r.f64()?;
         let init = r.params()?;
@@ -129,6 +134,8 @@ impl Snapshot for PaperIdentifier {
         let mut id = PaperIdentifier::new(dt, init, h0, config)?;
         id.params = r.params()?;
         id.h_model = r.finite()?;
+        let [u_lo, u_hi] = r.f64s::<2>()?;
+        id.u_seen = (u_lo, u_hi);
         let at = r.offset();
         let raws = r.u64()?;
         if raws > id.raw.capacity() as u64 {

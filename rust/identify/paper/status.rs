@@ -48,6 +48,9 @@ pub enum Reason {
     OutOfBounds,
     /// Step 5 only: neither step 3 nor step 4 gave a new value to combine.
     Upstream,
+    /// The update would make the window's own output error worse than holding the
+    /// previous estimate (the output gate, `PaperConfig::output_gate`; steps 1, 2 and 5).
+    WorseOutput,
 }
 
 impl Reason {
@@ -62,11 +65,12 @@ impl Reason {
             Reason::Noise => "noise",
             Reason::OutOfBounds => "out_of_bounds",
             Reason::Upstream => "upstream",
+            Reason::WorseOutput => "worse_output",
         }
     }
 
     /// Every reason, in code order (the code is the position).
-    pub const ALL: [Reason; 8] = [
+    pub const ALL: [Reason; 9] = [
         Reason::None,
         Reason::WindowFilling,
         Reason::NoExcitation,
@@ -75,6 +79,7 @@ impl Reason {
         Reason::Noise,
         Reason::OutOfBounds,
         Reason::Upstream,
+        Reason::WorseOutput,
     ];
 }
 
