@@ -172,7 +172,8 @@ typedef struct {
 // What one step of the paper's method did (see `StepStatus` in the Rust docs): `fit`
 // 0 = held, 1 = reduced, 2 = ran; `reason` 0 = none, 1 = window filling, 2 = no
 // excitation, 3 = too few points, 4 = no spread, 5 = noise, 6 = out of bounds, 7 =
-// upstream (step 5: steps 3 and 4 both held); `points` the window points it had;
+// upstream (step 5: steps 3 and 4 both held), 8 = worse output (the update would make
+// the window's output error worse than holding); `points` the window points it had;
 // `noise` their residual scatter about its fit (in the step's units).
 typedef struct {
   uint32_t fit;

@@ -83,9 +83,12 @@ def _table1(r: Mapping[str, Any], rows: Sequence[tuple[str, str, bool]]) -> str:
         "best_fixed": r["best_fixed_per_frequency"],
     }
     # The paper method's row at the window its sweep chose (the run's window without a sweep).
-    chosen = r.get("paper_window", {}).get("chosen", r["window"]["samples"])
+    chosen = r.get("paper_window", {}).get("chosen", r.get("window", {}).get("samples"))
     sweep = r.get("window_sweep") or {}
-    sources["paper_chosen"] = sweep[str(chosen)]["period_ahead"] if str(chosen) in sweep else t1["online_paper"]
+    if str(chosen) in sweep:
+        sources["paper_chosen"] = sweep[str(chosen)]["period_ahead"]
+    elif "online_paper" in t1:
+        sources["paper_chosen"] = t1["online_paper"]
     lines = [_HEAD.format("method")]
     for key, label, bold in rows:
         values = sources.get(key) or t1[key]
