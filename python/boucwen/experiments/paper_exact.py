@@ -207,7 +207,8 @@ def window_bound(f_hz: float, window: int, dt: float = plant.DEFAULT_DT) -> dict
         cov = sigma**2 * np.linalg.inv(info) / np.outer(scale, scale)
         for name, coef in BOUND_QUANTITIES.items():
             e = np.asarray(coef, dtype=np.float64)
-            best[name] = min(best[name], float(np.sqrt(max(e @ cov @ e, 0.0))))
+            variance = float(e @ cov @ e)
+            best[name] = min(best[name], float(np.sqrt(max(variance, 0.0))))
     return best
 
 
