@@ -21,7 +21,10 @@ A [µm/V], β and γ [µm^(1−n)/V], n [-], δ [µm/(V·s)].
   per sample) instead of being kept as running sums, and step 1 is an exact
   least-squares fit of the window instead of a recursive one. Its model's h comes
   from the core's integrator (:func:`boucwen.simulate`): the identification method is
-  what it restates. The results therefore differ from the Rust core by rounding only.
+  what it restates. It restates the paper's five steps and their gates, not the window
+  fit (``PaperConfig.fit_iterations``): it is the Rust identifier with
+  ``fit_iterations=0``, and its ``status.window_fit`` always says held. The results
+  therefore differ from that Rust identifier by rounding only.
 
 Parameters may be given as a :class:`boucwen.Params`, a mapping with the keys
 ``kv, x0, A, beta, gamma, n, delta`` or a sequence of the seven values in that
@@ -444,7 +447,7 @@ class PaperIdentifier:
         self._window: deque[_Point] = deque(maxlen=self.window_len)
         self._u_seen = (math.inf, -math.inf)  # least and greatest u seen (the stroke)
         held = _step()
-        self._status = PaperStatus(0, False, False, 0, 0.0, 0.0, held, held, held, held, held)
+        self._status = PaperStatus(0, False, False, 0, 0.0, 0.0, held, held, held, held, held, held)
 
     @property
     def params(self) -> RefParams:
@@ -647,10 +650,13 @@ class PaperIdentifier:
         steps: dict[str, StepStatus] = {}
         memo: list[float] = []  # the output gate's error of the estimates taken so far
 
-        # A window that spans too little of the stroke holds every step (min_stroke_frac).
+        # A window whose rising or falling points span too little of the stroke holds
+        # every step (min_stroke_frac).
         if count == self.window_len and self.min_stroke_frac > 0.0:
-            span = max(q.u for q in self._window) - min(q.u for q in self._window)
-            if not span >= self.min_stroke_frac * (self._u_seen[1] - self._u_seen[0]):
+            # (An input that has never moved is step 1's to report: no excitation.)
+            stroke = self._u_seen[1] - self._u_seen[0]
+            branches = ([q.u for q in self._window if q.udot > 0.0], [q.u for q in self._window if q.udot < 0.0])
+            if stroke > 0.0 and not all(b and max(b) - min(b) >= self.min_stroke_frac * stroke for b in branches):
                 none = _step(reason="no_spread")
                 steps.update(line_fit=_step(reason="no_spread", points=count), rate_fit=none)
                 steps.update(shape_fit=none, return_fit=none, split_fit=none)

@@ -156,6 +156,7 @@ _STEPS = (
     ("shape_fit", "3, n and β + γ"),
     ("return_fit", "4, γ − β"),
     ("split_fit", "5, β and γ"),
+    ("window_fit", "window fit, 1–4 on the window's output (last run)"),
 )
 _NAMES = ("kv", "x0", "A", "beta", "gamma", "n", "delta")
 

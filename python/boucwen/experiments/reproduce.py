@@ -240,8 +240,10 @@ def default_window(segments: Sequence[tuple[float, int, int]], dt: float) -> int
 
 # --------------------------------------------------------------------------- paper's steps
 
-#: The five steps of the paper's method, as :class:`boucwen.PaperStatus` names them.
-PAPER_STEPS: tuple[str, ...] = ("line_fit", "rate_fit", "shape_fit", "return_fit", "split_fit")
+#: The five steps of the paper's method and the window fit, as :class:`boucwen.PaperStatus`
+#: names them (the window fit's status is that of its last run: it runs once per slide of
+#: ``PaperConfig.fit_every`` of the window).
+PAPER_STEPS: tuple[str, ...] = ("line_fit", "rate_fit", "shape_fit", "return_fit", "split_fit", "window_fit")
 
 
 @dataclass

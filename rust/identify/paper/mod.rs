@@ -51,6 +51,16 @@
 //!    ratios divide by u̇). A step with too few points or too little spread keeps its
 //!    previous estimate; [`PaperStatus`] says, for each step, whether it ran, ran
 //!    reduced or held, why, on how many points and with what scatter.
+//!
+//!    Two rules hold an update that would make the model worse: the output gate
+//!    ([`PaperConfig::output_gate`]: steps 1, 2 and 5 each against the window's own
+//!    output error) and the stroke bound ([`PaperConfig::min_stroke_frac`]: every step
+//!    holds while the window's rising or falling points span too little of the stroke).
+//! 5. **The window fit** (module `window_fit`, once per slide of `fit_every`·N points): the
+//!    unknowns of steps 1–4 (and h at the window's start) jointly, by least squares on
+//!    the window's own output error, at the precision the window's data allow; taken
+//!    where the model explains the window to its noise and resolves kv, A and n
+//!    ([`PaperStatus::window_fit`]). Where taken, the model's h follows it.
 
 use nalgebra::{Matrix2, Vector2};
 
@@ -60,6 +70,7 @@ mod status;
 #[cfg(test)]
 mod tests;
 pub mod window;
+mod window_fit;
 
 use super::OnlineIdentifier;
 use crate::error::{finite_sample, positive_dt, Error, Result};
@@ -527,6 +538,30 @@ pub struct PaperIdentifier {
     scratch: Scratch,
     /// Least and greatest u seen since construction or reset \[V\] (the stroke).
     u_seen: (f64, f64),
+    /// Window points entered since the window fit last ran.
+    since_fit: u64,
+    /// The least window noise variance of x seen with a full window \[µm²\] (∞ before):
+    /// the window fit's noise ([`PaperConfig::max_misfit`]). Each window's estimate is an
+    /// upper bound of the sensor's noise, the signal's curvature adding to it the more
+    /// the faster the input (about 1.2 nm at 1 and 10 Hz, 8.5 nm at 100 Hz on the
+    /// paper-exact plant of 1.15 nm), and the sensor's noise does not depend on the
+    /// input: the least bound seen is the tightest.
+    noise_floor2: f64,
+    /// The last window fit's result where it was not taken (the next run may start
+    /// from it).
+    fit_carry: Option<Params>,
+    fit_buffers: FitScratch,
+}
+
+/// The window fit's buffers ([`window_fit::FitBuffers`]): a pure cache, not saved in
+/// snapshots, never compared.
+#[derive(Debug, Clone, Default)]
+struct FitScratch(window_fit::FitBuffers);
+
+impl PartialEq for FitScratch {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
 }
 
 impl PaperIdentifier {
@@ -554,6 +589,10 @@ impl PaperIdentifier {
             cache: SubFitCache::default(),
             scratch: Scratch::default(),
             u_seen: (f64::INFINITY, f64::NEG_INFINITY),
+            since_fit: 0,
+            noise_floor2: f64::INFINITY,
+            fit_carry: None,
+            fit_buffers: FitScratch::default(),
         })
     }
 
@@ -690,6 +729,60 @@ impl PaperIdentifier {
         point
     }
 
+    /// The window fit (module `window_fit`, [`PaperConfig::fit_every`]), when due: once the
+    /// window is full, each time `fit_every`·N points have entered since its last run.
+    /// Where it is taken, the model's h follows it: the fit's h at the window's newest
+    /// point, carried over the samples not yet in the window with the new estimates.
+    fn window_fit(&mut self) {
+        let cfg = self.config;
+        if cfg.fit_iterations == 0 {
+            self.status.window_fit = StepStatus::held(Reason::None, 0);
+            return;
+        }
+        if !self.window.is_full() {
+            self.status.window_fit = StepStatus::held(Reason::WindowFilling, count_u32(self.window.len() as f64));
+            return;
+        }
+        self.noise_floor2 = self.noise_floor2.min(self.x_noise2());
+        let every = math::ceil(cfg.fit_every * cfg.window_len as f64).max(1.0);
+        if (self.since_fit as f64) < every {
+            return;
+        }
+        self.since_fit = 0;
+        let noise2 = self.noise_floor2;
+        let run = window_fit::Run {
+            cfg: &cfg,
+            init: &self.init,
+            dt: self.dt,
+            held: self.params,
+            carried: self.fit_carry,
+            noise2,
+        };
+        let out = window_fit::run(&run, &self.window, &mut self.fit_buffers.0);
+        self.status.window_fit = out.status;
+        self.fit_carry = out.carry;
+        let Some((p, h_end)) = out.taken else {
+            return;
+        };
+        self.params = p;
+        // The window's newest point is the raw sample `next − 1`; the raw samples after
+        // it wait for their stencils.
+        let first = self.status.samples - self.raw.len() as u64;
+        let mut h = h_end;
+        let from = (self.next.saturating_sub(first) as usize).max(1);
+        for i in from..self.raw.len() {
+            let Some(before) = self.raw.get(i - 1).map(|r| r.u) else {
+                break;
+            };
+            let Some(now) = self.raw.get_mut(i) else {
+                break;
+            };
+            h = advance_h(&p, h, before, now.u, self.dt);
+            now.h_model = h;
+        }
+        self.h_model = h;
+    }
+
     /// Steps 1–5 from the sums; returns the new estimates and what ran.
     fn refit(&mut self) -> (Params, PaperStatus) {
         let cfg = self.config;
@@ -706,11 +799,19 @@ impl PaperIdentifier {
             per_unknown: cfg.output_gate * self.x_noise2(),
         };
 
-        // A window that spans too little of the stroke holds every step (`min_stroke_frac`).
+        // A window whose rising or falling points span too little of the stroke holds
+        // every step (`min_stroke_frac`).
         if self.window.is_full() && cfg.min_stroke_frac > 0.0 {
-            let (lo, hi) =
-                self.window.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| (lo.min(q.u), hi.max(q.u)));
-            if !(hi - lo >= cfg.min_stroke_frac * (self.u_seen.1 - self.u_seen.0)) {
+            let spans = self.window.iter().fold([(f64::INFINITY, f64::NEG_INFINITY); 2], |mut s, q| {
+                if q.udot != 0.0 {
+                    let b = &mut s[(q.udot < 0.0) as usize];
+                    *b = (b.0.min(q.u), b.1.max(q.u));
+                }
+                s
+            });
+            // (An input that has never moved is step 1's to report: no excitation.)
+            let stroke = self.u_seen.1 - self.u_seen.0;
+            if stroke > 0.0 && !spans.iter().all(|&(lo, hi)| hi - lo >= cfg.min_stroke_frac * stroke) {
                 let narrow = StepStatus::held(Reason::NoSpread, count_u32(count));
                 let none = StepStatus::held(Reason::NoSpread, 0);
                 (status.line_fit, status.rate_fit, status.shape_fit, status.return_fit, status.split_fit) =
@@ -863,6 +964,7 @@ impl OnlineIdentifier for PaperIdentifier {
             let leaving = self.window.push(point);
             self.entered += 1;
             status.half_width = m as u32;
+            self.since_fit += 1;
             if self.sums.slide(&point.contribution(), leaving.map(|l| l.contribution()).as_ref()) {
                 status.refreshed = true;
                 self.touched = TOUCH_ALL;
@@ -883,6 +985,7 @@ impl OnlineIdentifier for PaperIdentifier {
         let (params, status) = self.refit();
         self.params = params;
         self.status = status;
+        self.window_fit();
         Ok(prediction)
     }
 
@@ -917,5 +1020,8 @@ impl OnlineIdentifier for PaperIdentifier {
         self.touched = TOUCH_ALL;
         self.cache = SubFitCache::default();
         self.u_seen = (f64::INFINITY, f64::NEG_INFINITY);
+        self.since_fit = 0;
+        self.noise_floor2 = f64::INFINITY;
+        self.fit_carry = None;
     }
 }

@@ -70,6 +70,12 @@ impl<T: Copy + Default> Ring<T> {
         (i < self.len).then(|| &self.items[(self.head + i) % self.capacity])
     }
 
+    /// The `i`-th item from the oldest, to change in place (`None` past the newest).
+    #[inline]
+    pub fn get_mut(&mut self, i: usize) -> Option<&mut T> {
+        (i < self.len).then(|| &mut self.items[(self.head + i) % self.capacity])
+    }
+
     /// The newest item.
     #[inline]
     pub fn last(&self) -> Option<&T> {
