@@ -13,8 +13,8 @@ fn main() -> Result<(), boucwen::Error> {
     let u: Vec<f64> =
         (0..20_000).map(|k| 50.0 - 50.0 * (2.0 * std::f64::consts::PI * 10.0 * k as f64 * dt).cos()).collect();
     let (x, _) = simulate(&truth, &u, dt, 0.0, None)?;
-    // Start 15 % off in A, β and γ.
-    let start = Params { a: truth.a * 1.15, beta: truth.beta * 0.85, gamma: truth.gamma * 1.15, ..truth };
+    // Start 15 % off in A, β and γ (inside the admissible region: β ± γ ≥ 0).
+    let start = Params { a: truth.a * 1.15, beta: truth.beta * 1.15, gamma: truth.gamma * 0.85, ..truth };
     let mut id = HorizonIdentifier::new(dt, start, 0.0, HorizonConfig::default())?;
     let mut worst_late = 0.0f64;
     for (k, (&uk, &xk)) in u.iter().zip(&x).enumerate() {

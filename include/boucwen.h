@@ -149,6 +149,8 @@ typedef struct {
   double damping;
   bool step_limited;
   bool projected;
+  // The last update's step was held on the boundary of the well-posed region.
+  bool held;
   // Samples pushed after the last one the estimates in use were fitted on.
   uint64_t behind_samples;
   // The same in seconds \[s\].

@@ -61,6 +61,36 @@ impl Params {
         Ok(())
     }
 
+    /// The admissible region, where h stays bounded (docs/design.md, "The admissible
+    /// region"): [`Params::validate`], and β + γ ≥ 0 and β − γ ≥ 0, both > 0 where
+    /// δ ≠ 0. With β + γ < 0 h escapes along a rising voltage once it passes
+    /// (|A|/|β + γ|)^(1/n) (within a finite travel for n > 1); with β − γ < 0 the same
+    /// along a falling one; with δ ≠ 0 each branch must dissipate, or the δ term pumps h
+    /// without limit. The error names the combination and its value.
+    pub fn check_admissible(&self) -> Result<()> {
+        self.validate()?;
+        let strict = self.delta != 0.0;
+        for (name, value) in [("beta + gamma", self.beta + self.gamma), ("beta - gamma", self.beta - self.gamma)] {
+            if value < 0.0 {
+                return Err(Error::InvalidParameter {
+                    name,
+                    value,
+                    reason:
+                        "must be >= 0: h runs away on one branch of the loop (the admissible region, docs/design.md)",
+                });
+            }
+            if strict && value <= 0.0 {
+                return Err(Error::InvalidParameter {
+                    name,
+                    value,
+                    reason: "must be > 0 where delta != 0: the delta term pumps h without limit on a branch that does \
+                             not dissipate (the admissible region, docs/design.md)",
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// `[kv, x0, A, beta, gamma, n, delta]`.
     pub fn to_array(&self) -> [f64; 7] {
         [self.kv, self.x0, self.a, self.beta, self.gamma, self.n, self.delta]
@@ -90,5 +120,22 @@ mod tests {
         let mut v = Params::paper_1hz().to_array();
         v[3] = f64::NAN;
         assert!(matches!(Params::from_array(v), Err(Error::InvalidParameter { name: "beta", .. })));
+    }
+
+    #[test]
+    fn admissible_region() {
+        assert!(Params::paper_1hz().check_admissible().is_ok());
+        // A linear model: no hysteresis, no delta.
+        let linear = Params { a: 0.0, beta: 0.0, gamma: 0.0, delta: 0.0, ..Params::paper_1hz() };
+        assert!(linear.check_admissible().is_ok());
+        // The same with delta: nothing dissipates what the delta term adds.
+        let pumped = Params { delta: 0.01, ..linear };
+        assert!(matches!(pumped.check_admissible(), Err(Error::InvalidParameter { name: "beta + gamma", .. })));
+        // A fitted model that ran away: beta + gamma < 0, n = 6.
+        let runaway = Params { kv: 0.057, x0: 0.0, a: -0.043, beta: 0.0018, gamma: -0.026, n: 6.0, delta: 0.0 };
+        let err = runaway.check_admissible().unwrap_err();
+        assert!(matches!(err, Error::InvalidParameter { name: "beta + gamma", .. }));
+        let mirrored = Params { gamma: 0.026, ..runaway };
+        assert!(matches!(mirrored.check_admissible(), Err(Error::InvalidParameter { name: "beta - gamma", .. })));
     }
 }

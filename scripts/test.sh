@@ -1,33 +1,75 @@
 #!/usr/bin/env bash
-# Every check and every test: formatting, lints, type checks and docs (Rust, then
-# Python), then the Rust unit and integration tests (release), then pytest against the
-# installed extension (which includes the stub check with mypy.stubtest and the quick
-# subset of the diagnosis suite, both halves, held to the suite's checks), then the
-# measured-data benchmark.
+# The test commands (README, "Tests"; .ci/run runs both):
+#
+#   bash scripts/test.sh          every check and every test but the slow ones: formatting,
+#                                 lints, type checks and docs (Rust, then Python), the Rust unit
+#                                 and integration tests (cargo profile test-release: release code
+#                                 without LTO, built once; the example and the C library of
+#                                 tests/test_embed.py come from that build), the examples, the
+#                                 no_std build, then
+#                                 pytest on every core against the installed extension (the stub
+#                                 check with mypy.stubtest included), the tests marked slow left out
+#   bash scripts/test.sh --slow   the slow statistical checks: pytest -m slow on every core (the
+#                                 quick diagnosis suite, the long runs, ...) and the measured-data
+#                                 benchmark (fails when a target fails)
+#
+# pytest's exit status 5 (no test collected) fails either command, as every other failure does.
 set -euo pipefail
+slow=0
+case "${1:-}" in
+  "") ;;
+  --slow) slow=1 ;;
+  *)
+    echo "usage: bash scripts/test.sh [--slow]" >&2
+    exit 2
+    ;;
+esac
+started=$SECONDS
+# Prints the seconds since the previous step's start, then the next step's name.
+last=$SECONDS
+step() {
+  echo "   ($((SECONDS - last)) s)"
+  last=$SECONDS
+  echo "== $*"
+}
+trap 'echo "   ($((SECONDS - last)) s; $((SECONDS - started)) s in all)"' EXIT
 export BOUCWEN_TEST=1
+echo "== setup: .venv and the release build of the extension (scripts/setup_env.sh)"
 . "$(dirname "$0")/setup_env.sh"
-echo "== cargo fmt --check"
+# One pytest worker per logical CPU (pytest-xdist); each test file runs whole in one worker,
+# so a module's fixtures are computed once.
+pytest_all=(python -m pytest -q -p no:cacheprovider -n logical --dist loadfile)
+
+if [ "$slow" = 1 ]; then
+  step "pytest -m slow (every core)"
+  "${pytest_all[@]}" -m slow tests
+  step "python -m boucwen.experiments.measured --out out/measured (the measured-data benchmark; fails when a target fails)"
+  python -m boucwen.experiments.measured --out out/measured
+  exit 0
+fi
+
+step "cargo fmt --check"
 cargo fmt --check
-echo "== cargo clippy --all-targets --all-features -- -D warnings"
-cargo clippy --all-targets --all-features -- -D warnings
-echo "== cargo doc --no-deps (warnings are errors)"
-RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
-echo "== ruff check python tests benches examples"
+step "ruff check python tests benches examples"
 ruff check python tests benches examples
-echo "== ruff format --check python tests benches examples"
+step "ruff format --check python tests benches examples"
 ruff format --check python tests benches examples
-echo "== mypy (strict, python/boucwen)"
+step "mypy (strict, python/boucwen)"
 mypy
-echo "== cargo test --release --features ffi"
-cargo test --release --features ffi
-echo "== examples"
-cargo run --release --quiet --example identify
+step "cargo clippy --all-targets --all-features -- -D warnings"
+cargo clippy --all-targets --all-features -- -D warnings
+step "cargo doc --no-deps (warnings are errors)"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
+# The Rust tests, the example and tests/test_embed.py's C library: one build (Cargo.toml,
+# profile test-release).
+export BOUCWEN_CARGO_PROFILE=test-release
+step "cargo test --profile $BOUCWEN_CARGO_PROFILE --features ffi"
+cargo test --profile "$BOUCWEN_CARGO_PROFILE" --features ffi
+step "examples"
+cargo run --profile "$BOUCWEN_CARGO_PROFILE" --features ffi --quiet --example identify
 python examples/fit_and_identify.py
-echo "== pytest"
-python -m pytest -q -p no:cacheprovider tests
-echo "== python -m boucwen.experiments.measured --out out/measured (the measured-data benchmark; fails when a target fails)"
-python -m boucwen.experiments.measured --out out/measured
-echo "== no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
+step "no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
 rustup target add thumbv7em-none-eabihf
 cargo rustc --release --lib --crate-type rlib --no-default-features --target thumbv7em-none-eabihf
+step "pytest -m 'not slow' (every core; the slow checks: bash scripts/test.sh --slow)"
+"${pytest_all[@]}" -m "not slow" tests

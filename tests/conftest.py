@@ -8,6 +8,10 @@ variable ``HYPOTHESIS_PROFILE``:
 * ``explore``: random seeds and the example database, for local runs that look for
   new counter-examples (``HYPOTHESIS_PROFILE=explore python -m pytest tests``). Every
   counter-example found this way is kept in its test as an explicit ``@example``.
+
+Slow tests carry the marker ``slow`` (``bash scripts/test.sh --slow`` runs them, and CI
+does; ``bash scripts/test.sh`` leaves them out): a test marked so, and every test of the
+modules of :data:`SLOW_MODULES`.
 """
 
 from __future__ import annotations
@@ -27,6 +31,33 @@ from boucwen.record import Record, validate_record
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
 settings.register_profile("explore", derandomize=False, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+#: Test modules whose every test runs the diagnosis on whole records and judges its
+#: statistics (the suite, the solvers' agreement, the measured records, the other model
+#: structure, the screen against the refits, the judge's calibration): minutes each on
+#: two cores, so all of them are ``slow``, whatever tests the modules hold. The judge's
+#: own tests (tests/test_judge.py, tests/test_search.py) run on constructed numbers and
+#: small records in seconds, and stay in the quick command.
+SLOW_MODULES = frozenset(
+    {
+        "test_convergence.py",
+        "test_diagnose.py",
+        "test_calibration.py",
+        "test_diagnosis_suite.py",
+        "test_measured.py",
+        "test_screen.py",
+        "test_structure.py",
+    }
+)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Marks every test of :data:`SLOW_MODULES` ``slow`` (before ``-m`` selects)."""
+    for item in items:
+        if item.path.name in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
+
 
 #: Counter-examples found by property tests, kept as files (tests/regressions/).
 REGRESSIONS = Path(__file__).parent / "regressions"

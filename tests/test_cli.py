@@ -150,7 +150,7 @@ def test_diagnose_judges_on_a_validation_record_and_prints_unseen_errors(tmp_pat
     b = _csv(tmp_path / "b.csv", "t_s,u_V,x_um", (t[half:] - t[half], u[half:], x[half:]))
     assert main(["diagnose", str(a), "--validate", str(b)]) == 0
     out = capsys.readouterr().out
-    assert "unseen data (4-fold blocked cross-validation)" in out
+    assert "unseen data (4 forward folds)" in out
     assert f"validation record {b} ({t.size - half} samples, offset and initial state re-estimated)" in out
     assert "drift: confident" in out or "drift: tentative" in out
 

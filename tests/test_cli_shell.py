@@ -79,6 +79,7 @@ def test_version(capsys):
 # --------------------------------------------------------------------------- the model file
 
 
+@pytest.mark.slow  # the diagnosis of the measured record (a module fixture)
 def test_fit_and_diagnose_write_the_same_schema(measured, fitted, diagnosed):
     rec = datasets.load("micromanipulator", measured)
     for path, made_by in ((fitted, "fit"), (diagnosed, "diagnose")):
@@ -134,7 +135,7 @@ def test_identify_without_init_fits_the_start_and_plots(measured, tmp_path, caps
     trace, figure = tmp_path / "trace.csv", tmp_path / "fig.png"
     assert main(["identify", str(measured), "--out", str(trace), "--plot", str(figure)]) == 0
     out = capsys.readouterr().out
-    assert "starting model: boucwen.fit on the first 1605 samples" in out
+    assert "starting model: boucwen.fit on samples 0 to 1604 (1605 samples" in out
     assert "blocks from t = 8.1 s" in out  # the starting fit's samples are not scored
     assert figure.stat().st_size > 10_000 and "input_lag.fc_hz" in _table(trace)
 
@@ -142,6 +143,7 @@ def test_identify_without_init_fits_the_start_and_plots(measured, tmp_path, caps
 # --------------------------------------------------------------------------- invert, simulate
 
 
+@pytest.mark.slow  # the diagnosis of the measured record (a module fixture)
 def test_diagnose_invert_simulate_within_the_fit_error(diagnosed, target, tmp_path, capsys):
     u_csv, x_csv = tmp_path / "U.csv", tmp_path / "X.csv"
     argv = ["invert", "--model", str(diagnosed), "--target", str(target), "--out", str(u_csv)]

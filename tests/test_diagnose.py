@@ -78,8 +78,14 @@ def test_result_fields_and_json():
         "unseen",
         "at_bounds",
         "structure",
+        "boundedness",
     }
     assert doc["structure"] is None  # a piezo record: the input-driven model
+    # The returned model driven over the record's range stays within the stated multiple
+    # of it, and the report says so, probe by probe.
+    assert d.boundedness is not None and d.boundedness.passed
+    assert doc["boundedness"] == json.loads(json.dumps(d.boundedness.to_dict()))
+    assert doc["boundedness"]["passed"] and len(doc["boundedness"]["probes"]) >= 4
     assert doc["effects"] == ["drift"], d.summary()
     assert doc["confidence"]["drift"]["level"] in ("confident", "tentative")
     assert doc["unseen"]["cv_rms_after_um"] < doc["unseen"]["cv_rms_before_um"]

@@ -41,6 +41,7 @@ from boucwen.effects import (
 )
 from boucwen.effects.electrostriction import STROKE_BENDS
 from boucwen.effects.resonance import PEAK_ZETAS, residual_peaks_hz
+from boucwen.fit import record_delta_limit
 from boucwen.record import validate_record
 from conftest import EVERY_EFFECT, WHOLE_VOCABULARY
 
@@ -51,14 +52,16 @@ INF = math.inf
 PINNED = EVERY_EFFECT
 ALL = WHOLE_VOCABULARY
 LABELS = [
-    *["kv", "x0", "A", "beta", "gamma", "n", "delta", "h0"],
+    *["kv", "x0", "A", "beta_plus_gamma", "beta_minus_gamma", "n", "delta", "h0"],
     *["creep.gain[0]", "creep.gain[1]", "input_lag.ln_fc", "resonance.ln_fn", "resonance.ln_zeta", "drift.rate"],
 ]
-V0 = [0.19, 0.015, -0.072, 0.02, -0.019, 1.52, 0.0075, 0.1, 0.003, 0.004]
+#: β and γ enter as β + γ and β − γ (the admissible region, bounded below by 0).
+V0 = [0.19, 0.015, -0.072, 0.02 + -0.019, 0.02 - -0.019, 1.52, 0.0075, 0.1, 0.003, 0.004]
 V0 += [4.382026634673881, 5.0106352940962555, -2.3025850929940455, 0.2]
-LOWER = [-INF] * 5 + [0.2] + [-INF] * 4 + [-1.0986122886681098, -0.40546510810816444, -6.907755278982137, -INF]
+LOWER = [-INF] * 3 + [0.0, 0.0, 0.2] + [-INF] * 4
+LOWER += [-1.0986122886681098, -0.40546510810816444, -6.907755278982137, -INF]
 UPPER = [INF] * 5 + [6.0] + [INF] * 4 + [9.210340371976184, 6.1092475827643655, 0.0, INF]
-TYPICAL = [0.19, 13.7, 0.1522222222222222, 0.02, 0.019, 1.52, 0.0075, 0.13699999999999998]
+TYPICAL = [0.19, 13.7, 0.1522222222222222, 0.02 + -0.019, 0.02 - -0.019, 1.52, 0.0075, 0.13699999999999998]
 TYPICAL_EFFECTS = [4.382026634673881, 5.0106352940962555, 2.3025850929940455, 0.2]
 
 
@@ -96,8 +99,12 @@ def test_fit_starts_from_the_same_point_bounds_and_scales(monkeypatch, kv):
     gains = [0.003, 0.004] if kv > 0 else [-1e-09, -1e-09]
     assert seen["z0"].tolist() == [kv, *V0[1:8], *gains, *V0[10:]]
     sign_lo, sign_hi = ([0.0, 0.0], [INF, INF]) if kv > 0 else ([-INF, -INF], [0.0, 0.0])
-    assert seen["lower"].tolist() == [*LOWER[:8], *sign_lo, *LOWER[10:]]
-    assert seen["upper"].tolist() == [*UPPER[:8], *sign_hi, *UPPER[10:]]
+    # On a record, δ is kept within the record's limit (boucwen.fit.record_delta_limit).
+    limit = record_delta_limit(_record())
+    assert 0.0 < limit < INF
+    lower, upper = [*LOWER[:6], -limit, *LOWER[7:8]], [*UPPER[:6], limit, *UPPER[7:8]]
+    assert seen["lower"].tolist() == [*lower, *sign_lo, *LOWER[10:]]
+    assert seen["upper"].tolist() == [*upper, *sign_hi, *UPPER[10:]]
     gain_scales = gains if kv > 0 else [0.0015222222222222221] * 2
     assert seen["x_scale"].tolist() == [*TYPICAL, *gain_scales, *TYPICAL_EFFECTS]
 

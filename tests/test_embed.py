@@ -118,8 +118,11 @@ def c_example(tmp_path_factory) -> Path:
     cargo = shutil.which("cargo")
     if cc is None or cargo is None:
         pytest.skip("needs a C compiler and cargo")
-    subprocess.run([cargo, "build", "--release", "--features", "ffi", "--lib"], cwd=ROOT, check=True)
-    lib = ROOT / "target" / "release"
+    # The C library in the cargo profile of $BOUCWEN_CARGO_PROFILE (scripts/test.sh: the one its
+    # Rust tests were built in, so this build is theirs; default release).
+    profile = os.environ.get("BOUCWEN_CARGO_PROFILE", "release")
+    subprocess.run([cargo, "build", "--profile", profile, "--features", "ffi", "--lib"], cwd=ROOT, check=True)
+    lib = ROOT / "target" / profile
     exe = tmp_path_factory.mktemp("c") / "identify"
     subprocess.run(
         [

@@ -142,6 +142,7 @@ def test_a_diagnosis_read_back_holds_no_record_to_design_with():
         replace(d, explained=None).next_experiment()
 
 
+@pytest.mark.slow  # two diagnoses and a designed experiment on generated plants
 @pytest.mark.parametrize("effect, seed", [("delay", 0)])
 def test_the_loop_closes_on_a_generated_plant(effect, seed):
     # A delay under one slow sine looks like an input lag or a creep; the record of the

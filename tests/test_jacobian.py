@@ -1,5 +1,6 @@
 """boucwen._core.simulate_extended_with_jacobian: the output and its Jacobian in one pass,
-as the fits use it (the columns in the order of boucwen.effects.Layout)."""
+as the fits use it (the columns in the order of boucwen.effects.Layout, whose β and γ
+columns the layout turns into β + γ and β − γ)."""
 
 import numpy as np
 import pytest
@@ -35,9 +36,15 @@ EFFECTS = [
 def test_every_column_matches_a_central_difference_of_the_simulator(effects):
     layout = Layout.of(effects, DT, DT * (U.size - 1))
     v = layout.pack(P, effects, 0.1)
-    x, jac = simulate_extended_with_jacobian(P, effects, U, DT, 0.1)
+    x, core_jac = simulate_extended_with_jacobian(P, effects, U, DT, 0.1)
     np.testing.assert_array_equal(x, simulate_extended(P, effects, U, DT, 0.1))
-    assert jac.shape == (U.size, len(layout.labels()))
+    assert core_jac.shape == (U.size, len(layout.labels()))
+    # The layout's (β + γ, β − γ) give back β and γ to the last bits, and its Jacobian is
+    # the core's with the columns of β and γ turned into those of β ± γ.
+    x_layout, jac = layout.simulate_with_jacobian(v, U, DT)
+    np.testing.assert_allclose(x_layout, x, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(np.delete(jac, [3, 4], axis=1), np.delete(core_jac, [3, 4], axis=1), rtol=1e-9)
+    np.testing.assert_allclose(jac[:, 3], 0.5 * (core_jac[:, 3] + core_jac[:, 4]), rtol=1e-9, atol=1e-12)
     for j, label in enumerate(layout.labels()):
         step = 1e-6 * max(abs(v[j]), 1e-2)
         shifted = [layout.simulate(v + d * np.eye(v.size)[j], U, DT) for d in (step, -step)]

@@ -1,172 +1,232 @@
-"""The judge of the diagnosis (boucwen.diagnosis.judge): blocked cross-validation and the
-rule that accepts a move, on constructed numbers and records; its held-out errors
-against true refits on the measured records."""
+"""The judge of the diagnosis (boucwen.diagnosis.judge): forward folds placed by the
+record's information and excitation, the test of a move on dependent data, and the
+screen of the held-out errors against converged refits."""
 
 import numpy as np
 import pytest
 
-from boucwen import EffectSet, Params, datasets, diagnose, simulate_extended
+from boucwen import EffectSet, Params, simulate_extended
 from boucwen.diagnosis import fits
-from boucwen.diagnosis.judge import CrossValidation, apart, fold_slices, gain, judge, threshold
+from boucwen.diagnosis.judge import (
+    CrossValidation,
+    Folds,
+    apart,
+    dependence_length,
+    excitation,
+    gain,
+    informed,
+    judge,
+    level,
+    threshold,
+)
 from boucwen.effects import ExtendedFit, solve_extended_record
 from boucwen.record import validate_record
 
-FOLDS, BATCHES = 4, 16
+
+def _folds(n, origins):
+    return Folds(n, tuple(origins))
 
 
-def _cv(residual):
-    return CrossValidation.of(np.asarray(residual, dtype=float), np.asarray(residual, dtype=float), FOLDS)
+def _cv(residual, folds=None, converged=None, exact=True):
+    r = np.asarray(residual, dtype=float)
+    folds = folds or _folds(r.size, (0,))
+    ok = converged if converged is not None else (True,) * folds.count
+    return CrossValidation.of(r, r, folds, ok, exact)
 
 
-def _judge(g, t_min=3.0, noise_um=0.0, min_share=0.1):
-    return judge("add", ("x",), ("x",), (), g, t_min=t_min, noise_um=noise_um, min_share=min_share, unknowns=1)
+def _judge(g, lvl=1e-3, noise_um=0.0, min_share=0.1):
+    return judge("add", ("x",), ("x",), (), g, level_=lvl, noise_um=noise_um, min_share=min_share, unknowns=1)
 
 
-def test_fold_slices_cover_the_record_once():
-    slices = fold_slices(1003, 4)
-    assert [s.start for s in slices] == [0, *[s.stop for s in slices[:-1]]]
-    assert slices[-1].stop == 1003
-    assert max(s.stop - s.start for s in slices) - min(s.stop - s.start for s in slices) <= 1
+def test_folds_predict_every_sample_after_the_first_origin_once_each_from_its_past():
+    folds = _folds(1000, (400, 550, 700, 850))
+    covered = np.zeros(1000, dtype=int)
+    for k in range(folds.count):
+        covered[folds.test(k)] += 1
+        # A fold is refitted on the record before what it predicts.
+        assert folds.train(k) == slice(0, folds.test(k).start)
+    assert (covered[:400] == 0).all() and (covered[400:] == 1).all()
+    assert folds.tested == slice(400, 1000) and folds.count == 4
+    assert folds.mask((True, False, True, True)).sum() == 600 - 150
 
 
-def _plain_refits(record, fit, folds):
-    """Each block's held-out residual from the model refitted without it, written out
-    here from the extended fit alone, and whether each refit converged."""
-    n = len(record)
-    held, ok = np.empty(n), []
-    for sl in fold_slices(n, folds):
-        weights = np.ones(n)
-        weights[sl] = 0.0
-        out = solve_extended_record(record, fit.params, fit.effects, fit.h0, max_nfev=200, weights=weights)
-        held[sl] = record.x[sl] - out.x[sl]
-        ok.append(out.fit.success)
-    return held, ok
+def test_a_rest_adds_no_excitation_and_a_step_adds_its_jump():
+    dt, n = 1e-3, 4000
+    u = np.where(np.arange(n) < 3000, 10.0, 50.0)
+    u = u + np.random.default_rng(0).normal(0.0, 0.002, n)  # a logged voltage: noise at rest too
+    m = excitation(validate_record(u, np.zeros(n), dt))
+    assert m[0] == 0.0 and m[-1] == pytest.approx(1.0)
+    assert np.all(np.diff(m) >= 0)
+    # Before the step only time counts (half of M), after it the travel is all there.
+    assert m[2990] == pytest.approx(0.5 * 2990 / (n - 1), abs=1e-3)
+    assert m[3010] - m[2990] == pytest.approx(0.5 + 0.5 * 20 / (n - 1), abs=1e-3)
 
 
-def test_the_held_out_error_is_that_of_refits_without_each_block():
-    # A paper-model record with a drift, 1 kHz.
+def test_the_first_origin_holds_on_average_the_asked_share_of_the_information_about_each_unknown():
+    rng = np.random.default_rng(1)
+    n = 2000
+    # Two unknowns: one told by every sample, one only by the last quarter.
+    jac = np.column_stack([np.ones(n), np.where(np.arange(n) >= 1500, rng.normal(size=n), 0.0)])
+    k = informed(jac, 0.5)
+    # Shares at k: the first k/n, the second (k − 1500)/500 once past 1500; their mean is ½.
+    first, second = k / n, max(0.0, (k - 1500) / 500)
+    assert 0.5 * (first + second) == pytest.approx(0.5, abs=0.02)
+    assert 1500 < k < 1750
+    record = validate_record(np.linspace(0.0, 10.0, n), np.zeros(n), 1e-3)
+    folds = Folds.of(record, 4, 0.5, jac)
+    assert folds.origins[0] == k and folds.count == 4 and list(folds.origins) == sorted(set(folds.origins))
+
+
+def test_the_dependence_length_of_white_noise_is_short_and_grows_with_correlation():
+    rng = np.random.default_rng(2)
+    white = rng.normal(size=20000)
+    assert dependence_length(white) <= 8
+    phi = 0.95
+    ar = np.zeros(20000)
+    for i in range(1, ar.size):
+        ar[i] = phi * ar[i - 1] + white[i]
+    # τ_int of an AR(1) is (1 + φ)/(1 − φ) = 39; Sokal's window is about five times it.
+    assert 100 <= dependence_length(ar) <= 400
+
+
+def test_the_gain_is_the_mean_loss_difference_with_the_noise_of_e_times_delta():
+    rng = np.random.default_rng(3)
+    n = 4000
+    delta = 0.05 * np.sin(np.linspace(0.0, 40.0, n))
+    cand = rng.normal(0.0, 0.01, n)
+    ref = cand + delta
+    g = gain(_cv(cand), _cv(ref))
+    assert g.mean_um2 == pytest.approx(np.mean(ref**2 - cand**2))
+    assert g.reference_mse_um2 == pytest.approx(np.mean(ref**2))
+    # White e: Var(mean d) = 4·σ²·Σδ²/n² up to the window's few lags.
+    expected = 2.0 * np.std(cand) * np.sqrt(np.sum(delta**2)) / n
+    assert g.se_um2 == pytest.approx(expected, rel=0.1)
+    assert g.statistic == pytest.approx(g.mean_um2 / g.se_um2)
+    assert g.dof > n / 10
+    flipped = gain(_cv(ref), _cv(cand))
+    assert flipped.mean_um2 == pytest.approx(-g.mean_um2) and flipped.statistic == pytest.approx(-g.statistic)
+
+
+def test_under_the_null_the_test_accepts_at_most_its_level_on_white_and_correlated_noise():
+    # Two models that predict equally well (a spurious difference δ of either sign), the
+    # residual white or autocorrelated: the share of accepts at level 5 % stays near 5 %.
+    rng = np.random.default_rng(4)
+    n, trials, lvl = 3000, 400, 0.05
+    for phi in (0.0, 0.9):
+        accepts = 0
+        for _ in range(trials):
+            w = rng.normal(0.0, 0.01, n)
+            e = w.copy()
+            for i in range(1, n):
+                e[i] = phi * e[i - 1] + w[i]
+            delta = 0.002 * rng.normal() * np.sin(np.linspace(0.0, rng.uniform(5, 50), n) + rng.uniform(0, 6))
+            g = gain(_cv(e - delta / 2), _cv(e + delta / 2))
+            accepts += g.statistic > threshold(lvl, g.dof)
+        assert accepts / trials <= lvl + 0.03
+
+
+def test_a_large_gain_held_by_one_transient_counts_by_its_size():
+    # The evidence of a step's relaxation lies in a few hundred samples of a long record:
+    # against white noise it is significant (the issue of a t over sixteen batches).
     rng = np.random.default_rng(5)
+    n = 20000
+    noise = rng.normal(0.0, 0.005, n)
+    relax = np.zeros(n)
+    relax[10000:10400] = 0.05 * np.exp(-np.arange(400) / 100.0)
+    g = gain(_cv(noise), _cv(noise + relax))
+    assert g.statistic > threshold(level(0.05, 12, 4), g.dof)
+
+
+def test_a_slow_gain_that_follows_a_slow_residual_is_weighed_by_few_independent_terms():
+    # A candidate that bends with a slow drift the reference leaves: the drift's own
+    # dependence makes the gain a few independent terms, not thousands.
+    rng = np.random.default_rng(6)
+    n = 20000
+    t = np.linspace(0.0, 1.0, n)
+    drift = 0.05 * np.sin(2 * np.pi * 1.5 * t + 1.0)
+    white = rng.normal(0.0, 0.005, n)
+    ref = drift + white
+    cand = drift * 0.8 + white
+    g = gain(_cv(cand), _cv(ref))
+    fast = gain(_cv(white), _cv(white + 0.2 * drift * np.sign(np.sin(2 * np.pi * 400 * t))))
+    assert g.dof < 100 < fast.dof
+
+
+def test_min_share_a_significant_gain_must_remove_a_share_of_the_error_beyond_the_noise():
+    rng = np.random.default_rng(7)
+    n = 8000
+    noise = rng.normal(0.0, 0.01, n)
+    misfit = 0.05 * np.sin(np.linspace(0, 30, n))
+    ref = noise + misfit
+    small = noise + 0.97 * misfit
+    g = gain(_cv(small), _cv(ref))
+    verdict = _judge(g, noise_um=0.01)
+    assert g.statistic > verdict.threshold and not verdict.accepted and "beyond the noise" in verdict.reason
+    assert _judge(gain(_cv(noise + 0.3 * misfit), _cv(ref)), noise_um=0.01).accepted
+
+
+def test_a_gain_no_fold_can_give_never_accepts():
+    ref, cand = np.ones(100), np.zeros(100)
+    folds = Folds(100, (50,))
+    none = gain(_cv(cand, folds, (False,)), _cv(ref, folds))
+    verdict = _judge(none)
+    assert not verdict.accepted and "cannot judge" in verdict.reason
+
+
+def test_a_fold_whose_refit_did_not_converge_is_left_out_of_the_comparison():
+    rng = np.random.default_rng(8)
+    folds = Folds(2000, (0, 1000))
+    ref, cand = rng.normal(0.0, 2.0, 2000), rng.normal(0.0, 1.0, 2000)
+    left = gain(_cv(cand, folds), _cv(ref, folds, (False, True)))
+    assert left.samples == 1000
+    assert left.mean_um2 == pytest.approx(np.mean(ref[1000:] ** 2) - np.mean(cand[1000:] ** 2))
+    assert np.isnan(left.fold_um2[0])
+
+
+def test_the_level_spends_alpha_over_every_move_of_every_round():
+    assert level(0.05, 10, 1) == pytest.approx(0.05 / 20) and level(0.05, 10, 3) == pytest.approx(0.05 / 80)
+    # However many rounds a search takes, of however many moves, it spends at most α.
+    assert sum(level(0.05, m, r) * m for r, m in enumerate([11, 12, 9, 13, 10, 8, 12, 11, 10, 9], start=1)) < 0.05
+    assert threshold(level(0.05, 20, 1), 1000) > threshold(level(0.05, 10, 1), 1000)
+    assert level(0.05, 4) == pytest.approx(0.05 / 4)
+    assert threshold(0.01, 5) > threshold(0.01, 1000)
+
+
+def test_two_candidates_within_the_margin_are_not_apart():
+    rng = np.random.default_rng(9)
+    n = 4000
+    noise = rng.normal(0.0, 0.01, n)
+    a, b = noise + 1e-4, noise - 1e-4
+    assert not apart(_cv(a), _cv(b), 1e-3)
+    assert apart(_cv(noise), _cv(noise + 0.05 * np.sin(np.linspace(0, 50, n))), 1e-3)
+
+
+def _record_with_drift(seed=5):
+    rng = np.random.default_rng(seed)
     dt, n = 1e-3, 3000
     t = np.arange(n) * dt
     u = 50.0 + 40.0 * np.sin(2 * np.pi * 2 * t)
     drift = EffectSet(drift={"rate_um_per_s": 0.3})
     x = simulate_extended(Params.paper_1hz(), drift, u, dt) + rng.normal(0.0, 0.005, n)
-    record = validate_record(u, x, dt)
+    return validate_record(u, x, dt), drift
+
+
+def test_the_held_out_error_is_that_of_refits_on_the_past_written_out_here():
+    record, drift = _record_with_drift()
     conv = fits.Convergence()
     fit = fits.refit(record, ExtendedFit(Params.paper_1hz(), drift, 0.0, 0, 0, 0, True), drift, conv)
-    model = fits.scored(record, fits.solved_at(record, fit), 4, conv)
-    held, ok = _plain_refits(record, fit, 4)
-    assert all(ok) and all(model.cv.converged)
-    np.testing.assert_allclose(model.cv.residual, held, atol=1e-3 * float(np.std(x)))
-    assert model.cv.rms_um > model.cv.in_sample_rms_um
-    # A block of pure offset added to the record is not absorbed by a model that did not
-    # see it.
-    bumped = x.copy()
-    bumped[:750] += 0.05
-    rec2 = validate_record(u, bumped, dt)
-    m2 = fits.scored(rec2, fits.solved_at(rec2, fits.refit(rec2, fit, drift, conv)), 4, conv)
-    assert m2.cv.fold_rms_um[0] > 2 * m2.cv.in_sample_rms_um
-
-
-def test_a_block_whose_refit_does_not_converge_is_left_out_of_the_comparison():
-    rng = np.random.default_rng(6)
-    n = 1600
-    ref, cand = rng.normal(0.0, 2.0, n), rng.normal(0.0, 1.0, n)
-    both = gain(_cv(cand), _cv(ref), FOLDS, BATCHES)
-    bad = CrossValidation.of(ref, ref, FOLDS, (False, True, True, True))
-    left = gain(_cv(cand), bad, FOLDS, BATCHES)
-    keep = np.concatenate([np.arange(n)[sl] for sl in fold_slices(n, FOLDS)[1:]])
-    assert left.mean_um2 == pytest.approx(np.mean(ref[keep] ** 2) - np.mean(cand[keep] ** 2))
-    assert left.mean_um2 != pytest.approx(both.mean_um2)
-    assert bad.rms_um == pytest.approx(np.sqrt(np.mean(ref[keep] ** 2)))
-    none = CrossValidation.of(ref, ref, FOLDS, (False,) * FOLDS)
-    verdict = _judge(gain(_cv(cand), none, FOLDS, BATCHES))
-    assert not verdict.accepted and "cannot judge" in verdict.reason
-
-
-def test_the_gain_is_the_mean_log_ratio_over_batches_with_its_batch_means_error():
-    rng = np.random.default_rng(0)
-    n = 1600
-    ref = rng.normal(0.0, 2.0, n)
-    cand = rng.normal(0.0, 1.0, n)
-    g = gain(_cv(cand), _cv(ref), FOLDS, BATCHES)
-    batches = fold_slices(n, BATCHES)
-    ratios = [np.log(np.mean(ref[b] ** 2) / np.mean(cand[b] ** 2)) for b in batches]
-    assert g.log_ratio == pytest.approx(np.mean(ratios))
-    assert g.se == pytest.approx(np.std(ratios, ddof=1) / np.sqrt(BATCHES))
-    assert g.t == pytest.approx(g.log_ratio / g.se)
-    assert g.mean_um2 == pytest.approx(np.mean(ref**2) - np.mean(cand**2))
-    assert len(g.fold_um2) == FOLDS and sum(g.fold_um2) == pytest.approx(FOLDS * g.mean_um2, rel=1e-9)
-    # Swapping the two models flips the sign.
-    back = gain(_cv(ref), _cv(cand), FOLDS, BATCHES)
-    assert back.t == pytest.approx(-g.t) and back.mean_um2 == pytest.approx(-g.mean_um2)
-
-
-def test_a_gain_in_one_batch_is_not_significant_but_a_gain_in_every_batch_is():
-    rng = np.random.default_rng(1)
-    n = 1600
-    ref = rng.normal(0.0, 1.0, n)
-    local = ref.copy()
-    local[:100] *= 0.1  # one batch of sixteen predicted better
-    everywhere = 0.7 * ref
-    t_min = threshold(0.05, 10, BATCHES)
-    assert not _judge(gain(_cv(local), _cv(ref), FOLDS, BATCHES), t_min).accepted
-    assert _judge(gain(_cv(everywhere), _cv(ref), FOLDS, BATCHES), t_min).accepted
-
-
-def test_min_share_a_significant_gain_must_remove_a_share_of_the_error_beyond_the_noise():
-    rng = np.random.default_rng(2)
-    n = 1600
-    noise = rng.normal(0.0, 1.0, n)
-    ref = noise + 0.5 * np.sin(np.arange(n) * 0.3)  # beyond the noise: 0.125 µm²
-    small = noise + 0.49 * np.sin(np.arange(n) * 0.3)  # removes 4 % of it
-    large = noise + 0.2 * np.sin(np.arange(n) * 0.3)  # removes 84 % of it
-    t_min = 2.0
-    g_small = gain(_cv(small), _cv(ref), FOLDS, BATCHES)
-    g_large = gain(_cv(large), _cv(ref), FOLDS, BATCHES)
-    assert g_small.t > t_min and g_large.t > t_min
-    verdict = _judge(g_small, t_min, noise_um=1.0)
-    assert not verdict.accepted and "beyond the noise" in verdict.reason
-    assert _judge(g_small, t_min, noise_um=1.0, min_share=0.01).accepted
-    assert _judge(g_large, t_min, noise_um=1.0).accepted
-
-
-def test_the_threshold_rises_with_the_moves_of_a_round_and_falls_with_alpha():
-    assert threshold(0.05, 10, 16) > threshold(0.05, 1, 16) > threshold(0.2, 1, 16)
-    # One move at level α: the one-sided t quantile.
-    from scipy import stats
-
-    assert threshold(0.05, 1, 16) == pytest.approx(stats.t.ppf(0.95, 15))
-
-
-def test_two_candidates_within_the_margin_are_not_apart():
-    rng = np.random.default_rng(3)
-    n = 1600
-    a = rng.normal(0.0, 1.0, n)
-    b = a * (1.0 + 0.01 * rng.normal(size=n))
-    far = 3.0 * a
-    assert not apart(_cv(a), _cv(b), FOLDS, BATCHES, 3.0)
-    assert apart(_cv(a), _cv(far), FOLDS, BATCHES, 3.0)
-    assert apart(_cv(far), _cv(a), FOLDS, BATCHES, 3.0)
-
-
-@pytest.mark.parametrize("name", ["micromanipulator", "micromanipulator_compensated"])
-def test_the_reported_unseen_error_agrees_with_true_refits_on_measured_records(name):
-    try:
-        rec = datasets.load(name)
-    except datasets.DataNotFoundError as exc:
-        pytest.skip(str(exc))
-    record = validate_record(rec.u, rec.x, rec.dt)
-    d = diagnose(record.u, record.x, record.dt)
-    base = ExtendedFit(d.base_only.params, EffectSet(), d.base_only.h0_um, 0, 0, 0, True)
-    final = ExtendedFit(d.params, d.effect_set, d.h0_um, 0, 0, 0, True)
-    (held_base, ok_base), (held_final, ok_final) = _plain_refits(record, base, 4), _plain_refits(record, final, 4)
-    # The report compares the two models on the blocks where both refits converge (where
-    # one does not, the rest of the record does not determine that model); at most one
-    # block of four may be left out.
-    kept = [k for k in range(4) if ok_base[k] and ok_final[k]]
-    assert len(kept) >= 3, (name, ok_base, ok_final)
-    slices = fold_slices(len(record), 4)
-    for held, reported in ((held_base, d.unseen.cv_rms_before_um), (held_final, d.unseen.cv_rms_after_um)):
-        refitted = np.sqrt(np.mean(np.concatenate([held[slices[k]] for k in kept]) ** 2))
-        assert reported == pytest.approx(refitted, rel=0.05), (name, reported, refitted)
+    solved = fits.solved_at(record, fit)
+    folds = Folds.of(record, 4, 0.5, solved.jacobian)
+    model = fits.scored(record, solved, folds, conv, exact=True)
+    for k in range(folds.count):
+        weights = np.zeros(len(record))
+        weights[folds.train(k)] = 1.0
+        out = solve_extended_record(record, fit.params, fit.effects, fit.h0, max_nfev=200, weights=weights)
+        sl = folds.test(k)
+        np.testing.assert_allclose(model.cv.residual[sl], record.x[sl] - out.x[sl], atol=2e-3 * float(np.std(record.x)))
+    assert all(model.cv.converged) and folds.count == 4
+    assert np.isnan(model.cv.residual[: folds.origins[0]]).all()
+    # The screen (the refit's first step) lands where the refits do on this record.
+    screened = fits.scored(record, solved, folds, conv)
+    assert not screened.cv.exact and model.cv.exact
+    assert screened.cv.rms_um == pytest.approx(model.cv.rms_um, rel=0.02)

@@ -4,7 +4,7 @@ answer is known in closed form."""
 import numpy as np
 import pytest
 
-from boucwen.levenberg import STATISTICAL_MARGIN
+from boucwen.levenberg import STATISTICAL_MARGIN, levenberg_marquardt
 from boucwen.lsq import (
     FAIL_RESIDUAL_UM,
     OutputErrorProblem,
@@ -125,3 +125,22 @@ def test_orthonormal_spans_the_basis():
     np.testing.assert_allclose(q.T @ q, np.eye(3), rtol=0, atol=1e-13)
     # The same span: projecting the basis onto it leaves it unchanged.
     np.testing.assert_allclose(q @ (q.T @ basis), basis, rtol=0, atol=1e-9 * float(np.abs(basis).max()))
+
+
+def test_a_jacobian_whose_normal_equations_overflow_stops_the_solver():
+    # Finite entries whose squares overflow (a model driven far out): no step is solved
+    # from them, and the solver says why instead of failing inside the eigensolver.
+    def linearise(z):
+        return np.array([1.0]), np.array([[1e200]])
+
+    res = levenberg_marquardt(
+        lambda z: np.array([1.0]),
+        linearise,
+        np.array([1.0]),
+        np.array([-np.inf]),
+        np.array([np.inf]),
+        x_scale=1.0,
+        tol=1e-10,
+        max_nfev=10,
+    )
+    assert not res.success and res.message == "the start cannot be linearised"

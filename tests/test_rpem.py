@@ -122,7 +122,7 @@ def test_method_name_options_and_bad_options():
         max_trace=0.5,
         max_step=0.005,
         n_bounds=(1.0, 3.0),
-        margin=0.0,
+        margin=1e-9,
         offset_walk_um=0.01,
         max_offset_step_um=0.1,
     )
@@ -134,6 +134,7 @@ def test_method_name_options_and_bad_options():
         dict(p0=-1.0),
         dict(noise_um2=math.nan),
         dict(n_bounds=(0.0, 3.0)),
+        dict(margin=0.0),
         dict(memory_travel_v=0.0),
         dict(max_step=0.0),
         dict(offset_walk_um=-1.0),

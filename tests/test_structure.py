@@ -1,9 +1,9 @@
 """The other structure, found and not told: the diagnosis returns the hysteretic
 oscillator where the hysteresis is driven by the output's motion (a generated record,
 and the Bouc–Wen benchmark's training record, shortened, through the shell), and reads a
-force record's columns in their units. That piezo records never get the oscillator is
-checked on the generated suite (tests/test_diagnosis_suite.py, check
-``oscillator_named``) and on the measured records (the measured benchmark's target
+force record's columns in their units; on a piezo record it is one more move, judged and
+refuted. That piezo records never get the oscillator is checked on the generated suite
+(tests/test_diagnosis_suite.py, check ``oscillator_named``) and on the measured records (the measured benchmark's target
 ``piezo_records_input_driven``)."""
 
 import json
@@ -76,7 +76,7 @@ def test_the_benchmark_record_from_the_shell_names_the_oscillator(tmp_path, caps
     assert doc["rms_after_um"] < 2.0 * doc["evidence"]["noise_um"]
 
 
-def test_a_piezo_record_keeps_the_input_driven_model_and_does_not_try_the_oscillator_without_a_mode():
+def test_a_piezo_record_keeps_the_input_driven_model_the_oscillator_tried_and_refuted():
     from boucwen import EffectSet, Params, simulate_extended
 
     dt = 1e-4
@@ -84,6 +84,10 @@ def test_a_piezo_record_keeps_the_input_driven_model_and_does_not_try_the_oscill
     u = 50 - 40 * np.cos(2 * np.pi * 10 * t)
     x = simulate_extended(Params.paper_1hz(), EffectSet(creep={"tau_s": [0.02], "gain_um_per_v": [0.01]}), u, dt)
     d = diagnose(u, x + np.random.default_rng(1).normal(0, 0.005, u.size), dt)
-    assert d.structure is None
-    assert d.evidence["structure"]["tried"] is False
-    assert "no mode" in d.evidence["structure"]["why"]
+    assert d.structure is None and "creep" in d.effects
+    # The other structure is one more move of every round: judged, never taken, and
+    # refuted against the model returned.
+    tried = [x for x in d.decisions if x.move == "structure"]
+    assert tried and not tried[-1].accepted and tried[-1].gain.statistic < 0
+    assert all(x.move != "structure" for x in d.taken)
+    assert d.evidence["structure"]["tried"] is True

@@ -19,6 +19,7 @@ def quick_run(tmp_path_factory):
         return json.load(fh)
 
 
+@pytest.mark.slow  # the tracking experiment (a module fixture)
 def test_required_targets_hold(quick_run):
     required = [t for t in quick_run["targets"] if t["required"]]
     # >= 10x and >= 5x, beats the fixed inverse at 10/50/100/200 Hz, <= 1 % at 1-100 Hz
@@ -28,6 +29,7 @@ def test_required_targets_hold(quick_run):
     assert not missed, missed
 
 
+@pytest.mark.slow  # the tracking experiment (a module fixture)
 def test_results_hold_every_method_reference_and_bench(quick_run):
     refs = track.references(quick=True)
     for bench in track.BENCHES:

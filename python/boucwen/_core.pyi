@@ -154,6 +154,10 @@ class Params:
     @property
     def delta(self) -> float:
         """Asymmetry δ [µm/(V·s)], weight of the u·sgn(u̇) term."""
+    def check_admissible(self) -> None:
+        """Raises ``InvalidParams`` (one line naming the combination and its value) unless
+        the parameters are in the admissible region, where h stays bounded: β + γ ≥ 0
+        and β − γ ≥ 0, both > 0 where δ ≠ 0 (docs/design.md, "The admissible region")."""
     def to_array(self) -> NDArray[np.float64]:
         """``[kv, x0, A, beta, gamma, n, delta]`` as a new float64 array."""
     @staticmethod

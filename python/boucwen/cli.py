@@ -12,10 +12,12 @@ Subcommands:
   record without time, ``--resample DT`` puts non-uniform time stamps on a uniform grid.
   A file of :mod:`boucwen.datasets` (e.g. ``Model_Vi_Do.dat``) is read as that record.
 * ``boucwen identify DATA.csv [--method horizon|rpem|paper] [--refine sync|cooperative|background]
-  [--init M.json] --out TRACE.csv [--plot FIG.png] [--model M.json]``: replays a record
-  through the online identifier (:mod:`boucwen.replay`); writes each sample's prediction,
-  estimates and status; prints the block-ahead error of the identified model beside the
-  fixed starting model's.
+  [--init M.json | --init-length S] --out TRACE.csv [--plot FIG.png] [--model M.json]``:
+  replays a record through the online identifier (:mod:`boucwen.replay`); writes each
+  sample's prediction, estimates and status; prints the block-ahead error of the
+  identified model beside the fixed starting model's. Without ``--init`` the starting
+  model is fitted on the record's first stretch with excitation (from where u starts to
+  move, :func:`boucwen.record.motion_onset`), and the samples it used are printed.
 * ``boucwen invert --model M.json --target XD.csv --out U.csv [--u-min V] [--u-max V]``:
   the feedforward voltage for a desired displacement, through the model's effects where
   they have an inverse; prints the predicted tracking error, the limit hits and the
@@ -356,7 +358,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     unseen = result.unseen
     if unseen is not None:
         print(
-            f"unseen data ({unseen.folds}-fold blocked cross-validation): rms {unseen.cv_rms_before_um:.4g} um "
+            f"unseen data ({unseen.folds} forward folds): rms {unseen.cv_rms_before_um:.4g} um "
             f"(base model) -> {unseen.cv_rms_after_um:.4g} um (returned model)"
         )
         on_val = unseen.validation
@@ -368,6 +370,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             )
     for b in result.at_bounds:
         print(f"on a bound of the fit: {b.parameter} = {b.value:.4g} ({b.side} bound {b.bound:.4g})")
+    if result.boundedness is not None:
+        print(f"returned model: {result.boundedness.summary()}")
     taken = ", ".join(x.label for x in result.taken) or "none"
     print(f"moves judged: {len(result.decisions)}; taken, in order: {taken}")
     if result.unexplained is not None:
@@ -415,10 +419,11 @@ def _add_diagnose(sub: _Subparsers) -> None:
         "diagnose",
         help="find which effect the base model misses in a record",
         description="Fits the base model, then adds, drops and swaps effects of the "
-        "vocabulary while a move improves the error on held-out blocks of the record "
-        "(blocked cross-validation, every fit converged) by more than its sampling "
-        "error; reports the error before and after [um], the rivals the record cannot "
-        "tell apart, and what is left unexplained.",
+        "vocabulary (or replaces the model by the hysteretic oscillator) while a move "
+        "improves the prediction of samples its refits did not see (each fold refitted on "
+        "the record before it) by more than its sampling error; reports the error before "
+        "and after [um], the rivals the record cannot tell apart, and what is left "
+        "unexplained.",
     )
     p.add_argument("data", nargs="?", default=None, help=_DATA_HELP)
     _add_record_options(p)
@@ -468,7 +473,10 @@ def _add_diagnose(sub: _Subparsers) -> None:
 
 # --------------------------------------------------------------------------- identify
 
-#: Share of a record fitted offline for the starting model of ``identify`` without ``--init``.
+#: Length of the stretch fitted offline for the starting model of ``identify`` without
+#: ``--init``, as a share of the record's duration (``--init-length`` sets it in s): a
+#: fifth leaves most of the record to score the online identifier on, and on a record of
+#: a few periods of its input it holds at least one of them.
 IDENTIFY_INIT_SHARE = 0.2
 
 
@@ -483,12 +491,58 @@ def _load_model(path: str) -> SavedModel:
     return model
 
 
+def _starting_fit(args: argparse.Namespace, rec: Record) -> tuple[SavedModel, int]:
+    """The starting model of ``identify`` without ``--init``: :func:`boucwen.fit` on the
+    record's first stretch with excitation (from the last sample at rest before u first
+    moves, :func:`boucwen.record.motion_onset`, ``--init-length`` seconds long), and the
+    sample after that stretch (the scores leave the stretch out). Says what it used."""
+    from ._core import EffectSet, InvalidConfig, InvalidRecord
+    from .fit import fit
+    from .model_file import ModelSource, SavedModel
+    from .record import motion_onset
+
+    n = len(rec)
+    onset = motion_onset(rec.u)
+    if not onset.moves(n):
+        raise InvalidRecord(
+            f"u stays within ±{onset.band_v:.3g} V of its first sample over the whole record "
+            "(at rest): the starting fit needs a varying voltage (or give --init M.json)"
+        )
+    if args.init_length is None:
+        length_s = IDENTIFY_INIT_SHARE * n * rec.dt
+        chosen = f"{IDENTIFY_INIT_SHARE:.0%} of the record's duration; set it with --init-length S"
+    else:
+        if not args.init_length > 0.0:
+            raise InvalidConfig(f"--init-length must be > 0 s, got {args.init_length!r}")
+        length_s, chosen = args.init_length, "--init-length"
+    start = onset.start
+    stop = min(n, start + max(1, round(length_s / rec.dt)))
+    if stop - start < 16:
+        raise InvalidConfig(
+            f"the starting fit's stretch holds {stop - start} samples (from sample {start}, where u starts to move); "
+            "it needs at least 16: give a longer --init-length or --init M.json"
+        )
+    if onset.start > 0:
+        print(
+            f"u at rest for the first {onset.start + 1} samples (t = {rec.t[0]:.6g} to {rec.t[onset.start]:.6g} s, "
+            f"within ±{onset.band_v:.3g} V of {rec.u[0]:.6g} V); it starts to move after sample {onset.start}"
+        )
+    result = fit(rec.u[start:stop], rec.x[start:stop], rec.dt, seed=args.seed, progress=args.progress)
+    init = SavedModel(result.params, result.h0, rec.dt, EffectSet(), ModelSource.of_record(rec, "fit"))
+    print(
+        f"starting model: boucwen.fit on samples {start} to {stop - 1} ({stop - start} samples, "
+        f"t = {rec.t[start]:.6g} to {rec.t[stop - 1]:.6g} s: {(stop - start) * rec.dt:.6g} s from where u starts to "
+        f"move, {chosen}), output error rms {result.rms_um:.4g} µm there; it is also the fixed model "
+        "(give one with --init M.json)"
+    )
+    return init, stop
+
+
 def _cmd_identify(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .io import write_csv
     from .metrics import max_abs, rms
-    from .model_file import ModelSource, SavedModel
     from .pacing import refine_mode
     from .replay import check_options, replay
 
@@ -496,6 +550,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         _prepare_output(path)
     refine = refine_mode(args.refine)
     check_options(args.method, refine, args.window)
+    if args.init is not None and args.init_length is not None:
+        raise ValueError("--init-length sets the starting fit's stretch; --init M.json gives the model instead")
     rec = _read_record(args)
     n = len(rec)
     print(f"{rec.name}: {n} samples, dt = {rec.dt:.6g} s")
@@ -504,20 +560,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         _check_rate(init, rec.dt)
         scored_from = 0
     else:
-        from ._core import EffectSet
-        from .fit import fit
-
-        k = round(IDENTIFY_INIT_SHARE * n)
-        if k < 3 or k >= n:
-            raise ValueError(f"{n} samples are too few to fit a starting model on the first {IDENTIFY_INIT_SHARE:.0%}")
-        result = fit(rec.u[:k], rec.x[:k], rec.dt, seed=args.seed, progress=args.progress)
-        init = SavedModel(result.params, result.h0, rec.dt, EffectSet(), ModelSource.of_record(rec, "fit"))
-        print(
-            f"starting model: boucwen.fit on the first {k} samples ({IDENTIFY_INIT_SHARE:.0%}, "
-            f"{rec.t[0]:.6g} to {rec.t[k - 1]:.6g} s), output error rms {result.rms_um:.4g} µm there; "
-            "it is also the fixed model (give one with --init M.json)"
-        )
-        scored_from = k
+        init, scored_from = _starting_fit(args, rec)
     if refine == "background":
         print(f"background refine: the record is replayed at its own sample rate ({rec.duration_s:.1f} s)")
     r, dropped = replay(rec, init, method=args.method, refine=refine, window=args.window, block=args.block)
@@ -602,8 +645,16 @@ def _add_identify(sub: _Subparsers) -> None:
         "--init",
         metavar="M.json",
         default=None,
-        help="starting (and fixed) model; default: boucwen.fit on the first "
-        f"{IDENTIFY_INIT_SHARE:.0%} of the record, which the scores then leave out",
+        help="starting (and fixed) model; default: boucwen.fit on the record's first stretch with excitation "
+        "(from where u starts to move, --init-length long), which the scores then leave out",
+    )
+    p.add_argument(
+        "--init-length",
+        type=float,
+        metavar="S",
+        default=None,
+        help=f"length of the starting fit's stretch [s] (default {100 * IDENTIFY_INIT_SHARE:g} %% of the record's "
+        "duration)",
     )
     p.add_argument("--out", required=True, metavar="TRACE.csv", help="per-sample trace (written)")
     p.add_argument("--plot", metavar="FIG.png", default=None, help="also draw the estimates and the errors over time")

@@ -53,7 +53,8 @@ class HorizonConfig:
     fc_bounds_hz: tuple[float, float] = _HORIZON["fc_bounds_hz"]
     """With an identified input lag, its corner frequency is held within these bounds [Hz]."""
     margin: float = _HORIZON["margin"]
-    """β + γ and β − γ are held at or above this [µm^(1−n)/V]."""
+    """β + γ and β − γ are held at or above this [µm^(1−n)/V] (> 0: inside the admissible
+    region, where the δ term is dissipated on both branches of the loop)."""
     scales: tuple[float, ...] = tuple(_HORIZON["scales"])
     """Scale of kv, x0, A, β, γ, n, δ and of the window's initial h [µm]."""
 
@@ -96,7 +97,8 @@ class RpemConfig:
     n_bounds: tuple[float, float] = _RPEM["n_bounds"]
     """n is held within these bounds [-]."""
     margin: float = _RPEM["margin"]
-    """β + γ and β − γ are held at or above this [µm^(1−n)/V]."""
+    """β + γ and β − γ are held at or above this [µm^(1−n)/V] (> 0: inside the admissible
+    region, where the δ term is dissipated on both branches of the loop)."""
     scales: tuple[float, ...] = tuple(_RPEM["scales"])
     """Scale of kv, x0, A, β, γ, n, δ in their units (the update works on θᵢ/scaleᵢ)."""
     creep_gain_scale_um_per_v: float = _RPEM["creep_gain_scale_um_per_v"]

@@ -18,16 +18,21 @@ How it works:
   linear least-squares fit of x − h on [u, 1]; the optimiser only sees the
   residual projected off span{u, 1} (variable projection), six unknowns instead
   of eight and no starting point needed for kv, x0.
+* **The admissible region.** The unknowns are β + γ and β − γ rather than β and γ,
+  each bounded below by 0, so that the solver cannot leave the region where h stays
+  bounded (:mod:`boucwen.region`; docs/design.md, "The admissible region"). A start
+  outside it (``init``) is refused.
 * **Scaling.** Every unknown is divided by a scale derived from the record (the
-  loop's slope for A, its half-width for h0, A/half-width^1.5 for β and γ, the
-  half-width per volt-second of travel for δ), so that β, γ ~ 1e-2 and δ ~ 1e-3
-  weigh like A and n.
+  loop's slope for A, its half-width for h0, A/half-width^1.5 for β and γ — √2 times
+  that for β ± γ, so that the scaled pair is an orthogonal transform of the scaled
+  (β, γ) and a step inside the region is the same in either — the half-width per
+  volt-second of travel for δ), so that β, γ ~ 1e-2 and δ ~ 1e-3 weigh like A and n.
 * **Global stage, then local.** ``n_candidates`` random points around those
   scales (sign of A either way, n in [1, 2.5], β and γ set from a saturation
   level of h between 0.3 and 3 half-widths, δ of either sign) are scored by one
   simulation each on a decimated copy of the record; the best ``n_starts`` (plus
-  ``init`` if given) are refined by ``scipy.optimize.least_squares`` (trust-region
-  reflective, bounds keep n in ``N_BOUNDS``) on the decimated record, and the best
+  ``init`` if given) are refined by the local solver (bounds keep n in ``N_BOUNDS``
+  and β ± γ ≥ 0) on the decimated record, and the best
   of those is refined on the full record. Residual, Jacobian (exact, from the Rust
   core in one pass with the simulation) and optimiser are those of :mod:`boucwen.lsq`,
   shared with :func:`boucwen.effects.fit_extended`.
@@ -36,6 +41,12 @@ How it works:
   initial transient; a weak pull of weight ``H0_RIDGE`` towards 0 keeps it defined
   when the record carries no information on it (e.g. it starts in periodic steady
   state). Pass ``h0=0.0`` (or any value) to fix it instead.
+* **δ within its limit.** The δ term acts per second of motion, not per volt
+  (docs/design.md, "The admissible region"), so a δ the record's fast moves ask for drives
+  h on a slow input of the same range. δ is kept within :func:`record_delta_limit`: at
+  the slowest full-range sweep the record's length allows, the term may add at most
+  :data:`~boucwen.region.DELTA_RATIO` times what the loop's slope adds per volt (beyond,
+  it stands in for something else and drives h alone on slow inputs).
 """
 
 from __future__ import annotations
@@ -64,8 +75,9 @@ from .lsq import (
 from .metrics import max_abs, rms
 from .progress import Progress, reporter
 from .record import Record, validate_record
+from .region import SPLIT_JACOBIAN, check, delta_limit, pair, split
 
-__all__ = ["H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record"]
+__all__ = ["H0_RIDGE", "N_BOUNDS", "FitResult", "fit", "fit_record", "record_delta_limit"]
 
 #: Bounds on the exponent n [-] during the fit.
 N_BOUNDS = (0.2, 6.0)
@@ -141,7 +153,8 @@ class FitResult:
 class _Hysteresis:
     """The nonlinear part of the separable problem: scaled unknowns z → h [µm].
 
-    z holds (A, β, γ, n, δ, h0) divided by ``scale`` (without h0 when it is fixed).
+    z holds (A, β + γ, β − γ, n, δ, h0) divided by ``scale`` (without h0 when it is
+    fixed); :meth:`theta` turns it into (A, β, γ, n, δ, h0).
     """
 
     def __init__(self, u: FloatArray, dt: float, scale: FloatArray, fixed_h0: float | None):
@@ -169,6 +182,7 @@ class _Hysteresis:
         """Scaled unknowns → (A, β, γ, n, δ, h0)."""
         th = np.empty(6)
         th[: self.nvar] = z[: self.nvar] * self.scale[: self.nvar]
+        th[1], th[2] = split(th[1], th[2])
         if self.fixed_h0 is not None:
             th[5] = self.fixed_h0
         return th
@@ -206,9 +220,10 @@ class _Hysteresis:
             return None
         h, jac = out
         self._remember(z, h)
-        # Columns kv, x0, A, β, γ, n, δ, h0 of the core; z = θ / scale (scaled in place:
-        # no second array of the record's length).
+        # Columns kv, x0, A, β, γ, n, δ, h0 of the core; β, γ turned into β ± γ, and
+        # z = θ / scale (in place: no second array of the record's length).
         ds = jac[:, 2 : 2 + self.nvar]
+        ds[:, 1:3] = ds[:, 1:3] @ SPLIT_JACOBIAN
         ds *= self.scale[: self.nvar]
         return h, ds
 
@@ -242,7 +257,7 @@ def _linear_part(record: Record, h: FloatArray) -> tuple[float, float]:
 
 
 def _scales(u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
-    """Scale of (A, β, γ, n, δ, h0) derived from the record."""
+    """Scale of (A, β + γ, β − γ, n, δ, h0) derived from the record."""
     slope, intercept = _line(u, x)
     resid = x - (slope * u + intercept)
     span_x = float(np.ptp(x))
@@ -258,11 +273,22 @@ def _scales(u: FloatArray, x: FloatArray, dt: float) -> FloatArray:
     t_half = duration / max(1, reversals)
     u_level = max(float(np.mean(np.abs(u))), 0.5 * span_u)
     s_delta = half_width / (u_level * t_half)
-    return np.array([s_a, s_bg, s_bg, 1.0, s_delta, half_width])
+    # β ± γ at √2 times the scale of β and γ: the scaled pair is an orthogonal transform
+    # of the scaled (β, γ), so the trust region's metric is the same in either.
+    s_pair = math.sqrt(2.0) * s_bg
+    return np.array([s_a, s_pair, s_pair, 1.0, s_delta, half_width])
+
+
+def record_delta_limit(record: Record) -> float:
+    """The largest |δ| [µm/(V·s)] a fit allows on ``record``: :func:`boucwen.region.delta_limit`
+    with the record's loop slope scale (that of A in :func:`fit`)."""
+    u = record.u
+    slope = float(_scales(u, record.x, record.dt)[0])
+    return delta_limit(slope, float(np.ptp(u)), float(np.max(np.abs(u))), record.duration_s)
 
 
 def _candidates(rng: np.random.Generator, count: int, half_width: float) -> FloatArray:
-    """Random starting points in scaled units (A, β, γ, n, δ, h0)."""
+    """Random starting points in scaled units (A, β + γ, β − γ, n, δ, h0)."""
     z = np.zeros((count, 6))
     mag = np.exp(rng.uniform(math.log(0.05), math.log(2.0), count))
     z[:, 0] = rng.choice([-1.0, 1.0], count) * mag
@@ -271,10 +297,11 @@ def _candidates(rng: np.random.Generator, count: int, half_width: float) -> Floa
     # (the β scale already divides by half_width^1.5).
     hs = np.exp(rng.uniform(math.log(0.3), math.log(3.0), count))
     sigma = mag / hs ** z[:, 3] * half_width ** (1.5 - z[:, 3])
-    # β > |γ| (β + γ > 0 and β − γ > 0): h stays bounded for every input, so a
-    # candidate never sends the simulator to its |h| limit.
-    z[:, 1] = sigma * rng.uniform(0.05, 1.0, count)
-    z[:, 2] = z[:, 1] * rng.uniform(-0.95, 0.95, count)
+    # β > |γ| (β + γ > 0 and β − γ > 0): inside the admissible region, h stays bounded.
+    beta = sigma * rng.uniform(0.05, 1.0, count)
+    gamma = beta * rng.uniform(-0.95, 0.95, count)
+    # (β, γ) in units of their scale → (β ± γ) in units of √2 times it.
+    z[:, 1], z[:, 2] = (beta + gamma) / math.sqrt(2.0), (beta - gamma) / math.sqrt(2.0)
     z[:, 4] = rng.uniform(-1.0, 1.0, count)
     return z
 
@@ -300,15 +327,23 @@ def _local(
     tol: float,
     method: Method,
     margin: float = STATISTICAL_MARGIN,
+    delta_limit: float = math.inf,
 ) -> Solution:
-    """The local solver ``method`` from ``z0`` (n kept in :data:`N_BOUNDS`); with
-    ``"lm"``, a Jacobian is kept while it predicts the steps and the run stops where the
-    remaining step is within ``margin`` squared standard errors (:mod:`boucwen.levenberg`)."""
+    """The local solver ``method`` from ``z0`` (n kept in :data:`N_BOUNDS`, β ± γ ≥ 0: the
+    admissible region, |δ| ≤ ``delta_limit`` in scaled units); with ``"lm"``, a Jacobian
+    is kept while it predicts the steps and the run stops where the remaining step is
+    within ``margin`` squared standard errors (:mod:`boucwen.levenberg`)."""
     lb = np.full(nvar, -np.inf)
     ub = np.full(nvar, np.inf)
+    lb[1] = lb[2] = 0.0
     lb[3], ub[3] = N_BOUNDS
+    lb[4], ub[4] = -delta_limit, delta_limit
     z0 = z0[:nvar].copy()
     z0[3] = min(max(z0[3], N_BOUNDS[0] + 1e-9), N_BOUNDS[1] - 1e-9)
+    # A start on the region's edge (β ± γ = 0: a linear start) just inside it; a δ beyond
+    # its limit at it.
+    z0[1:3] = np.maximum(z0[1:3], 1e-9)
+    z0[4] = min(max(z0[4], -delta_limit * (1 - 1e-9)), delta_limit * (1 - 1e-9))
     return problem.solve(
         z0, lb, ub, x_scale=1.0, tol=tol, max_nfev=max_nfev, method=method, margin=margin, reuse_jacobian=True
     )
@@ -336,8 +371,9 @@ def fit(
         u: voltage samples [V], 1-D, finite, not constant, at least 16 samples.
         x: measured displacement [µm], same length as ``u``.
         dt: sampling interval [s] (> 0); u is taken as linear between samples.
-        init: optional starting parameters (e.g. from an earlier fit); always among
-            the starts of the local stage.
+        init: optional starting parameters (e.g. from an earlier fit), in the
+            admissible region (:mod:`boucwen.region`); always among the starts of the
+            local stage.
         h0: ``None`` (default) to identify h[0] [µm]; a number to fix it.
         n_starts: how many of the best global candidates are refined locally (≥ 1).
         n_candidates: random candidates scored in the global stage (≥ 0).
@@ -359,7 +395,8 @@ def fit(
     Raises:
         TypeError: non-numeric data or dt, or ``init`` not a Params.
         ValueError: bad shapes, lengths, non-finite values, dt not > 0, constant u,
-            fewer than 16 samples, or bad option values.
+            fewer than 16 samples, or bad option values; ``InvalidParams`` for an
+            ``init`` outside the admissible region.
     """
     return fit_record(
         validate_record(u, x, dt),
@@ -398,6 +435,8 @@ def fit_record(
         raise InvalidRecord("u is constant; the fit needs a varying voltage")
     if init is not None and not isinstance(init, Params):
         raise TypeError(f"init must be a boucwen.Params, got {type(init).__name__}")
+    if init is not None:
+        check(init)
     if h0 is not None:
         h0 = check_finite("h0", h0)
     check_int("n_starts", n_starts, 1)
@@ -412,6 +451,8 @@ def fit_record(
     u, x, dt = record.u, record.x, record.dt
     scale = _scales(u, x, dt)
     q = decimate if decimate is not None else _decimation(u)
+    # How far δ may go (scaled).
+    delta_z = record_delta_limit(record) / scale[4]
     with worker_threads(workers) as pool:
         full, hysteresis = _problem(record, scale, h0)
         coarse_record = record if q == 1 else record.decimated(q)
@@ -426,7 +467,8 @@ def fit_record(
             cands[:, 5] = h0 / scale[5]
         starts: list[FloatArray] = []
         if init is not None:
-            zi = np.array([init.A, init.beta, init.gamma, init.n, init.delta, h0 if h0 is not None else 0.0]) / scale
+            plus, minus = pair(init.beta, init.gamma)
+            zi = np.array([init.A, plus, minus, init.n, init.delta, h0 if h0 is not None else 0.0]) / scale
             starts.append(zi)
         if n_candidates:
             say(f"scoring {n_candidates} candidates on {coarse_u_size} samples (every {q}th)")
@@ -447,7 +489,7 @@ def fit_record(
             group = starts[first : first + batch]
 
             def local(z0: FloatArray) -> Solution:
-                return _local(coarse, nvar, z0, max_nfev, 1e-8, method, margin)
+                return _local(coarse, nvar, z0, max_nfev, 1e-8, method, margin, delta_z)
 
             results = list(pool.map(local, group)) if pool is not None and len(group) > 1 else [local(z) for z in group]
             for k, res in enumerate(results, start=first):
@@ -473,7 +515,7 @@ def fit_record(
         # record's, so one pass and a step or two usually reach it.
         if coarse is not full:
             say(f"refining on {u.size} samples")
-            final = _local(full, nvar, best.x, max_nfev, 1e-10, method)
+            final = _local(full, nvar, best.x, max_nfev, 1e-10, method, delta_limit=delta_z)
             say(f"full record: {final.nfev} steps")
             stage = "full record"
         else:

@@ -21,7 +21,10 @@ d² ≤ ``margin`` (default :data:`STATISTICAL_MARGIN`: the remaining step is at
 tenth of a standard error), with σ² estimated from the residual, σ̂² = ‖r‖²/(rows − p):
 further iterations would move the unknowns by less than the record can resolve and
 change the cost by at most ``margin``·σ̂², far below any difference a decision between
-models is made on. ``tol`` stops it earlier on noise-free records (relative change of
+models is made on. The same margin on the fall each step achieves stops it too: three
+accepted steps in a row that each lower ‖r‖² by less than ``margin``·σ̂² (a curved valley,
+along which the Gauss–Newton step keeps predicting a fall it never gives; SciPy's ``trf``
+is stopped the same way, its ``ftol``). ``tol`` stops it earlier on noise-free records (relative change of
 the cost or of the scaled unknowns below ``tol``); ``max_nfev`` bounds the number of
 trial points.
 
@@ -42,10 +45,11 @@ from typing import Callable, Optional
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import lsq_linear
 
 from .checks import FloatArray
 
-__all__ = ["STATISTICAL_MARGIN", "Solution", "levenberg_marquardt"]
+__all__ = ["STATISTICAL_MARGIN", "Solution", "first_step", "levenberg_marquardt"]
 
 #: Default stop: the remaining Gauss–Newton step is at most √0.01 = 0.1 standard error.
 STATISTICAL_MARGIN = 0.01
@@ -59,6 +63,11 @@ _KEEP_RHO = 0.75
 #: converges linearly, at a rate set by how far the Jacobian has drifted; a fresh one
 #: converges quadratically).
 _CHORD_RATE = 0.25
+
+#: Accepted steps in a row, each lowering the cost by less than the statistical margin,
+#: that stop the solver as converged: along a curved valley the Gauss–Newton step keeps
+#: predicting a fall the record would resolve while the steps achieve less than it can.
+_STALLED = 3
 
 #: Eigenvalues of the scaled H below this fraction of the largest are directions the
 #: record does not determine: no Gauss–Newton step along them.
@@ -97,7 +106,11 @@ class _Normal:
     diag(scale), diagonalised once: S·H·S = V·diag(w)·Vᵀ."""
 
     def __init__(self, jac: FloatArray, scale: FloatArray):
-        self.h = jac.T @ jac
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.h = jac.T @ jac
+        if not np.all(np.isfinite(self.h)):
+            # A finite Jacobian whose products overflow: no step can be solved from it.
+            raise FloatingPointError("the normal equations overflow")
         self.scale = scale
         w, self.v = np.linalg.eigh(self.h * scale[:, None] * scale[None, :])
         self.w = np.maximum(w, 0.0)
@@ -154,6 +167,65 @@ def _bounded(
     return step
 
 
+def _within(lower: FloatArray, upper: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The bounds the iterates keep to: a hair inside ``lower`` and ``upper``."""
+    span = np.where(np.isfinite(lower) & np.isfinite(upper), upper - lower, np.inf)
+    lo = lower + np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(lower), lower, 0.0))), 0.25 * span)
+    hi = upper - np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(upper), upper, 0.0))), 0.25 * span)
+    return lo, hi
+
+
+def _remaining(normal: _Normal, jac: FloatArray, g: FloatArray, at_lower: BoolArray, at_upper: BoolArray) -> float:
+    """The fall of the cost the Gauss–Newton step predicts, the unknowns that would leave
+    their bound held there."""
+    gauss_newton = normal.within(g, np.inf)[0]
+    if _held(gauss_newton, at_lower, at_upper).any():
+        gauss_newton = _bounded(normal, jac, g, np.inf, at_lower, at_upper)
+    return float(-(g @ gauss_newton))
+
+
+def first_step(
+    r: FloatArray,
+    jac: FloatArray,
+    z0: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    *,
+    x_scale: FloatArray | float,
+    margin: float = STATISTICAL_MARGIN,
+    radius: float = np.inf,
+) -> FloatArray:
+    """The minimiser of the linear model ‖r + ∂r/∂z·δ‖² within the bounds, from ``z0``
+    (r and ∂r/∂z given there): ``z0`` itself where the remaining step is already within
+    the statistical margin (:func:`levenberg_marquardt` stops there), else the
+    Gauss–Newton step within the bounds (bounded-variable least squares on the p × p
+    normal equations, the directions the rows do not determine left alone), shortened
+    to ‖S⁻¹δ‖ ≤ ``radius`` (S = diag ``x_scale``). No simulation: the first-order view of
+    a refit from ``z0``."""
+    lo, hi = _within(lower, upper)
+    z = np.clip(np.asarray(z0, dtype=np.float64), lo, hi)
+    scale = np.array(np.broadcast_to(np.asarray(x_scale, dtype=np.float64), z.shape))
+    normal = _Normal(jac, scale)
+    g = jac.T @ r
+    cost = 0.5 * float(r @ r)
+    if _remaining(normal, jac, g, z <= lo, z >= hi) <= margin * 2.0 * cost / max(r.size - z.size, 1):
+        return z
+    # ‖r + J·S·y‖² = yᵀ(SHS)y + 2(Sg)ᵀy + ‖r‖², with SHS = V·diag(w)·Vᵀ: the least-squares
+    # problem ‖diag(√w)·Vᵀ·y + diag(1/√w)·Vᵀ·S·g‖² over the determined directions, with
+    # the bounds on y = δ/S (bounded-variable least squares on a p × p problem).
+    keep = normal.determined
+    root = np.sqrt(normal.w[keep])
+    a = root[:, None] * normal.v[:, keep].T
+    b = -(normal.v[:, keep].T @ (g * scale)) / root
+    box = lsq_linear(a, b, bounds=((lo - z) / scale, (hi - z) / scale), method="bvls")
+    y = np.asarray(box.x, dtype=np.float64)
+    length = float(np.linalg.norm(y))
+    if length > radius:
+        y *= radius / length
+    out: FloatArray = np.clip(z + scale * y, lo, hi)
+    return out
+
+
 def levenberg_marquardt(
     residual: Residual,
     linearise: Linearise,
@@ -166,6 +238,7 @@ def levenberg_marquardt(
     max_nfev: int,
     margin: float = STATISTICAL_MARGIN,
     reuse_jacobian: bool = False,
+    start: tuple[FloatArray, FloatArray] | None = None,
 ) -> Solution:
     """Minimises ½‖r(z)‖² from ``z0`` within [lower, upper] (module docs).
 
@@ -179,16 +252,17 @@ def levenberg_marquardt(
         max_nfev: largest number of trial points.
         margin: the statistical stop, in squared standard errors (module docs).
         reuse_jacobian: keep the Jacobian while it predicts the fall of the cost.
+        start: (r, ∂r/∂z) at ``z0`` where the caller has them (a refit from a fit whose
+            Jacobian is known): the first linearisation is not computed again. With
+            ``reuse_jacobian`` it is kept while it predicts the steps, as any other.
     """
-    span = np.where(np.isfinite(lower) & np.isfinite(upper), upper - lower, np.inf)
-    lo = lower + np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(lower), lower, 0.0))), 0.25 * span)
-    hi = upper - np.minimum(1e-10 * (1.0 + np.abs(np.where(np.isfinite(upper), upper, 0.0))), 0.25 * span)
+    lo, hi = _within(lower, upper)
     z = np.clip(np.asarray(z0, dtype=np.float64), lo, hi)
     p = z.size
     scale = np.array(np.broadcast_to(np.asarray(x_scale, dtype=np.float64), z.shape))
     radius = float(np.linalg.norm(z / scale)) or 1.0
-    first = linearise(z)
-    njev, nfev = 1, 0
+    first = start if start is not None else linearise(z)
+    njev, nfev = (0 if start is not None else 1), 0
     if first is None:
         r = residual(z)
         return Solution(
@@ -197,9 +271,13 @@ def levenberg_marquardt(
     r, jac = first
     cost = 0.5 * float(r @ r)
     fresh = True
-    normal = _Normal(jac, scale)
+    try:
+        normal = _Normal(jac, scale)
+    except FloatingPointError:
+        return Solution(z, cost, jac, nfev, njev, False, "the start cannot be linearised")
     message, success = f"{max_nfev} trial points, the limit", False
     last_remaining = np.inf
+    stalled = 0
 
     def refresh() -> bool:
         nonlocal r, jac, normal, fresh, njev
@@ -207,19 +285,18 @@ def levenberg_marquardt(
         njev += 1
         if out is None:  # pragma: no cover - z was simulated just before
             return False
+        try:
+            fresh_normal = _Normal(out[1], scale)
+        except FloatingPointError:
+            return False
         r, jac = out
-        normal, fresh = _Normal(jac, scale), True
+        normal, fresh = fresh_normal, True
         return True
 
     while True:
         g = jac.T @ r
         at_lower, at_upper = z <= lo, z >= hi
-        gauss_newton = normal.within(g, np.inf)[0]
-        if _held(gauss_newton, at_lower, at_upper).any():
-            held = _bounded(normal, jac, g, np.inf, at_lower, at_upper)
-            remaining = float(-(g @ held))
-        else:
-            remaining = float(-(g @ gauss_newton))
+        remaining = _remaining(normal, jac, g, at_lower, at_upper)
         if remaining <= margin * 2.0 * cost / max(r.size - p, 1):
             message, success = "the remaining step is within the statistical margin", True
             break
@@ -254,7 +331,15 @@ def levenberg_marquardt(
         if actual > 0.0 and predicted > 0.0:
             small_cost = actual <= tol * cost
             small_step = scaled_norm <= tol * (tol + float(np.linalg.norm(z / scale)))
+            # The fall the record resolves: the statistical margin on the achieved fall,
+            # as on the predicted one (a curved valley predicts falls it never gives).
+            stalled = stalled + 1 if 2.0 * actual <= margin * 2.0 * cost_new / max(r_new.size - p, 1) else 0
             z, r, cost = trial, r_new, cost_new
+            if stalled >= _STALLED:
+                message, success = "the cost no longer falls by what the record resolves", True
+                if not (reuse_jacobian and rho >= _KEEP_RHO):
+                    refresh()
+                break
             keep = reuse_jacobian and rho >= _KEEP_RHO
             if small_cost or small_step:
                 message = "relative change of the cost below tol" if small_cost else "relative step below tol"

@@ -283,11 +283,13 @@ class OutputErrorProblem:
         method: Method = "lm",
         margin: float = STATISTICAL_MARGIN,
         reuse_jacobian: bool = False,
+        start: tuple[FloatArray, FloatArray] | None = None,
     ) -> Solution:
         """Minimises ½‖r‖² from ``z0`` within [lower, upper] by ``method`` (module
         docs); ``margin`` is the statistical stop of
         :func:`~boucwen.levenberg.levenberg_marquardt` (for "trf", its ``ftol``: a relative
-        fall of the cost below margin/(rows − p)); ``reuse_jacobian`` is "lm"'s."""
+        fall of the cost below margin/(rows − p)); ``reuse_jacobian`` and ``start`` (r and
+        ∂r/∂z at ``z0``, already computed) are "lm"'s."""
         if method == "trf":
             # The same statistical stop as "lm": a step that lowers the cost by less than
             # ``margin`` times the noise variance σ̂² = cost/(rows − p) moves the unknowns by
@@ -321,4 +323,5 @@ class OutputErrorProblem:
             max_nfev=max_nfev,
             margin=margin,
             reuse_jacobian=reuse_jacobian,
+            start=start,
         )

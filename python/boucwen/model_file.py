@@ -26,9 +26,12 @@ made it, the record's path, the SHA-256 of its file, the columns read (``{"t": �
 "u": …, "x": …}``, header names or ``"column 2"``), its samples and the model's own
 open-loop error on it (RMS and max |x − x̂| [µm]); each may be null.
 
-Reading checks every field: a file of a newer version, a corrupt file or a field of the
-wrong kind raises :class:`boucwen.InvalidParams` (a ``ValueError``) with one line that
-names the file and the field (``M.json: field 'params.kv': …``).
+Reading checks every field: a file of a newer version, a corrupt file, a field of the
+wrong kind or a model outside the admissible region (whose h runs away: docs/design.md,
+"The admissible region"; :meth:`boucwen.Params.check_admissible`) raises
+:class:`boucwen.InvalidParams` (a ``ValueError``) with one line that names the file and
+the field (``M.json: field 'params.kv': …``). A :class:`SavedModel` outside the region
+cannot be built, so none is written either.
 """
 
 from __future__ import annotations
@@ -155,6 +158,7 @@ class SavedModel:
             raise TypeError(f"params must be a boucwen.Params, got {type(self.params).__name__}")
         if not isinstance(self.effects, EffectSet):
             raise TypeError(f"effects must be a boucwen.EffectSet, got {type(self.effects).__name__}")
+        self.params.check_admissible()
         h0 = float(self.h0_um)
         if not math.isfinite(h0):
             raise InvalidParams(f"h0_um must be finite, got {self.h0_um!r}")
@@ -247,6 +251,9 @@ class SavedModel:
             raise fail(f"params.{extra[0]}", f"unknown parameter; expected {', '.join(Params.names)}")
         try:
             params = Params(**values)
+            # A model whose h runs away is refused, not read (docs/design.md, "The
+            # admissible region").
+            params.check_admissible()
         except ValueError as exc:
             raise fail("params", str(exc)) from None
 
@@ -273,8 +280,9 @@ def load_model(path: str | os.PathLike[str]) -> SavedModel:
     """Reads a model file (the module docs give the schema).
 
     Raises:
-        InvalidParams: no such file, not JSON, a newer version, or a field missing or of
-            the wrong kind; the one-line message names the file and the field.
+        InvalidParams: no such file, not JSON, a newer version, a field missing or of
+            the wrong kind, or a model outside the admissible region; the one-line
+            message names the file and the field.
     """
     where = str(path)
     try:

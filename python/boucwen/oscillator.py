@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -40,11 +40,12 @@ from ._core import (
     oscillator_simulate_with_jacobian,
 )
 from .checks import FloatArray, as_float_vector, check_dt, check_finite, check_int
+from .effects.resonance import FN_MAX_NYQUIST_FRACTION
 from .levenberg import levenberg_marquardt
 from .metrics import rms
 from .progress import Progress, reporter
 
-__all__ = ["NU_BOUNDS", "UNKNOWNS", "OscillatorFit", "OscillatorParams", "fit", "simulate"]
+__all__ = ["NU_BOUNDS", "UNKNOWNS", "OscillatorFit", "OscillatorParams", "check_admissible", "fit", "simulate"]
 
 #: The exponent's domain [-] (the core's: below 1 the relaxation of z is infinitely
 #: stiff at z = 0).
@@ -270,13 +271,102 @@ def _candidates(F: FloatArray, y: FloatArray, dt: float) -> list[OscillatorParam
 # --------------------------------------------------------------------------- fit
 
 
+#: ∂(γ, δ)/∂(γ, γ − δ): the core's Jacobian columns ∂/∂γ, ∂/∂δ times this give the
+#: fit's ∂/∂γ (γ − δ held) and ∂/∂(γ − δ).
+_REGION_JACOBIAN: FloatArray = np.array([[1.0, 0.0], [1.0, -1.0]])
+
+
+def check_admissible(p: OscillatorParams) -> OscillatorParams:
+    """``p`` if it is in the oscillator's admissible region (docs/design.md, "The admissible
+    region"): γ ≥ 0 (the loop's irreversible term dissipates: with γ < 0 it runs the other
+    way and feeds energy in every cycle) and γ − δ ≥ 0 (the unloading branch stiffens:
+    otherwise z grows against the motion once past (α/(β·(δ − γ)))^(1/ν)); else
+    :class:`boucwen.InvalidParams` naming the combination."""
+    for name, value in (("gamma", p.gamma), ("gamma - delta", p.gamma - p.delta)):
+        if value < 0.0:
+            raise InvalidParams(
+                f"invalid parameter {name} = {value}: must be >= 0: the loop feeds the motion energy "
+                "(the admissible region, docs/design.md)"
+            )
+    return p
+
+
 def _unknowns(p: OscillatorParams, state: Sequence[float]) -> FloatArray:
-    return np.array([p.m, p.c, p.k, p.alpha, p.gamma, p.delta, p.nu, *state], dtype=np.float64)
+    """The fit's unknowns: m, c, k, α, γ, γ − δ (the admissible region is γ ≥ 0, γ − δ ≥ 0),
+    ν and the initial state."""
+    return np.array([p.m, p.c, p.k, p.alpha, p.gamma, p.gamma - p.delta, p.nu, *state], dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class Box:
+    """The fit's unknowns about a model and where they may go.
+
+    Attributes:
+        z: the unknowns (:func:`_unknowns`: m, c, k, α, γ, γ − δ, ν, y0, v0, z0).
+        lower, upper: their bounds: the admissible region (γ ≥ 0, γ − δ ≥ 0), ν within
+            :data:`NU_BOUNDS`, and the mode within what the record can show.
+        scale: each unknown's typical size (the solver's metric).
+        beta: β, held (not identified: only β·γ and β·δ are).
+    """
+
+    z: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+    scale: FloatArray
+    beta: float
+
+
+def _box(p: OscillatorParams, state: Sequence[float], y: FloatArray, dt: float) -> Box:
+    """The :class:`Box` of a fit about ``p`` and ``state`` of a displacement ``y`` [m]
+    sampled every ``dt`` [s]."""
+    z0 = _unknowns(p, state)
+    amplitude = float(np.std(y)) or 1.0
+    velocity = amplitude / dt * 0.1
+    x_scale = np.abs(z0)
+    x_scale[4:6] = np.maximum(x_scale[4:6], 0.1)
+    x_scale[6] = 1.0
+    x_scale[7:] = (amplitude, velocity, max(p.alpha * amplitude, 1e-12))
+    # The mode stays within what the record can show (ω² = (k + α)/m at most that of
+    # FN_MAX_NYQUIST_FRACTION of the sampling rate, the bound of a resonance effect): a
+    # mode above it cannot be identified from the record, and the integrator would take
+    # ever more sub-steps to follow it. The box holds m above the mass that puts the
+    # model's stiffness there.
+    omega_max = 2.0 * math.pi * FN_MAX_NYQUIST_FRACTION / dt
+    m_min = max(1e-9 * p.m, (p.k + p.alpha) / omega_max**2)
+    lower = np.array([m_min, 0.0, 0.0, 1e-9 * p.alpha, 0.0, 0.0, NU_BOUNDS[0], *[-np.inf] * 3])
+    z0[0] = max(z0[0], m_min)
+    upper = np.array([np.inf] * 6 + [NU_BOUNDS[1]] + [np.inf] * 3)
+    return Box(z0, lower, upper, x_scale, p.beta)
+
+
+def linearised(
+    fit: OscillatorFit, F: Any, dt: float
+) -> tuple[Box, FloatArray, Callable[[FloatArray, int], FloatArray | None]]:
+    """A fitted oscillator in the fit's own unknowns, for a first-order view of refits
+    from it: its :class:`Box`, the Jacobian ∂y/∂z [m per unit] over ``F`` (columns in
+    the box's order), and z, stop → y [m] over the first ``stop`` samples (None where it
+    cannot be simulated)."""
+    force = as_float_vector(F, "F")
+    box = _box(fit.params, (fit.y0, fit.v0, fit.z0), fit.y, dt)
+    jac = oscillator_simulate_with_jacobian(fit.params.to_list(), force, dt, fit.y0, fit.v0, fit.z0)[1]
+    jac[:, 4:6] = jac[:, 4:6] @ _REGION_JACOBIAN
+
+    def run(z: FloatArray, stop: int) -> FloatArray | None:
+        try:
+            out = np.asarray(
+                oscillator_simulate(_params(z, box.beta).to_list(), force[:stop], dt, *(float(v) for v in z[7:])),
+                dtype=np.float64,
+            )
+        except ValueError:
+            return None
+        return out if bool(np.all(np.isfinite(out))) else None
+
+    return box, np.asarray(jac, dtype=np.float64), run
 
 
 def _params(z: FloatArray, beta: float) -> OscillatorParams:
-    m, c, k, alpha, gamma, delta, nu = (float(v) for v in z[:7])
-    return OscillatorParams(m=m, c=c, k=k, alpha=alpha, beta=beta, gamma=gamma, delta=delta, nu=nu)
+    m, c, k, alpha, gamma, minus, nu = (float(v) for v in z[:7])
+    return OscillatorParams(m=m, c=c, k=k, alpha=alpha, beta=beta, gamma=gamma, delta=gamma - minus, nu=nu)
 
 
 def fit(
@@ -293,11 +383,13 @@ def fit(
     """Fits the oscillator to a record by output error: the model simulated from ``F``
     alone, never from the measured y.
 
-    Minimises Σ wₖ·(yₖ − ŷₖ)² over m, c, k, α, γ, δ, ν and the initial state (y0, v0, z0)
-    by Levenberg–Marquardt (:func:`boucwen.levenberg.levenberg_marquardt`, stopped where
-    the remaining step is within a tenth of a standard error) on the exact Jacobian from
-    the core's dual pass. **β is not identified**: it appears only in the products β·γ and
-    β·δ, so it stays at its start value and γ, δ carry the loop's shape.
+    Minimises Σ wₖ·(yₖ − ŷₖ)² over m, c, k, α, γ, δ, ν and the initial state (y0, v0, z0),
+    within the admissible region (γ ≥ 0 and γ − δ ≥ 0, the unknowns γ and γ − δ bounded
+    below by 0: :func:`check_admissible`), by Levenberg–Marquardt
+    (:func:`boucwen.levenberg.levenberg_marquardt`, stopped where the remaining step is
+    within a tenth of a standard error) on the exact Jacobian from the core's dual pass.
+    **β is not identified**: it appears only in the products β·γ and β·δ, so it stays at
+    its start value and γ, δ carry the loop's shape.
 
     Starts: without ``start``, the candidates of :func:`_candidates` (the linear part from
     the record's frequency response, the hysteresis on a physically scaled grid, β =
@@ -311,7 +403,8 @@ def fit(
         F: force [N], one sample per ``dt``.
         y: measured displacement [m], same length.
         dt: sampling interval [s].
-        start: the model to start from (its β is kept); None for the data-driven starts.
+        start: the model to start from (its β is kept; in the admissible region); None
+            for the data-driven starts.
         weights: per-sample weights (0 or 1: a 0 leaves the sample out of the cost, e.g.
             a held-out block); None for all ones.
         max_nfev: most trial points of the solver.
@@ -325,6 +418,7 @@ def fit(
         InvalidRecord: F or y empty, of different lengths, or with a non-finite sample;
             weights of another length, negative, non-finite, or all zero.
         InvalidConfig: dt not finite and > 0; max_nfev < 1.
+        InvalidParams: a ``start`` outside the admissible region.
     """
     started = time.perf_counter()
     say = reporter(progress, "oscillator.fit", started)
@@ -344,6 +438,8 @@ def fit(
             raise InvalidRecord("weights must be >= 0 with at least one > 0")
     kept = w > 0.0
     nfev = 0
+    if start is not None:
+        check_admissible(start)
 
     if start is None:
         # The first 8192 samples, or the whole record where those are all left out.
@@ -359,15 +455,9 @@ def fit(
         say(f"{len(candidates)} starts scored on {n_score} samples; best RMS {math.sqrt(best_cost / n_score):.3e} m")
         start = best
     beta = start.beta
-    z0 = _unknowns(start, (0.0, 0.0, 0.0))
+    box = _box(start, (0.0, 0.0, 0.0), meas[kept], dt)
+    z0, lower, upper, x_scale = box.z, box.lower, box.upper, box.scale
     amplitude = float(np.std(meas[kept])) or 1.0
-    velocity = amplitude / dt * 0.1
-    x_scale = np.abs(z0)
-    x_scale[4:6] = np.maximum(x_scale[4:6], 0.1)
-    x_scale[6] = 1.0
-    x_scale[7:] = (amplitude, velocity, max(start.alpha * amplitude, 1e-12))
-    lower = np.array([1e-9 * start.m, 0.0, 0.0, 1e-9 * start.alpha, -np.inf, -np.inf, NU_BOUNDS[0], *[-np.inf] * 3])
-    upper = np.array([np.inf] * 6 + [NU_BOUNDS[1]] + [np.inf] * 3)
 
     def run(z: FloatArray) -> FloatArray | None:
         try:
@@ -397,6 +487,7 @@ def fit(
         if not (np.all(np.isfinite(sim)) and np.all(np.isfinite(jac))):
             return None
         say(f"pass {nfev}: RMS {rms((sim - meas)[kept]):.4e} m")
+        jac[:, 4:6] = jac[:, 4:6] @ _REGION_JACOBIAN
         return w * (sim - meas), w[:, None] * jac
 
     sol = levenberg_marquardt(

@@ -13,6 +13,7 @@ Every public entry point that takes data (:func:`boucwen.fit`,
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,7 +22,17 @@ import numpy as np
 from ._core import InvalidRecord
 from .checks import FloatArray, as_float_vector, check_dt
 
-__all__ = ["Record", "validate_record", "validate_samples"]
+__all__ = ["REST_SIGMAS", "Onset", "Record", "motion_onset", "validate_record", "validate_samples"]
+
+#: u has left the level it starts at once it differs from its first sample by more than
+#: this many standard deviations σ of its noise: u_k − u_0 at rest has a standard
+#: deviation of √2·σ, so 8σ is 5.7 of those, passed by Gaussian noise alone with a
+#: probability of about 1e-8 per sample (a rest of 10⁶ samples is not cut short by it).
+REST_SIGMAS = 8.0
+#: The band never falls below this share of the largest |u|: a record read back from
+#: a CSV file holds its values to 9 significant digits (:func:`boucwen.io.write_csv`),
+#: and a change of u at that rounding is no motion.
+REST_ROUNDING = 1e-6
 
 
 def _checked_pair(u: Any, x: Any) -> tuple[FloatArray, FloatArray]:
@@ -131,6 +142,79 @@ class Record:
             f"Record(name={self.name!r}, samples={len(self)}, dt={self.dt!r} s, "
             f"duration={(len(self) - 1) * self.dt:.6g} s)"
         )
+
+
+@dataclass(frozen=True)
+class Onset:
+    """Where the voltage of a record starts to move (:func:`motion_onset`).
+
+    Attributes:
+        start: the last sample at the starting level before u leaves it (0 where u moves
+            from the first sample on; the record's length where it never moves).
+        band_v: half-width of the starting level [V]: u within ±band_v of its first
+            sample is at rest.
+        noise_v: the noise level σ of u the band is made of [V] (:data:`REST_SIGMAS`).
+    """
+
+    start: int
+    band_v: float
+    noise_v: float
+
+    def moves(self, samples: int) -> bool:
+        """Whether u leaves its starting level within a record of ``samples`` samples."""
+        return self.start < samples
+
+
+def motion_onset(u: Any) -> Onset:
+    """Where a voltage record that may start at rest begins to move.
+
+    The starting level is u's first sample; u has left it at the first sample that
+    differs from it by more than :data:`REST_SIGMAS` times the noise level of u
+    (:func:`boucwen.residual.noise.noise_level`, the MAD of u's differences, which a
+    smooth excitation does not inflate) or by :data:`REST_ROUNDING` of the largest |u|,
+    whichever is larger. The onset is the sample before that one, the last at rest, so a
+    fit from it sees the state the rest left.
+
+    Raises:
+        TypeError, InvalidRecord: ``u`` is not a finite, non-empty 1-D array of numbers.
+    """
+    from .residual.noise import noise_level  # deferred: boucwen.residual imports this module
+
+    arr = as_float_vector(u, "u")
+    sigma = noise_level(arr).sigma_um if arr.size > 8 else 0.0
+    band = max(REST_SIGMAS * sigma, REST_ROUNDING * float(np.max(np.abs(arr))))
+    left = np.flatnonzero(np.abs(arr - arr[0]) > band)
+    start = int(left[0]) - 1 if left.size else int(arr.size)
+    return Onset(max(start, 0), band, sigma)
+
+
+#: The voltage's travel is counted on u smoothed over this time [s]: a millisecond, above
+#: the bandwidth of any actuator drive's noise and below every effect's time scale but a
+#: delay's.
+TRAVEL_SMOOTHING_S = 1e-3
+#: Increments of the smoothed u within this many standard deviations of their noise are
+#: rest (no travel).
+TRAVEL_DEADBAND = 3.0
+
+
+def travel_steps(record: Record) -> FloatArray:
+    """The voltage's travel [V] from each sample to the next (n − 1 of them): the
+    increments of u smoothed over :data:`TRAVEL_SMOOTHING_S`, those within
+    :data:`TRAVEL_DEADBAND` noise standard deviations of u counted as none (a rest, a
+    hold). A u whose differences are mostly zero (a command held between steps) has no
+    noise at the sample level."""
+    from scipy.ndimage import uniform_filter1d
+
+    from .residual.noise import noise_level  # deferred: boucwen.residual imports this module
+
+    u = record.u
+    m = max(1, round(TRAVEL_SMOOTHING_S / record.dt))
+    smooth = uniform_filter1d(u, m, mode="nearest") if m > 1 else u
+    steps = np.abs(np.diff(smooth))
+    level = noise_level(u) if u.size > 8 else None
+    sigma = (level.sigma_um if level is not None and level.order > 0 else 0.0) * math.sqrt(2.0) / math.sqrt(m)
+    out: FloatArray = np.where(steps > TRAVEL_DEADBAND * sigma, steps, 0.0)
+    return out
 
 
 def validate_record(u: Any, x: Any, dt: Any, name: str = "") -> Record:

@@ -152,7 +152,11 @@ class HorizonStatus:
     step_limited: bool
     """The trust region scaled the last update down."""
     projected: bool
-    """The projection moved n, β or γ in the last update."""
+    """The projection onto the well-posed region moved n, β or γ in the last update (what
+    rounding and the trust region left outside after the step was held)."""
+    held: bool
+    """The last update's step would have left the well-posed region (n outside its bounds,
+    β ± γ below the margin) and was held on its boundary."""
     behind_samples: int
     """How far the estimates in use lag the newest sample: samples pushed after the last
     one the pass of the last update ran over [samples]."""

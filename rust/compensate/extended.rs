@@ -114,9 +114,10 @@ pub struct ExtendedInverse {
 
 impl ExtendedInverse {
     /// An inverse of the model `params` with `effects` (no resonance) for samples
-    /// `dt` \[s\] apart, from h = `h0` \[µm\], within `limits`.
+    /// `dt` \[s\] apart, from h = `h0` \[µm\], within `limits`; `params` in the admissible
+    /// region ([`Params::check_admissible`]), as for [`super::Inverse::new`].
     pub fn new(params: Params, effects: EffectSet, dt: f64, h0: f64, limits: VoltageLimits) -> Result<Self> {
-        params.validate()?;
+        params.check_admissible()?;
         effects.validate()?;
         positive_dt(dt)?;
         finite_sample("h0", h0)?;
@@ -259,9 +260,9 @@ impl ExtendedInverse {
         &self.effects
     }
 
-    /// Replaces the base parameters (validated); the state is kept.
+    /// Replaces the base parameters (validated, in the admissible region); the state is kept.
     pub fn set_params(&mut self, params: Params) -> Result<()> {
-        params.validate()?;
+        params.check_admissible()?;
         if params.n != self.params.n {
             self.hn = abs_pow(self.state.h, params.n);
         }

@@ -478,9 +478,11 @@ pub struct Inverse {
 
 impl Inverse {
     /// An inverse of the model `params` for samples `dt` \[s\] apart, starting from
-    /// h = `h0` \[µm\] with no previous sample, within `limits`.
+    /// h = `h0` \[µm\] with no previous sample, within `limits`. `params` must lie in the
+    /// admissible region ([`Params::check_admissible`]): the inverse of a model whose h
+    /// runs away would command the voltage that follows it.
     pub fn new(params: Params, dt: f64, h0: f64, limits: VoltageLimits) -> Result<Self> {
-        params.validate()?;
+        params.check_admissible()?;
         positive_dt(dt)?;
         finite_sample("h0", h0)?;
         limits.validate()?;
@@ -534,9 +536,10 @@ impl Inverse {
         &self.params
     }
 
-    /// Replaces the parameters (validated); h and the previous voltage are kept.
+    /// Replaces the parameters (validated, in the admissible region); h and the previous
+    /// voltage are kept.
     pub fn set_params(&mut self, params: Params) -> Result<()> {
-        params.validate()?;
+        params.check_admissible()?;
         if params.n != self.params.n {
             self.hn = abs_pow(self.state.h, params.n);
         }
@@ -835,10 +838,15 @@ mod tests {
     fn odd_parameters_never_panic_and_stay_finite() {
         let dt = 1e-4;
         let targets: Vec<f64> = (0..2000).map(|k| 20.0 * ((k as f64) * 0.01).sin()).collect();
+        // A model whose h runs away (β + γ < 0) is refused, not inverted.
+        let runaway = Params { beta: -0.5, gamma: -0.5, n: 3.0, ..Params::paper_1hz() };
+        assert!(matches!(
+            invert(&runaway, &targets, dt, 0.0, None, VoltageLimits::NONE),
+            Err(Error::InvalidParameter { name: "beta + gamma", .. })
+        ));
         for p in [
             Params { kv: 0.0, a: 0.0, ..Params::paper_1hz() },
             Params { kv: -0.3, ..Params::paper_1hz() },
-            Params { beta: -0.5, gamma: -0.5, n: 3.0, ..Params::paper_1hz() },
             Params { n: 0.2, beta: 2.0, gamma: 1.0, ..Params::paper_1hz() },
             Params { delta: -5.0, ..Params::paper_1hz() },
         ] {

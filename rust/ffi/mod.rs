@@ -401,6 +401,8 @@ pub struct BwHorizonStatus {
     pub damping: f64,
     pub step_limited: bool,
     pub projected: bool,
+    /// The last update's step was held on the boundary of the well-posed region.
+    pub held: bool,
     /// Samples pushed after the last one the estimates in use were fitted on.
     pub behind_samples: u64,
     /// The same in seconds \[s\].
@@ -419,6 +421,7 @@ impl From<HorizonStatus> for BwHorizonStatus {
             damping: s.damping,
             step_limited: s.step_limited,
             projected: s.projected,
+            held: s.held,
             behind_samples: s.behind_samples,
             behind_s: s.behind_s,
         }

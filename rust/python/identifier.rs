@@ -504,6 +504,7 @@ pub(super) fn status_object<'py>(py: Python<'py>, status: AnyStatus) -> PyResult
             d.set_item("damping", s.damping)?;
             d.set_item("step_limited", s.step_limited)?;
             d.set_item("projected", s.projected)?;
+            d.set_item("held", s.held)?;
             d.set_item("behind_samples", s.behind_samples)?;
             d.set_item("behind_s", s.behind_s)?;
             status_class(py, "HorizonStatus", &d)

@@ -80,6 +80,13 @@ impl PyParams {
         self.inner.delta
     }
 
+    /// Raises `InvalidParams` (one line naming the combination) unless the parameters
+    /// are in the admissible region, where h stays bounded: β + γ ≥ 0 and β − γ ≥ 0,
+    /// both > 0 where δ ≠ 0 (docs/design.md, "The admissible region").
+    fn check_admissible(&self) -> PyResult<()> {
+        self.inner.check_admissible().map_err(value_error)
+    }
+
     /// `[kv, x0, A, beta, gamma, n, delta]` as a float64 array.
     fn to_array<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         PyArray1::from_slice(py, &self.inner.to_array())

@@ -6,42 +6,46 @@ not told what it contains, and selects a model by one loop under one judge:
 1. **Fit the base model** to convergence (:func:`boucwen.fit`'s global search of
    starts, then Levenberg–Marquardt on the core's exact Jacobian to the statistical
    stop: :mod:`~boucwen.diagnosis.fits`).
-2. **Score it on unseen data**: blocked cross-validation over ``folds`` contiguous
-   blocks, each held out from a refit on the others (:mod:`~boucwen.diagnosis.judge`).
+2. **Score it on unseen data**: forward validation over ``folds`` origins, each fold
+   predicted by the model refitted on the record before it (:mod:`~boucwen.diagnosis.judge`).
 3. **Propose every move** from the current model: add an effect of the vocabulary
    (:data:`boucwen.effects.VOCABULARY`; a second mode with the first where the model
    has none), drop one, swap one for a rival (:mod:`~boucwen.diagnosis.search`). Fit
    each candidate to convergence from the effect's physical starts (several where it has
    local optima).
-4. **Judge each move** by the same rule: the fold-paired held-out gain
-   d_i = r_ref,i² − r_cand,i² must exceed t₁₋α/m times its batch-means standard error
-   (a real improvement at level α over the round's m moves), and remove at least
-   ``min_share`` of the reference's held-out error beyond the record's noise (an effect,
-   not a reshaping of the base model's misfit). A drop is accepted where the effect no
-   longer passes that rule against the model without it.
+4. **Judge each move** by the same test (:mod:`~boucwen.diagnosis.judge`): each fold,
+   refitted on the record's past before its origin, predicts the samples after it
+   (forward validation, origins placed by the record's excitation: half its voltage
+   travel, half its elapsed time); the per-sample loss difference d_i = e_ref,i² −
+   e_cand,i² must exceed its Newey–West standard error (bandwidth: the dependence length
+   of the better model's residual) by t₁₋ₐ with a = α/(R·m), the family error over the
+   whole search at most α, and remove at least ``min_share`` of the reference's held-out
+   error beyond the record's noise (an effect, not a reshaping of the base model's
+   misfit). A drop is accepted where the effect no longer passes that test against the
+   model without it. Each held-out error is first screened (the first Gauss–Newton step
+   of each fold's refit) and read from converged refits wherever a decision could go
+   either way.
 5. **Take one move**: an accepted drop first; else the accepted add or swap of largest
-   gain — through its **ambiguity set**, the candidates the record cannot tell from it
-   (neither's gain over the other passes the rule's first condition): the model takes
-   the accepted member with the fewest unknowns, then the first in the vocabulary; the
-   others are its rivals, reported with their held-out errors and tried as swaps later.
+   statistic — through its **ambiguity set**, the candidates the record cannot tell from
+   it (neither's gain over the other passes the test): the model takes the accepted
+   member with the fewest unknowns, then the largest statistic; the others are its
+   rivals, reported with their held-out errors and tried as swaps later.
 6. **Repeat** from 3 until no move is accepted or the residual is consistent with the
    record's noise (:func:`boucwen.residual.unexplained`). A model already held is never
    proposed again.
-7. **The other structure**: where the input-driven model the loop returns holds a mode
-   (an effect of signature ``"peak"``: the mark of a mechanical structure), the
-   hysteretic oscillator (:mod:`boucwen.oscillator`: the hysteresis driven by the
-   output's motion, the input a force) is fitted and scored the same way and judged by
-   the same rule against that model; accepted and explaining the record
-   (``confident_share`` of the error beyond the noise, or a residual of noise: a change
-   of model class is a claim about the mechanics that a partial fit cannot carry), it is
-   the returned model; accepted but partial, or within the judge's margin, it is the
-   mode's rival. Without a mode, an
-   output-driven hysteresis reduces to a static one that the input-driven model holds.
+7. **The other structure** is one more move of every round: the input-driven model
+   replaced by the hysteretic oscillator (:mod:`boucwen.oscillator`: the hysteresis
+   driven by the output's motion, the input a force), fitted once and judged by the same
+   test against the current model. Taken, it is the returned model, and the effects of
+   the input-driven model it replaced keep it as their rival.
 8. **Report**: the returned model's errors before and after, what it leaves
    (``unexplained``), the held-out errors of the base and returned models (``unseen``),
-   each name ``confident`` only where it has no rival and the model explains at least
-   ``confident_share`` of the error beyond the noise (else ``tentative``, with the rivals),
-   every decision typed (``decisions``), and the parameters on a bound.
+   each name ``confident`` only where it has no rival and the model removes at least
+   ``confident_share`` of the base model's error beyond the noise (else ``tentative``,
+   with the rivals), every decision typed (``decisions``), the parameters on a bound,
+   and whether the returned model stays bounded over the record's range
+   (``boundedness``, :func:`boucwen.boundedness.check`; every fit keeps to the admissible
+   region, and a candidate that fails the check is no candidate).
 
 9. **Where the record cannot decide**, design the experiment that can
    (:meth:`Diagnosis.next_experiment`, :mod:`~boucwen.diagnosis.experiment`): the input,
@@ -76,8 +80,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet
-from ..checks import FloatArray, check_int
-from ..effects import effect_class, effects_of
+from ..boundedness import check_model, check_oscillator
+from ..checks import check_int
+from ..effects import effects_of
 from ..effects.base import without
 from ..fit import fit_record
 from ..io import jsonable
@@ -89,10 +94,10 @@ from ..residual import residual_evidence_record as residual_evidence_record
 from . import fits
 from .experiment import Experiment, Explained, explanations
 from .fits import Convergence, Scored, Structure
-from .judge import Decision, on_common_blocks
+from .judge import Decision, on_common_folds
 from .policy import DiagnosisPolicy
 from .report import AtBound, Diagnosis, ModelFit, NamedEffect, NamedStructure, write_predictions, write_report
-from .search import Search, rival_order, search, structure_move
+from .search import OSCILLATOR, Search, rival_order, search
 from .unseen import OnValidation, Unseen, judged_on, prediction_error, settled
 
 __all__ = [
@@ -141,7 +146,7 @@ def diagnose(
         x: measured displacement [µm], same length.
         dt: sampling interval [s] (> 0).
         progress: ``True`` prints progress lines to stderr; or a callable taking a str.
-        folds: contiguous blocks of the cross-validation (2 … 10); overrides the
+        folds: folds of the forward validation (2 … 10); overrides the
             policy's.
         max_effects: most effects in the returned model (0 … 8); overrides the policy's.
         seed: seed of :func:`boucwen.fit`'s random starts.
@@ -217,11 +222,15 @@ def diagnose_record(
 
     say(f"fitting the base model on {n} samples")
     offline = fit_record(record, seed=seed, workers=workers, method=conv.method)
-    base = fits.base(record, offline, conv, policy.folds)
-    say(f"base model: RMS {base.fit.rms_um:.4g} µm, held-out {base.cv.rms_um:.4g} µm ({policy.folds} folds)")
+    base = fits.base(record, offline, conv, policy.folds, policy.first_origin)
+    forward = base.cv.folds
+    say(
+        f"base model: RMS {base.fit.rms_um:.4g} µm, held-out {base.cv.rms_um:.4g} µm "
+        f"({forward.count} forward folds from sample {forward.tested.start})"
+    )
     state = search(record, base, noise_um=noise_um, policy=policy, conv=conv, workers=workers, say=say)
     say(f"search ended: {state.stopped}")
-    return _outcome(record, base, state, validate, policy, conv, noise_um, say, started)
+    return _outcome(record, base, state, validate, policy, conv, noise_um, say, started, workers)
 
 
 def _outcome(
@@ -234,17 +243,19 @@ def _outcome(
     noise_um: float,
     say: Any,
     started: float,
+    workers: int | None,
 ) -> Diagnosis:
     """The :class:`Diagnosis` of the search ``state``: the model judged on the validation
     record, its errors, what it leaves, how sure each name is."""
     decisions = [d for r in state.rounds for d in r.decisions]
-    final = state.current
+    final = state.input_driven
+    other = state.current if isinstance(state.current, Structure) else None
     rivals = {k: set(v) for k, v in state.rivals.items()}
     swaps = dict(state.swaps)
     on_validation: list[Decision] = []
-    if validate is not None:
+    if validate is not None and other is None:
         final, rivals, swaps, on_validation = _settle(record, validate, final, rivals, swaps, policy, conv, say)
-    if validate is not None and final.names:
+    if validate is not None and other is None and final.names:
         say(f"judging {', '.join(final.names)} on the validation record ({len(validate)} samples)")
         kept, judged = judged_on(
             validate,
@@ -256,60 +267,35 @@ def _outcome(
         )
         on_validation += judged
         if kept.effects.names != final.fit.effects.names:
-            final = fits.scored(record, fits.solved_at(record, kept), policy.folds, conv)
-    osc, osc_decision, osc_skipped = structure_move(record, final, noise_um=noise_um, policy=policy, say=say)
-    if osc_decision is not None:
-        decisions.append(osc_decision)
-    # A change of model class is a claim about the mechanics (the hysteresis inside the
-    # structure's own dynamics, not in the actuator): the oscillator is returned only where
-    # the judge accepts it and it explains the record (``confident_share`` of the error
-    # beyond the noise, or a residual of noise). Accepted but partial, or within the
-    # judge's margin, it is the mode's rival.
-    accepted = osc is not None and osc_decision is not None and osc_decision.accepted
-    osc_left = (
-        unexplained(record, osc.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
-        if accepted and osc is not None
-        else None
-    )
-    osc_explains = (
-        osc is not None
-        and osc_left is not None
-        and (
-            osc_left.consistent_with_noise
-            or _explained(record.x - base.x, record.x - osc.x, noise_um) >= policy.confident_share
-        )
-    )
-    other = osc if osc_explains else None
-    if (
-        osc is not None
-        and osc_decision is not None
-        and other is None
-        and (accepted or abs(osc_decision.gain.t) <= osc_decision.threshold)
-    ):
-        # The record does not tell the oscillator from the input-driven model's mode.
-        for k in final.names:
-            if effect_class(k).signature == "peak":
-                rivals.setdefault(k, set()).add(osc.name)
-    returned_x, returned_cv = (other.x, other.cv) if other is not None else (final.x, final.cv)
+            final = fits.scored(record, fits.solved_at(record, kept), final.cv.folds, conv, exact=True, workers=workers)
+    returned: Scored | Structure = other if other is not None else final
+    returned = fits.confirmed(record, returned, workers)
+    base = fits.confirmed(record, base, workers)  # type: ignore[assignment]
+    returned_x, returned_cv = returned.x, returned.cv
     x = record.x
     err_b, err_e = x - base.x, x - returned_x
-    left = (
-        osc_left
-        if other is not None and osc_left is not None
-        else unexplained(record, returned_x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
-    )
-    share = _explained(err_b, err_e, noise_um)
+    left = unexplained(record, returned_x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
+    cv_before, cv_after = on_common_folds(base.cv, returned_cv)
+    # The share of the error beyond the noise the model removes: on the samples the folds
+    # predict, held out; on those before the first origin, which no fold predicts, the
+    # only evidence is in-sample. Names are confident where both are large.
+    first = base.cv.folds.tested.start
+    held_share = _explained(cv_before, cv_after, noise_um)
+    prefix_share = _explained(rms(err_b[:first]), rms(err_e[:first]), noise_um) if first > 0 else 1.0
+    share = min(held_share, prefix_share)
     added = _order_added(state, final.names)
     named = tuple(
         _named(e, rivals, final, left, share, policy) for e in effects_of(final.fit.effects) if e.name in added
     )
     named = tuple(sorted(named, key=lambda e: added.index(e.name)))
-    structure = None if other is None else _structure(other)
+    structure = None if other is None else _structure(other, rivals)
     if other is not None:
         # The effects of the input-driven model the oscillator refutes are its rival's.
         why = "the hysteretic oscillator predicts the record better: this effect is the refuted input-driven model's"
-        named = tuple(replace(e, level="tentative", why=why, rivals=(*e.rivals, other.name)) for e in named)
-    cv_before, cv_after = on_common_blocks(base.cv, returned_cv, policy.folds)
+        named = tuple(
+            replace(e, level="tentative", why=why, rivals=tuple(sorted({*e.rivals, other.name}, key=rival_order)))
+            for e in named
+        )
     unseen = Unseen(
         folds=policy.folds,
         cv_rms_before_um=cv_before,
@@ -324,17 +310,20 @@ def _outcome(
         "policy": policy.to_dict(),
         "convergence": {"method": conv.method, "margin": conv.margin, "tol": conv.tol},
         "noise_um": noise_um,
+        "folds": base.cv.folds.to_dict(),
         "residual": fit_evidence(record, base.fit, base.x, policy.max_delay_samples),
         "rounds": [r.to_dict() for r in state.rounds],
         "stopped": state.stopped,
         "validation": [d.to_dict() for d in on_validation],
         "explained_share": share,
+        "explained_share_held_out": held_share,
+        "explained_share_before_first_origin": prefix_share,
         "unseen": unseen.to_dict(),
         "lookalike": lookalike_tests(record, returned_x),
         "structure": (
-            {"tried": False, "why": osc_skipped}
-            if osc is None
-            else {"tried": True, "held_out_rms_um": osc.cv.rms_um, "fit": osc.fit.to_dict()}
+            {"tried": False, "why": "no round proposed it"}
+            if not isinstance(state.fitted.get(frozenset({OSCILLATOR})), Structure)
+            else _structure_evidence(state.fitted[frozenset({OSCILLATOR})])
         ),
         "elapsed_s": time.perf_counter() - started,
     }
@@ -360,16 +349,28 @@ def _outcome(
         unseen=unseen,
         explained=Explained(record, final, rivals, swaps, conv, policy, noise_um),
         structure=structure,
+        boundedness=(
+            check_oscillator(record, other.fit)
+            if other is not None
+            else check_model(record, final.fit.params, final.fit.effects, final.fit.h0)
+        ),
     )
     say(result.summary())
     return result
+
+
+def _structure_evidence(model: Any) -> dict[str, Any]:
+    """What the JSON says of the other structure where a round fitted it."""
+    if not isinstance(model, Structure):
+        return {"tried": True, "why": str(model)}
+    return {"tried": True, "held_out_rms_um": model.cv.rms_um, "fit": model.fit.to_dict()}
 
 
 def _order_added(state: Search, names: tuple[str, ...]) -> list[str]:
     """``names`` in the order the search added them."""
     order: list[str] = []
     for r in state.rounds:
-        if r.taken is not None and r.taken.move != "drop":
+        if r.taken is not None and r.taken.move not in ("drop", "structure"):
             order += [k for k in r.taken.effects if k not in order]
     return [k for k in order if k in names] + [k for k in names if k not in order]
 
@@ -386,7 +387,10 @@ def _settle(
 ) -> tuple[Scored, dict[str, set[str]], dict[frozenset[str], Scored], list[Decision]]:
     """The explanations the record could not tell apart, settled on the validation
     record (:func:`~boucwen.diagnosis.unseen.settled`): the model kept, its rivals left,
-    the swaps still fitted from it, and the decisions."""
+    the swaps still fitted from it, and the decisions. The model keeps the returned
+    explanation where the validation record does not refute it; else, of those it leaves
+    (which it cannot tell apart), the simplest, then the one whose gain over the refuted
+    model has the largest statistic."""
     members = explanations(record, final, rivals, swaps, conv, policy)
     if len(members) < 2:
         return final, rivals, swaps, []
@@ -394,12 +398,19 @@ def _settle(
     left, decisions = settled(
         validate, [m.fit for m in members], [m.label for m in members], policy, noise_level(validate.x).sigma_um, say
     )
+    if 0 in left:
+        keep = 0
+    else:
 
-    def error(i: int) -> float:
-        e = prediction_error(members[i].fit, validate)
-        return math.inf if e is None else e.rms_um
+        def statistic(i: int) -> float:
+            for d in decisions:
+                if d.candidate == (members[i].label,) and d.reference == (members[0].label,):
+                    return d.gain.statistic
+                if d.reference == (members[i].label,) and d.candidate == (members[0].label,):
+                    return -d.gain.statistic
+            return -math.inf
 
-    keep = 0 if 0 in left else min(left, key=error)
+        keep = min(left, key=lambda i: (len(members[i].effects), -statistic(i)))
     chosen = members[keep]
     if chosen.replaces is None or chosen.scored is None:
         kept = {
@@ -415,19 +426,25 @@ def _settle(
     return chosen.scored, {into: left_for}, {}, decisions
 
 
-def _explained(err_before: FloatArray, err_after: FloatArray, noise_um: float) -> float:
-    """The share of the error beyond the noise [µm] that the model of residual
-    ``err_after`` explains, against the base model's ``err_before`` [-]."""
-    beyond_before = max(float(np.mean(err_before**2)) - noise_um**2, 0.0)
-    beyond_after = max(float(np.mean(err_after**2)) - noise_um**2, 0.0)
+def _explained(before_um: float, after_um: float, noise_um: float) -> float:
+    """The share of the base model's held-out mean-square error beyond the noise [µm]
+    that the returned model removes (held-out RMS ``before_um`` → ``after_um``) [-]."""
+    beyond_before = max(before_um**2 - noise_um**2, 0.0)
+    beyond_after = max(after_um**2 - noise_um**2, 0.0)
+    if not math.isfinite(beyond_before) or not math.isfinite(beyond_after):
+        return 0.0
     return 1.0 - beyond_after / beyond_before if beyond_before > 0 else 1.0
 
 
-def _structure(osc: Structure) -> NamedStructure:
-    """The oscillator returned (module docs, step 7): it passed the judge against the
-    input-driven model, so that model is not within its margin, and it explains the
-    record, the condition of its return."""
-    why = "it predicts held-out blocks better than the best input-driven model beyond that model's margin"
+def _structure(osc: Structure, rivals: dict[str, set[str]]) -> NamedStructure:
+    """The other structure returned: the search took it, so it passed the test against
+    the input-driven model it replaced; ``confident`` where no input-driven effect was
+    left within its margin."""
+    tied = sorted(rivals.get(osc.name, set()), key=rival_order)
+    if tied:
+        why = "the record does not tell it from the input-driven model with " + ", ".join(tied)
+        return NamedStructure(osc.name, "tentative", why, osc.fit, osc.cv.rms_um)
+    why = "it predicts unseen samples better than the input-driven model beyond that model's margin"
     return NamedStructure(osc.name, "confident", why, osc.fit, osc.cv.rms_um)
 
 
@@ -451,7 +468,8 @@ def _named(
         return NamedEffect(
             effect,
             "tentative",
-            f"the model explains {share:.0%} of the error beyond the noise and leaves a residual that is not "
-            "noise: the effects may stand in for something outside the vocabulary",
+            f"the model removes {share:.0%} of the base model's error beyond the noise (the least of its held-out "
+            "share and, before the first origin where no fold predicts, its in-sample share) and leaves a residual "
+            "that is not noise: the effects may stand in for something outside the vocabulary",
         )
     return NamedEffect(effect, "confident", "no rival within the judge's margin; the model explains the record")

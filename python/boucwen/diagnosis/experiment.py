@@ -98,8 +98,8 @@ class Explanation:
         effects: its effects, in the vocabulary's order.
         fit: the model fitted on the record.
         x_record: its displacement over the record [µm].
-        held_out_rms_um: its held-out RMS error on the record [µm] (blocked
-            cross-validation).
+        held_out_rms_um: its held-out RMS error on the record [µm] (forward
+            validation).
         replaces: for a swap, ``(effect of the returned model, rival in its place)``;
             None for the returned model.
     """
@@ -164,7 +164,7 @@ def explanations(
             held.add(key)
             got = swaps.get(key)
             if got is None:
-                out = fits.add(record, final, adds, conv, policy.folds, policy.max_delay_samples, dropped=k)
+                out = fits.swap(record, final, k, adds, conv, final.cv.folds, policy.max_delay_samples)
                 if isinstance(out, str):
                     continue
                 got = out

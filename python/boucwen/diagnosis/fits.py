@@ -8,24 +8,42 @@ cannot converge, and such a fit is marked (``converged`` False) and never accept
 
 A candidate adds effects to the current model from their physical starting values
 (:meth:`boucwen.effects.Effect.starts`: a creep's time constants from the record's
-length, a mode at the residual's spectral peak, each whole-sample delay, …). Where an
-effect lists several starts (its cost has local optima: a mode's frequency, a lag's
-corner, a delay), they are ranked by the first-order refit of the current model (one
-simulation each: what a start leaves once the current unknowns are refitted along their
-Jacobian) and the best :data:`STARTS` are each converged; the fit of least cost is the
-candidate. A drop refits the model without the effect from where it is.
+length, a mode at the residual's spectral peak, each whole-sample delay, …) and, where
+the search fitted the same effect beside another model before, from the values it took
+there (a warm start). Where there are several starts (the cost has local optima: a
+mode's frequency, a lag's corner, a delay), they are ranked by short fits on a copy of
+the record at a few kHz (:func:`_ranked`) and the best :data:`STARTS` are each converged
+on the record; the fit of least cost is the candidate. A drop refits the model without the effect from
+where it is.
+
+**Held-out errors** (:func:`held_out`; the folds are :class:`~boucwen.diagnosis.judge.Folds`):
+each fold's model is the whole-record fit refitted on the samples before the fold's
+origin, then run on through the fold. Two ways, one result up to the refits' own
+convergence:
+
+* the **screen**: the first Gauss–Newton step of that refit from the whole-record
+  optimum z*, δ_k = (J_kᵀJ_k)⁺·J_kᵀ·r_k on the rows before the origin (approximate
+  leave-out: Rad & Maleki 2020; the infinitesimal jackknife: Giordano et al. 2019) —
+  one linear solve on the Jacobian the fit already has and one simulation per fold;
+* the **refit**: Levenberg–Marquardt on those samples to its statistical stop, started
+  at z* with that Jacobian (its first step is the screen's), the independent folds run
+  at once on the available cores.
+
+The search reads the screen where a decision is far from its threshold and the refits
+everywhere else (:mod:`~boucwen.diagnosis.search`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
-from functools import cached_property
 from typing import Any, Literal
 
 import numpy as np
 
 from .._core import EffectSet
+from ..boundedness import check_model
 from ..checks import FloatArray
 from ..effects import (
     ExtendedFit,
@@ -34,29 +52,38 @@ from ..effects import (
     candidate_starts,
     effect_class,
     effects_of,
+    fit_box,
     simulate_chain,
     solve_extended_record,
 )
-from ..effects.base import without
+from ..effects.base import with_effect, without
 from ..fit import FitResult
-from ..levenberg import STATISTICAL_MARGIN
+from ..levenberg import STATISTICAL_MARGIN, first_step
+from ..lsq import thread_map
 from ..metrics import rms
 from ..oscillator import UNKNOWNS as OSCILLATOR_UNKNOWNS
-from ..oscillator import OscillatorFit
+from ..oscillator import OscillatorFit, linearised
 from ..oscillator import fit as fit_oscillator
+from ..oscillator import simulate as simulate_oscillator
 from ..record import Record
-from .judge import CrossValidation, fold_slices
+from .judge import CrossValidation, Folds
 
 __all__ = [
     "FOLD_NFEV",
     "MAX_NFEV",
+    "RANK_NFEV",
+    "RANK_RATE_HZ",
+    "RANK_SAMPLES",
+    "RANK_SHORTLIST",
     "STARTS",
     "AtBound",
     "Convergence",
+    "Leaveout",
     "Scored",
     "Structure",
     "add",
     "base",
+    "confirmed",
     "drop",
     "held_out",
     "on_bounds",
@@ -64,19 +91,39 @@ __all__ = [
     "refit",
     "scored",
     "solved_at",
+    "swap",
 ]
 
-#: Starts converged per candidate where its effect lists several (its cost has local
-#: optima); the best by the first-order refit, then the runner-up, which covers the
-#: case where the current fit has bent itself to imitate the effect.
+#: Starts converged per candidate where it has several (its cost has local optima); the
+#: best by the first-order refit, then the runner-up, which covers the case where the
+#: current fit has bent itself to imitate the effect.
 STARTS = 2
 #: Trial points that bound a fit which does not converge (marked, never accepted).
 MAX_NFEV = 150
-#: Trial points of a block's refit (from the whole-record fit, a few steps away when the
-#: rest of the record determines the model); one that has not converged by then runs
-#: off along a direction only the held-out block determined, and its block is left out of
-#: every comparison (:mod:`~boucwen.diagnosis.judge`).
+#: The rate [Hz] of the copy on which a candidate's starts are ranked (every q-th
+#: sample; the record itself where it is sampled slower): the screened copy's.
+RANK_RATE_HZ = 2500.0
+#: Most samples of that copy: a longer one is cut to its window of most voltage travel.
+RANK_SAMPLES = 8192
+#: Trial points of a start's ranking fit on that copy (enough to leave a start's
+#: neighbourhood for its basin; it only ranks).
+RANK_NFEV = 10
+#: Starts fitted for the ranking, the best by the first-order refit (a lag's whole grid
+#: of corners; a mode's best frequencies and dampings of its 50).
+RANK_SHORTLIST = 12
+#: Trial points of a fold's refit (from the whole-record fit, a few steps away when the
+#: past determines the model); one that has not converged by then runs off along a
+#: direction only the future determined, and its fold is left out of every comparison
+#: (:mod:`~boucwen.diagnosis.judge`).
 FOLD_NFEV = 60
+#: Relative difference of two RMS errors within rounding of the same fit.
+_SAME = 1e-9
+#: An added effect that changes the fit's prediction of the record by less than this
+#: share of its residual RMS changes nothing the record holds.
+_UNSEEN_SHARE = 1e-3
+#: Tries of the screen's step (each a quarter of the one before), as the solver's first
+#: trust regions.
+_SCREEN_TRIES = 4
 
 
 @dataclass(frozen=True)
@@ -107,15 +154,20 @@ class Convergence:
     Attributes:
         method: ``"lm"`` (:mod:`boucwen.levenberg`, the default) or ``"trf"`` (SciPy's
             trust-region reflective method) for the fits of the models compared (the
-            judge's block refits are always ``"lm"``: :func:`held_out`).
+            judge's fold refits are always ``"lm"``: :func:`held_out`).
         margin: the statistical stop of ``"lm"``: remaining step ≤ √margin standard
             errors.
         tol: relative change of the cost or the unknowns that stops either method.
+        screen: read a held-out error from the screen (the refits' first step) where a
+            decision is far from its threshold (:mod:`~boucwen.diagnosis.search`);
+            False reads every one from converged refits — the judge the screen must
+            agree with, for checking it.
     """
 
     method: Literal["lm", "trf"] = "lm"
     margin: float = STATISTICAL_MARGIN
     tol: float = 1e-10
+    screen: bool = True
 
     def tighter(self, factor: float = 10.0) -> Convergence:
         """The same solver with its stopping tolerances ``factor`` times tighter."""
@@ -123,16 +175,97 @@ class Convergence:
 
 
 @dataclass(frozen=True, eq=False)
+class Leaveout:
+    """A converged fit as its fold refits need it (module docs).
+
+    Attributes:
+        z: its unknowns.
+        jacobian: ∂x̂/∂z over the record [µm per unit], one row per sample.
+        lower, upper: the unknowns' bounds.
+        scale: each unknown's typical size (the metric of the screen's step).
+        simulate: (z, stop) → x̂ [µm] over the first ``stop`` samples, or None.
+        refit: train → (x̂ [µm] over the record of the model refitted on the samples
+            ``train`` (a slice of the record's past), whether that refit converged), x̂
+            None where it failed.
+        margin: the refits' statistical stop (the screen stops where they would).
+    """
+
+    z: FloatArray
+    jacobian: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+    scale: FloatArray
+    simulate: Callable[[FloatArray, int], FloatArray | None]
+    refit: Callable[[slice], tuple[FloatArray | None, bool]]
+    margin: float = STATISTICAL_MARGIN
+
+
+def _screen(lo: Leaveout, x_hat: FloatArray, r: FloatArray, train: slice, stop: int) -> FloatArray | None:
+    """The screen's prediction over the first ``stop`` samples for the fold refitted on
+    ``train``: the refit's first step from z* (module docs) as the solver takes it — the
+    bounded Gauss–Newton step on those rows (:func:`boucwen.levenberg.first_step`; none
+    where the remaining step is within the statistical margin, as the refit stops there),
+    within the solver's first trust region, kept where it lowers the cost of those rows,
+    else shortened to a quarter and tried again (four tries; then z* itself, where the
+    refit ends when no step lowers the cost)."""
+    rows = -r[train]
+    cost = float(rows @ rows)
+    radius = float(np.linalg.norm(lo.z / lo.scale)) or 1.0
+    for _ in range(_SCREEN_TRIES):
+        z1 = first_step(
+            rows, lo.jacobian[train], lo.z, lo.lower, lo.upper, x_scale=lo.scale, margin=lo.margin, radius=radius
+        )
+        step = float(np.linalg.norm((z1 - lo.z) / lo.scale))
+        if step == 0.0:
+            break
+        x1 = lo.simulate(z1, max(stop, train.stop))
+        if x1 is not None:
+            left = x1[train] - (x_hat[train] + r[train])
+            if float(left @ left) < cost:
+                return x1
+        radius = 0.25 * step
+    return x_hat[: max(stop, train.stop)]
+
+
+def held_out(
+    record: Record, lo: Leaveout, x_hat: FloatArray, folds: Folds, exact: bool, workers: int | None = 1
+) -> CrossValidation:
+    """The held-out residual [µm] of the fit ``lo`` (simulated ``x_hat`` [µm] over the
+    record) on ``folds``: each fold's from the model refitted on its training samples
+    (``exact``) or from the screen's step (module docs)."""
+    r = record.x - x_hat
+    held = np.full(r.size, np.nan)
+
+    def one(k: int) -> tuple[FloatArray | None, bool]:
+        train, stop = folds.train(k), folds.test(k).stop
+        if exact:
+            return lo.refit(train)
+        return _screen(lo, x_hat, r, train, stop), True
+
+    out = thread_map(one, list(range(folds.count)), workers if exact else 1)
+    converged = []
+    for k, (x_k, ok) in enumerate(out):
+        sl = folds.test(k)
+        if x_k is None:
+            converged.append(False)
+            continue
+        held[sl] = record.x[sl] - x_k[sl]
+        converged.append(ok)
+    return CrossValidation.of(held, r, folds, tuple(converged), exact)
+
+
+@dataclass(frozen=True, eq=False)
 class Scored:
-    """A converged fit and its held-out error.
+    """A converged fit of the input-driven model and its held-out error.
 
     Attributes:
         fit: the fit (:class:`boucwen.effects.ExtendedFit`).
         x: its simulated displacement over the record [µm].
         jacobian: ∂x̂/∂z there (one row per sample, one column per unknown).
-        cv: its blocked cross-validation.
+        cv: its forward validation (the screen's or the refits': ``cv.exact``).
         converged: the whole-record fit stopped by its tolerance, not by
-            :data:`MAX_NFEV` (its blocks' refits: ``cv.converged``).
+            :data:`MAX_NFEV` (its folds' refits: ``cv.converged``).
+        leaveout: what its fold refits need (:class:`Leaveout`).
     """
 
     fit: ExtendedFit
@@ -140,6 +273,7 @@ class Scored:
     jacobian: FloatArray
     cv: CrossValidation
     converged: bool
+    leaveout: Leaveout
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -150,104 +284,194 @@ class Scored:
     def unknowns(self) -> int:
         return int(self.jacobian.shape[1])
 
-    @cached_property
-    def refit_basis(self) -> FloatArray:
-        """An orthonormal basis of the span of the Jacobian's columns (scaled to unit
-        norm): the first-order refit of the model's unknowns, computed once per model
-        and shared by every start ranked from it."""
-        norms = np.linalg.norm(self.jacobian, axis=0)
-        keep = norms > 0
-        q, _ = np.linalg.qr(self.jacobian[:, keep] / norms[keep])
-        return np.asarray(q, dtype=np.float64)
-
 
 def _layout(record: Record, effects: EffectSet) -> Layout:
-    return Layout.of(effects, record.dt, record.dt * max(len(record) - 1, 1))
+    return Layout.for_record(effects, record)
 
 
 def _converge(record: Record, fit: ExtendedFit, effects: EffectSet, conv: Convergence) -> Solved:
+    """``fit`` with ``effects``, converged on ``record`` by ``conv`` (the Jacobian kept
+    while it predicts the steps: one pass and a few simulations near the optimum)."""
     return solve_extended_record(
-        record, fit.params, effects, fit.h0, max_nfev=MAX_NFEV, tol=conv.tol, method=conv.method, margin=conv.margin
+        record,
+        fit.params,
+        effects,
+        fit.h0,
+        max_nfev=MAX_NFEV,
+        tol=conv.tol,
+        method=conv.method,
+        margin=conv.margin,
+        reuse_jacobian=True,
     )
 
 
-def held_out(record: Record, solved: Solved, folds: int, conv: Convergence) -> CrossValidation:
-    """The held-out residual [µm] of the fit ``solved``: each block's from the model
-    refitted without it (from the whole-record fit, at most
-    :data:`FOLD_NFEV` trial points; it starts a few steps from its optimum, so a Jacobian
-    is kept while it predicts the steps), with which refits converged. The refits are
-    the judge's measurement and always run Levenberg–Marquardt to ``conv``'s statistical
-    stop, whatever solver fits the models: along a direction the rest of the record
-    hardly determines, where a refit stops is set by its stopping rule, and the
-    statistical stop is the one that stops where the record no longer resolves a step."""
-    fr = solved.fit
-    n = len(record)
-    held = np.empty(n)
-    converged = []
-    for sl in fold_slices(n, folds):
-        weights = np.ones(n)
-        weights[sl] = 0.0
-        refitted = solve_extended_record(
-            record,
-            fr.params,
-            fr.effects,
-            fr.h0,
-            max_nfev=FOLD_NFEV,
-            tol=conv.tol,
-            method="lm",
-            margin=conv.margin,
-            weights=weights,
-            reuse_jacobian=True,
-        )
-        held[sl] = record.x[sl] - refitted.x[sl]
-        converged.append(refitted.fit.success)
-    return CrossValidation.of(held, record.x - solved.x, folds, tuple(converged))
+def _leaveout(record: Record, solved: Solved, conv: Convergence) -> Leaveout:
+    """:class:`Leaveout` of an input-driven fit over ``record``."""
+    fit = solved.fit
+    box = fit_box(record, fit.params, fit.effects, fit.h0)
+    layout = box.layout
+    z = layout.pack(fit.params, fit.effects, fit.h0)
+    r = record.x - solved.x
+
+    def simulate(v: FloatArray, stop: int) -> FloatArray | None:
+        return layout.simulate(v, record.u[:stop], record.dt)
+
+    def refit(train: slice) -> tuple[FloatArray | None, bool]:
+        try:
+            out = solve_extended_record(
+                record,
+                fit.params,
+                fit.effects,
+                fit.h0,
+                max_nfev=FOLD_NFEV,
+                tol=conv.tol,
+                method="lm",
+                margin=conv.margin,
+                reuse_jacobian=True,
+                fit_until=train.stop,
+                start=(r, solved.jacobian),
+            )
+        except ValueError:
+            return None, False
+        return out.x, out.fit.success
+
+    return Leaveout(z, solved.jacobian, box.lower, box.upper, box.scale, simulate, refit, conv.margin)
 
 
-def scored(record: Record, solved: Solved, folds: int, conv: Convergence) -> Scored:
-    """A converged fit with its blocked cross-validation over ``folds`` blocks (each
-    block's model refitted by ``conv`` without it: :mod:`~boucwen.diagnosis.judge`)."""
-    return Scored(solved.fit, solved.x, solved.jacobian, held_out(record, solved, folds, conv), solved.fit.success)
+def scored(
+    record: Record, solved: Solved, folds: Folds, conv: Convergence, *, exact: bool = False, workers: int | None = 1
+) -> Scored:
+    """A converged fit with its forward validation on ``folds`` (the screen's, or with
+    ``exact`` the refits')."""
+    lo = _leaveout(record, solved, conv)
+    cv = held_out(record, lo, solved.x, folds, exact, workers)
+    return Scored(solved.fit, solved.x, solved.jacobian, cv, solved.fit.success, lo)
+
+
+def confirmed(record: Record, model: Scored | Structure, workers: int | None) -> Scored | Structure:
+    """``model`` with its held-out error from converged refits (itself where it has it)."""
+    if model.cv.exact:
+        return model
+    cv = held_out(record, model.leaveout, model.x, model.cv.folds, True, workers)
+    return replace(model, cv=cv)
 
 
 def solved_at(record: Record, fit: ExtendedFit) -> Solved:
     """``fit`` with its simulated displacement and Jacobian over ``record``."""
-    out = _layout(record, fit.effects).simulate_with_jacobian(
-        _layout(record, fit.effects).pack(fit.params, fit.effects, fit.h0), record.u, record.dt
-    )
+    layout = _layout(record, fit.effects)
+    out = layout.simulate_with_jacobian(layout.pack(fit.params, fit.effects, fit.h0), record.u, record.dt)
     if out is None:  # pragma: no cover - a fitted model can be simulated
         raise ValueError("the fitted model cannot be simulated")
     return Solved(fit=fit, x=out[0], jacobian=out[1])
 
 
-def base(record: Record, offline: FitResult, conv: Convergence, folds: int) -> Scored:
+def base(record: Record, offline: FitResult, conv: Convergence, folds: int, first_origin: float) -> Scored:
     """The base model: the offline fit (:func:`boucwen.fit`, its global search of
-    starts) converged by ``conv`` and scored."""
+    starts) converged by ``conv`` and scored on ``folds`` forward folds, the first origin
+    where the past holds ``first_origin`` of what the record tells about its unknowns
+    (:class:`~boucwen.diagnosis.judge.Folds`)."""
     start = ExtendedFit(offline.params, EffectSet(), offline.h0, offline.rms_um, offline.max_um, offline.nfev, True)
-    return scored(record, _converge(record, start, EffectSet(), conv), folds, conv)
+    solved = _converge(record, start, EffectSet(), conv)
+    return scored(record, solved, Folds.of(record, folds, first_origin, solved.jacobian), conv)
 
 
-def _first_order(record: Record, current: Scored, effects: EffectSet) -> float:
-    """RMS [µm] left by the current model with ``effects`` once its unknowns are refitted
-    to first order along their Jacobian (∞ where it cannot be simulated)."""
-    xs = simulate_chain(current.fit.params, effects, record.u, record.dt, current.fit.h0)
+def _first_order(record: Record, current: Scored, effects: EffectSet, added: tuple[str, ...]) -> float:
+    """RMS [µm] left by the current model with ``effects`` once its unknowns and those of
+    the effects ``added`` are refitted to first order: along the current model's
+    Jacobian, and along each added unknown's own direction at the start (a forward
+    difference of a thousandth of its typical size, one simulation each); ∞ where it
+    cannot be simulated."""
+    box = fit_box(record, current.fit.params, effects, current.fit.h0)
+    v = box.v0
+    xs = box.layout.simulate(v, record.u, record.dt)
     if xs is None:
         return math.inf
-    q = current.refit_basis
+    owners = [label.split(".", 1)[0] for label in box.layout.labels()]
+    columns = [current.jacobian]
+    for i, owner in enumerate(owners):
+        if owner not in added:
+            continue
+        h = 1e-3 * float(box.scale[i])
+        moved = v.copy()
+        moved[i] = v[i] + h if v[i] + h <= box.upper[i] else v[i] - h
+        x2 = box.layout.simulate(moved, record.u, record.dt)
+        if x2 is not None:
+            columns.append(((x2 - xs) / (moved[i] - v[i]))[:, None])
+    basis = np.column_stack(columns)
+    norms = np.linalg.norm(basis, axis=0)
+    keep = norms > 0
+    q, _ = np.linalg.qr(basis[:, keep] / norms[keep])
     r = record.x - xs
     return rms(r - q @ (q.T @ r))
 
 
-def _starts(record: Record, current: Scored, names: tuple[str, ...], max_delay: int) -> list[EffectSet]:
+def _ranking_copy(record: Record) -> Record:
+    """The copy of ``record`` the starts are ranked on: every q-th sample (about
+    :data:`RANK_RATE_HZ`; the record itself where it is sampled slower), and of a longer
+    copy the :data:`RANK_SAMPLES` samples of most voltage travel (the model runs from the
+    window's start, its h0 fitted there)."""
+    q = max(1, int(1.0 / (record.dt * RANK_RATE_HZ)))
+    copy = record.decimated(q) if q > 1 else record
+    if len(copy) <= RANK_SAMPLES:
+        return copy
+    travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(copy.u)))])
+    gained = travel[RANK_SAMPLES:] - travel[: len(copy) - RANK_SAMPLES]
+    start = int(np.argmax(gained))
+    return copy.part(start, start + RANK_SAMPLES)
+
+
+def _ranked(record: Record, current: Scored, starts: list[EffectSet], added: tuple[str, ...]) -> list[EffectSet]:
+    """``starts`` best first. A start is a local optimum's basin, and where the current
+    model has bent its hysteresis to imitate the effect (a lag, an electrostriction) a
+    first-order view from the bent model ranks a start that changes little first and the
+    start in the effect's own basin last: only a fit from the start tells which basin it
+    lies in. So the best :data:`RANK_SHORTLIST` by the first-order refit
+    (:func:`_first_order`) are each fitted from the current model's values on a copy of the
+    record (:func:`_ranking_copy`) for at most :data:`RANK_NFEV` trial points, and ranked by
+    the cost they reach there. These fits
+    only choose which starts are converged on the record; nothing is decided on them."""
+    if len(starts) > RANK_SHORTLIST:
+        first = [_first_order(record, current, s, added) for s in starts]
+        order = sorted(range(len(starts)), key=lambda k: (first[k], k))
+        starts = [starts[k] for k in order[:RANK_SHORTLIST] if math.isfinite(first[k])]
+    copy = _ranking_copy(record)
+    fit = current.fit
+
+    def cost(effects: EffectSet) -> float:
+        try:
+            out = solve_extended_record(copy, fit.params, effects, fit.h0, max_nfev=RANK_NFEV, reuse_jacobian=True)
+        except ValueError:
+            return math.inf
+        value = out.fit.rms_um
+        return value if math.isfinite(value) else math.inf
+
+    costs = [cost(s) for s in starts]
+    order = sorted(range(len(starts)), key=lambda k: (costs[k], k))
+    return [starts[k] for k in order if math.isfinite(costs[k])]
+
+
+def _starts(
+    record: Record, current: Scored, names: tuple[str, ...], max_delay: int, warm: ExtendedFit | None
+) -> list[EffectSet]:
     """Starting effect sets adding ``names`` to the current model: the starts of the
-    last (a tied effect after its partner, from the partner's starts)."""
+    last (a tied effect after its partner, from the partner's starts), and the values
+    ``warm`` holds for them (module docs)."""
     fit = current.fit
     *partners, name = names
     cls = effect_class(name)
     if partners:
         first = candidate_starts(partners[0], record, fit.params, fit.effects, fit.h0, max_delay=max_delay)
-        return [cls.beside(s) for s in first]
-    return candidate_starts(name, record, fit.params, fit.effects, fit.h0, max_delay=max_delay)
+        starts = [cls.beside(s) for s in first]
+    else:
+        starts = candidate_starts(name, record, fit.params, fit.effects, fit.h0, max_delay=max_delay)
+    if warm is not None:
+        held = {e.name: e for e in effects_of(warm.effects)}
+        if all(k in held for k in names):
+            effects = fit.effects
+            for k in names:
+                effects = with_effect(effects, held[k])
+            starts.append(effects)
+    return starts
 
 
 def add(
@@ -255,26 +479,21 @@ def add(
     current: Scored,
     names: tuple[str, ...],
     conv: Convergence,
-    folds: int,
+    folds: Folds,
     max_delay: int,
     *,
-    dropped: str | None = None,
+    dropped: Scored | None = None,
+    warm: ExtendedFit | None = None,
 ) -> Scored | str:
-    """The current model with ``names`` added (after ``dropped`` is taken out: a swap),
-    converged from the best :data:`STARTS` starts (module docs) and scored; or why there
-    is no such candidate (no start can be simulated, or the fitted effect is not what its
-    name says: :meth:`boucwen.effects.Effect.rejects`)."""
-    origin = current
-    if dropped is not None:
-        out = drop(record, current, dropped, conv, folds)
-        if isinstance(out, str):
-            return out
-        origin = out
-    starts = _starts(record, origin, names, max_delay)
+    """The current model with ``names`` added (to ``dropped``, the current model without
+    the effect it swaps out, where the move is a swap), converged from the best
+    :data:`STARTS` starts (module docs; ``warm``: a fit that held the same effects) and
+    scored by the screen; or why there is no such candidate (no start can be simulated,
+    or the fitted effect is not what its name says: :meth:`boucwen.effects.Effect.rejects`)."""
+    origin = current if dropped is None else dropped
+    starts = _starts(record, origin, names, max_delay, warm)
     if len(starts) > STARTS:
-        costs = [_first_order(record, origin, s) for s in starts]
-        order = sorted(range(len(starts)), key=lambda k: (costs[k], k))
-        starts = [starts[k] for k in order[:STARTS] if math.isfinite(costs[k])]
+        starts = _ranked(record, origin, starts, names)[:STARTS]
     best: Solved | None = None
     for s in starts:
         try:
@@ -285,17 +504,57 @@ def add(
             best = solved
     if best is None:
         return "no start can be simulated"
+    # An effect can always be set to change nothing (no lag, no delay, a gain of 0): a fit
+    # with it that ends worse on the record than the model without it did not find it.
+    if best.fit.rms_um > origin.fit.rms_um * (1.0 + _SAME):
+        return (
+            f"the fit with {' + '.join(names)} ends worse on the record ({best.fit.rms_um:.4g} µm) than the "
+            f"model without it ({origin.fit.rms_um:.4g} µm): the effect was not found"
+        )
+    # An effect is named for what it does to the record: one that changes the fitted
+    # model's prediction of the record by less than a thousandth of what the fit leaves (a
+    # clip above every sample) is not in the record, whatever it does where the model is
+    # carried beyond it.
+    fit = best.fit
+    rest = fit.effects
+    for k in names:
+        rest = without(rest, k)
+    plain = simulate_chain(fit.params, rest, record.u, record.dt, fit.h0)
+    if plain is not None:
+        if rms(best.x - plain) < _UNSEEN_SHARE * max(fit.rms_um, 1e-300):
+            return f"{' + '.join(names)} changes nothing the record holds: it is not in the record"
+        for effect in effects_of(fit.effects):
+            why = effect.rejects_on(record, plain) if effect.name in names else None
+            if why is not None:
+                return why
     return _valid(record, best, folds, conv)
 
 
-def _valid(record: Record, solved: Solved, folds: int, conv: Convergence) -> Scored | str:
+def swap(
+    record: Record, current: Scored, out: str, adds: tuple[str, ...], conv: Convergence, folds: Folds, max_delay: int
+) -> Scored | str:
+    """The current model with ``out`` swapped for ``adds`` (:func:`drop`, then
+    :func:`add` to what is left), or why there is no such candidate."""
+    rest = drop(record, current, out, conv, folds)
+    if isinstance(rest, str):
+        return rest
+    return add(record, current, adds, conv, folds, max_delay, dropped=rest)
+
+
+def _valid(record: Record, solved: Solved, folds: Folds, conv: Convergence) -> Scored | str:
     """The candidate ``solved`` scored, or why it is none: an effect whose fitted values
     make it something other than its name says (:meth:`boucwen.effects.Effect.rejects`:
-    a resonance without a peak)."""
+    a resonance without a peak), or a model that the fit kept inside the admissible
+    region but that leaves the record's range on inputs within its limits
+    (:func:`boucwen.boundedness.check_model`)."""
     for effect in effects_of(solved.fit.effects):
         why = effect.rejects()
         if why is not None:
             return why
+    fit = solved.fit
+    bounded = check_model(record, fit.params, fit.effects, fit.h0)
+    if not bounded.passed:
+        return f"the fitted model is not bounded over the record's range: {bounded.summary()}"
     return scored(record, solved, folds, conv)
 
 
@@ -306,6 +565,15 @@ def refit(record: Record, fit: ExtendedFit, effects: EffectSet, conv: Convergenc
         return _converge(record, fit, effects, conv).fit
     except ValueError:
         return None
+
+
+def drop(record: Record, current: Scored, name: str, conv: Convergence, folds: Folds) -> Scored | str:
+    """The current model without ``name``, refitted from where it is and scored."""
+    try:
+        solved = _converge(record, current.fit, without(current.fit.effects, name), conv)
+    except ValueError as exc:
+        return str(exc)
+    return _valid(record, solved, folds, conv)
 
 
 @dataclass(frozen=True, eq=False)
@@ -319,10 +587,11 @@ class Structure:
         name: ``"oscillator"``.
         fit: the fit over the whole record (:class:`boucwen.oscillator.OscillatorFit`).
         x: its displacement over the record [µm].
-        cv: its blocked cross-validation (each block from the oscillator refitted without
-            it, from the whole-record fit).
+        cv: its forward validation (each fold from the oscillator refitted on its past,
+            from the whole-record fit: always converged refits).
         converged: the whole-record fit converged.
         unknowns: its number of unknowns.
+        leaveout: what its fold refits need.
     """
 
     name: str
@@ -331,37 +600,43 @@ class Structure:
     cv: CrossValidation
     converged: bool
     unknowns: int
+    leaveout: Leaveout
 
     @property
     def names(self) -> tuple[str, ...]:
         return (self.name,)
 
 
-def oscillator(record: Record, folds: int) -> Structure | str:
+def oscillator(record: Record, folds: Folds, conv: Convergence) -> Structure | str:
     """The hysteretic oscillator fitted to ``record`` (u as the force [N], x [µm] as the
-    displacement, in m for the fit) and scored like every model the judge compares; or
-    why there is none (the fit cannot run on the record)."""
-    n = len(record)
+    displacement, in m for the fit) and scored like every model the judge compares (its
+    held-out errors screened, confirmed by refits where a decision needs them); or why
+    there is none (the fit cannot run on the record)."""
     y = record.x * 1e-6
     try:
         whole = fit_oscillator(record.u, y, record.dt)
+        box, jac, run = linearised(whole, record.u, record.dt)
     except ValueError as exc:
         return f"the oscillator cannot be fitted: {exc}"
-    held = record.x - whole.y * 1e6
-    converged = []
-    for sl in fold_slices(n, folds):
-        weights = np.ones(n)
-        weights[sl] = 0.0
-        try:
-            refitted = fit_oscillator(record.u, y, record.dt, start=whole.params, weights=weights, max_nfev=FOLD_NFEV)
-        except ValueError:
-            converged.append(False)
-            continue
-        held[sl] = record.x[sl] - refitted.y[sl] * 1e6
-        converged.append(refitted.success)
     x = whole.y * 1e6
-    cv = CrossValidation.of(held, record.x - x, folds, tuple(converged))
-    return Structure("oscillator", whole, x, cv, whole.success, len(OSCILLATOR_UNKNOWNS))
+
+    def simulate(z: FloatArray, stop: int) -> FloatArray | None:
+        out = run(z, stop)
+        return None if out is None else out * 1e6
+
+    def refit_fold(train: slice) -> tuple[FloatArray | None, bool]:
+        weights = np.zeros(len(record))
+        weights[train] = 1.0
+        try:
+            out = fit_oscillator(record.u, y, record.dt, start=whole.params, weights=weights, max_nfev=FOLD_NFEV)
+            x_k = simulate_oscillator(out.params, record.u, record.dt, out.y0, out.v0, out.z0) * 1e6
+        except ValueError:
+            return None, False
+        return (x_k, out.success) if np.all(np.isfinite(x_k)) else (None, False)
+
+    lo = Leaveout(box.z, jac * 1e6, box.lower, box.upper, box.scale, simulate, refit_fold, conv.margin)
+    cv = held_out(record, lo, x, folds, not conv.screen)
+    return Structure("oscillator", whole, x, cv, whole.success, len(OSCILLATOR_UNKNOWNS), lo)
 
 
 def on_bounds(fit: ExtendedFit, record: Record, tolerance: float) -> list[AtBound]:
@@ -376,12 +651,3 @@ def on_bounds(fit: ExtendedFit, record: Record, tolerance: float) -> list[AtBoun
             if math.isfinite(bound) and abs(v - bound) <= tolerance * max(1.0, abs(bound)):
                 out.append(AtBound(label, float(v), float(bound), side))
     return out
-
-
-def drop(record: Record, current: Scored, name: str, conv: Convergence, folds: int) -> Scored | str:
-    """The current model without ``name``, refitted from where it is and scored."""
-    try:
-        solved = _converge(record, current.fit, without(current.fit.effects, name), conv)
-    except ValueError as exc:
-        return str(exc)
-    return _valid(record, solved, folds, conv)

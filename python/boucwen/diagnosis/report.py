@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet, Params
+from ..boundedness import Boundedness
 from ..checks import FloatArray
 from ..effects import Effect
 from ..io import jsonable, write_csv
@@ -155,7 +156,7 @@ class Diagnosis:
         taken: the moves the search took, in order.
         at_bounds: the returned model's unknowns that ended on a bound of the fit
             (:class:`AtBound`).
-        unseen: errors on data the fits did not see [µm]: blocked cross-validation of the
+        unseen: errors on data the fits did not see [µm]: forward validation of the
             base and returned models and, with a validation record, both carried to it
             (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
         explained: the record, the returned model and its rivals, for
@@ -165,6 +166,10 @@ class Diagnosis:
             ``x_extended``, ``rms_after_um``, ``max_after_um``, ``unexplained`` and
             ``unseen`` are the oscillator's, while ``params``, ``h0_um``, ``effect_set``
             and ``named_effects`` stay the best input-driven model's (its rival).
+        boundedness: the returned model driven over the record's range by full-range
+            sines, steps and triangles (:func:`boucwen.boundedness.check`): whether its
+            output stays within the stated multiple of the record's range (None if not
+            computed).
     """
 
     effects: list[str]
@@ -187,6 +192,7 @@ class Diagnosis:
     unseen: Unseen | None = None
     explained: Explained | None = field(default=None, repr=False)
     structure: NamedStructure | None = None
+    boundedness: Boundedness | None = None
 
     def next_experiment(
         self,
@@ -257,6 +263,7 @@ class Diagnosis:
             "unseen": {} if self.unseen is None else self.unseen.to_dict(),
             "at_bounds": [b.to_dict() for b in self.at_bounds],
             "structure": None if self.structure is None else self.structure.to_dict(),
+            "boundedness": None if self.boundedness is None else self.boundedness.to_dict(),
         }
 
     def summary(self) -> str:
@@ -268,7 +275,8 @@ class Diagnosis:
         )
         unseen = self.unseen
         cv = (
-            f"; unseen ({unseen.folds}-fold CV) RMS {unseen.cv_rms_before_um:.4g} → {unseen.cv_rms_after_um:.4g} µm"
+            f"; unseen ({unseen.folds} forward folds) RMS {unseen.cv_rms_before_um:.4g} → "
+            f"{unseen.cv_rms_after_um:.4g} µm"
             if unseen is not None
             else ""
         )
@@ -276,6 +284,8 @@ class Diagnosis:
         if val is not None and val.before is not None and val.after is not None:
             cv += f"; validation record RMS {val.before.rms_um:.4g} → {val.after.rms_um:.4g} µm"
         bounds = "".join(f"; {b.parameter} = {b.value:.4g} on its {b.side} bound" for b in self.at_bounds)
+        if self.boundedness is not None and not self.boundedness.passed:
+            bounds += f"; {self.boundedness.summary()}"
         if self.structure is not None:
             s = self.structure
             return (

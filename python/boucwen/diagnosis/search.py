@@ -3,35 +3,47 @@
 Each round proposes every move from the current model — **add** an effect of the
 vocabulary it lacks (two effects that physics ties together, a second mode beside a
 first, are added at once: ``add_tied``), **drop** one it holds, **swap** one it holds for
-a rival the record could not tell it from — fits every candidate to convergence
-(:mod:`~boucwen.diagnosis.fits`) and judges each against the current model
-(:func:`~boucwen.diagnosis.judge.judge`). Then:
+a rival the record could not tell it from, and **the other structure**: the whole
+input-driven model replaced by the hysteretic oscillator (the hysteresis inside a
+structure's own dynamics, driven by its motion; :mod:`boucwen.oscillator`) — fits every
+candidate to convergence (:mod:`~boucwen.diagnosis.fits`) and judges each against the
+current model (:func:`~boucwen.diagnosis.judge.judge`). Then:
 
 * an accepted drop is taken first (the model is simpler and predicts no worse): of
-  several, the effect that earns least;
-* else the accepted add or swap of largest held-out gain, through its **ambiguity set**:
+  several, the effect that earns least (the smallest statistic for keeping it);
+* else the accepted add or swap of largest statistic, through its **ambiguity set**:
   the candidates of the round that the record does not tell apart from it
   (:func:`~boucwen.diagnosis.judge.apart`). The model takes the accepted member with the
-  fewest unknowns, then the first in the vocabulary; the others are its rivals, reported
-  with their held-out errors, and proposed as swaps in the rounds that follow;
+  fewest unknowns (the one-standard-error rule), then the largest statistic; the others
+  are its rivals, reported with their held-out errors, and proposed as swaps in the
+  rounds that follow;
 * nothing accepted, or a residual consistent with the record's noise
-  (:func:`boucwen.residual.unexplained`), ends the search.
+  (:func:`boucwen.residual.unexplained`), ends the search. A model of the other
+  structure proposes no move: the search ends there.
 
 A model the search has already held is never proposed again (floating selection cannot
-cycle). What the residual follows (the look-alike tests of
-:mod:`boucwen.residual.lookalike`) is reported beside each set; it never decides.
+cycle). Every fit is kept by its set of effects for the whole search (a drop back to a
+model held before reads that model's fit; an effect added again beside another model
+starts from the values it took before). What the residual follows (the look-alike tests
+of :mod:`boucwen.residual.lookalike`) is reported beside each set; it never decides.
 
-**Screening** (records of more than :data:`SCREEN_MIN_SAMPLES` samples sampled faster
-than :data:`SCREEN_RATE_HZ`) wraps the fits; it never decides. Every move is first fitted
-on a copy of the record holding every q-th sample, against the current model refitted
-there; the move the copy ranks best (least held-out error), every move the copy cannot
-tell from it, and every move it sees any held-out gain from are then fitted on the full
-record as without screening (from the full record's own starts: an effect's starts may
-depend on the sampling interval, a creep's shortest time constant), and the judge
-decides there. Moves the copy cannot hold — an effect of whole samples of the record's
-rate (:attr:`boucwen.effects.Effect.full_rate_only`), a mode where the residual's
-spectral peak lies above what the copy can hold, a move with no candidate on the copy,
-any move from a model the copy cannot simulate — are fitted on the full record directly.
+**Exactness where it decides.** Each candidate's held-out errors first come from the
+screen (the first Gauss–Newton step of each fold's refit); a decision is read from
+converged refits wherever it could go either way — every accepted move, every move whose
+statistic lies within ``screen_band`` of its threshold, every candidate that might share
+the best one's ambiguity set — and from the screen only where it is far from the
+threshold. With ``Convergence(screen=False)`` every decision reads converged refits.
+
+**Screening on a copy** (records of more than :data:`SCREEN_MIN_SAMPLES` samples sampled
+faster than :data:`SCREEN_RATE_HZ`) wraps the fits; it never decides. Every move is first
+fitted on a copy of the record holding every q-th sample, against the current model
+refitted there; the move the copy ranks best, every move the copy cannot tell from it,
+and every move it sees any held-out gain from are then fitted on the full record as
+without screening, and the judge decides there. Moves the copy cannot hold — an effect
+of whole samples of the record's rate (:attr:`boucwen.effects.Effect.full_rate_only`), a
+mode where the residual's spectral peak lies above what the copy can hold, a move with
+no candidate on the copy, any move from a model the copy cannot simulate — are fitted on
+the full record directly.
 """
 
 from __future__ import annotations
@@ -39,8 +51,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import partial
-from typing import Any
+from typing import Any, Union
 
 from ..effects import FN_MAX_NYQUIST_FRACTION, VOCABULARY, effect_class, simulate_chain
 from ..lsq import thread_map
@@ -48,13 +59,16 @@ from ..record import Record
 from ..residual import lookalike_tests, unexplained
 from ..residual.evidence import spectral_peak
 from ..residual.lookalike import named
-from .fits import Convergence, Scored, Structure, add, drop, oscillator, refit, scored, solved_at
-from .judge import Decision, apart, gain, judge, threshold
+from . import fits
+from .fits import Convergence, Scored, Structure
+from .judge import Decision, Folds, apart, gain, judge, level, threshold
 from .policy import DiagnosisPolicy
 
 __all__ = [
+    "OSCILLATOR",
     "SCREEN_MIN_SAMPLES",
     "SCREEN_RATE_HZ",
+    "Model",
     "Move",
     "Round",
     "Search",
@@ -62,7 +76,6 @@ __all__ = [
     "rival_order",
     "screen_copy",
     "search",
-    "structure_move",
     "vocabulary_order",
 ]
 
@@ -72,6 +85,12 @@ SCREEN_MIN_SAMPLES = 50_000
 #: high mode (which the copy does not hold: module docs), ten times the bandwidth of the
 #: fastest actuator drive the records are made with.
 SCREEN_RATE_HZ = 2500.0
+#: The name of the other structure's move.
+OSCILLATOR = "oscillator"
+
+#: A model the search holds: the input-driven model with its effects, or the other
+#: structure.
+Model = Union[Scored, Structure]
 
 
 @dataclass(frozen=True)
@@ -79,8 +98,9 @@ class Move:
     """A move from the current model.
 
     Attributes:
-        kind: ``"add"``, ``"add_tied"``, ``"drop"`` or ``"swap"``.
-        adds: effects it adds (a tied pair: the partner first).
+        kind: ``"add"``, ``"add_tied"``, ``"drop"``, ``"swap"`` or ``"structure"``.
+        adds: effects it adds (a tied pair: the partner first); ``("oscillator",)`` for
+            the structure.
         drops: the effect it takes out, or None.
     """
 
@@ -91,6 +111,8 @@ class Move:
     @property
     def effects(self) -> tuple[str, ...]:
         """What the move concerns, as :attr:`Decision.effects` lists it."""
+        if self.kind == "structure":
+            return ("input-driven", *self.adds)
         return ((self.drops,) if self.drops else ()) + self.adds
 
 
@@ -106,8 +128,8 @@ class Round:
         rejected: moves with no candidate, and why (no start simulated, the fitted
             effect not what its name says).
         signatures: what the look-alike tests name on the current model's residual.
-        screened: with screening, the decisions on the copy (which only choose what is
-            fitted on the full record).
+        screened: with screening on a copy, the decisions on the copy (which only choose
+            what is fitted on the full record).
     """
 
     decisions: tuple[Decision, ...]
@@ -134,24 +156,31 @@ class Search:
 
     Attributes:
         current: the current model.
+        input_driven: the last input-driven model the search held (the current one,
+            unless the other structure was taken).
         rounds: every round so far.
-        rivals: per effect of the model, the effects the record did not tell it from.
+        rivals: per effect of the model, the effects (or the other structure) the record
+            did not tell it from.
         swaps: the swaps of the current model for a rival fitted in the last round (by
             the set of effects of each), kept for the explanations the record could not
             tell apart (:mod:`~boucwen.diagnosis.experiment`).
+        fitted: every model fitted, by its set of effects (the other structure by its
+            name).
         stopped: why the search ended.
     """
 
-    current: Scored
+    current: Model
+    input_driven: Scored
     rounds: list[Round] = field(default_factory=list)
     rivals: dict[str, set[str]] = field(default_factory=dict)
     swaps: dict[frozenset[str], Scored] = field(default_factory=dict)
+    fitted: dict[frozenset[str], Model | str] = field(default_factory=dict)
     stopped: str = ""
 
 
 def vocabulary_order(names: tuple[str, ...]) -> tuple[int, ...]:
-    """Sort key: each name's place in the vocabulary."""
-    return tuple(VOCABULARY.index(k) for k in names)
+    """Sort key: each name's place in the vocabulary (another structure after it)."""
+    return tuple(rival_order(k)[0] for k in names)
 
 
 def rival_order(name: str) -> tuple[int, str]:
@@ -161,7 +190,7 @@ def rival_order(name: str) -> tuple[int, str]:
 
 
 def proposals(names: tuple[str, ...], rivals: dict[str, set[str]], max_effects: int) -> list[Move]:
-    """Every move from a model holding ``names`` (module docs)."""
+    """Every move from an input-driven model holding ``names`` (module docs)."""
     moves: list[Move] = []
     if len(names) < max_effects:
         for name in VOCABULARY:
@@ -175,59 +204,158 @@ def proposals(names: tuple[str, ...], rivals: dict[str, set[str]], max_effects: 
     tied_to = {effect_class(k).partner for k in names}
     moves += [Move("drop", drops=k) for k in names if k not in tied_to]
     for k in names:
+        rest = set(names) - {k}
         for f in sorted(rivals.get(k, ()), key=rival_order):
-            if f not in VOCABULARY:
+            if f not in VOCABULARY or f in names or k in tied_to:
                 continue
             partner = effect_class(f).partner
-            if f not in names and k not in tied_to and (partner is None or partner in names):
+            # A tied effect needs its partner in the model it joins, not in the one it leaves.
+            if partner is None or partner in rest:
                 moves.append(Move("swap", (f,), k))
+    moves.append(Move("structure", (OSCILLATOR,)))
     return moves
 
 
-def _candidate(record: Record, current: Scored, move: Move, conv: Convergence, policy: DiagnosisPolicy) -> Scored | str:
+def _after(names: tuple[str, ...], move: Move) -> frozenset[str]:
+    """The effect set a move leads to (the other structure: its name)."""
+    if move.kind == "structure":
+        return frozenset(move.adds)
+    out = set(names) - ({move.drops} if move.drops else set())
+    return frozenset(out | set(move.adds))
+
+
+def _warm(fitted: dict[frozenset[str], Model | str], adds: tuple[str, ...]) -> Any:
+    """The most recent fit of the search that held every effect of ``adds`` (its values
+    start the same effects beside another model), or None."""
+    for model in reversed(list(fitted.values())):
+        if isinstance(model, Scored) and set(adds) <= set(model.names):
+            return model.fit
+    return None
+
+
+def _candidate(
+    record: Record,
+    current: Scored,
+    move: Move,
+    conv: Convergence,
+    policy: DiagnosisPolicy,
+    folds: Folds,
+    fitted: dict[frozenset[str], Model | str],
+    workers: int | None,
+    warm: Any = None,
+) -> Model | str:
+    """The candidate of ``move`` from ``current`` on ``record`` (from ``fitted`` where the
+    search holds it), or why there is none; ``warm``: a fit of the same model elsewhere
+    (on the screened copy) whose values start it, beside the starts of the search's own
+    fits."""
+    key = _after(current.names, move)
+    if key in fitted:
+        return fitted[key]
+    if move.kind == "structure":
+        return fits.oscillator(record, folds, conv)
     if move.kind == "drop":
         assert move.drops is not None
-        return drop(record, current, move.drops, conv, policy.folds)
-    return add(record, current, move.adds, conv, policy.folds, policy.max_delay_samples, dropped=move.drops)
+        return fits.drop(record, current, move.drops, conv, folds)
+    origin: Model | str = current
+    if move.drops is not None:
+        rest = _after(current.names, Move("drop", drops=move.drops))
+        origin = fitted.get(rest) or fits.drop(record, current, move.drops, conv, folds)
+        if isinstance(origin, str):
+            return origin
+        if not isinstance(origin, Scored):  # pragma: no cover - a drop is input-driven
+            return "the model without it is not input-driven"
+    return fits.add(
+        record,
+        current,
+        move.adds,
+        conv,
+        folds,
+        policy.max_delay_samples,
+        dropped=origin if isinstance(origin, Scored) and move.drops is not None else None,
+        warm=warm if warm is not None else _warm(fitted, move.adds),
+    )
 
 
 def _decide(
-    move: Move, fitted: Scored, current: Scored, t_min: float, noise_um: float, policy: DiagnosisPolicy
+    move: Move, fitted: Model, current: Model, noise_um: float, policy: DiagnosisPolicy, lvl: float
 ) -> Decision:
-    """The judge's verdict on ``move``. A drop is judged the other way round: the effect
-    keeps its place only where the current model is accepted against the model without
-    it, so the drop is accepted where that fails."""
-    folds, batches = policy.folds, policy.batches
+    """The judge's verdict on ``move`` at level ``lvl``. A drop is judged the other way
+    round: the effect keeps its place only where the current model is accepted against
+    the model without it, so the drop is accepted where that fails — and only where that
+    comparison could be made (a gain that cannot be computed keeps the model as it is)."""
     added = fitted.unknowns - current.unknowns
+    exact = fitted.cv.exact and current.cv.exact
     if move.kind != "drop":
-        g = gain(fitted.cv, current.cv, folds, batches)
-        return judge(
+        d = judge(
             move.kind,
             move.effects,
             fitted.names,
             current.names,
-            g,
-            t_min=t_min,
+            gain(fitted.cv, current.cv),
+            level_=lvl,
             noise_um=noise_um,
             min_share=policy.min_share,
             unknowns=added,
+            exact=exact,
         )
-    keep = judge(
-        "add",
-        move.effects,
-        current.names,
-        fitted.names,
-        gain(current.cv, fitted.cv, folds, batches),
-        t_min=t_min,
-        noise_um=noise_um,
-        min_share=policy.min_share,
-        unknowns=-added,
-    )
-    reason = ("it no longer earns its place: " if not keep.accepted else "it earns its place: ") + keep.reason
-    g = gain(fitted.cv, current.cv, folds, batches)
-    return Decision(
-        "drop", move.effects, fitted.names, current.names, g, t_min, keep.needed_um2, not keep.accepted, reason, added
-    )
+    else:
+        keep = judge(
+            "add",
+            move.effects,
+            current.names,
+            fitted.names,
+            gain(current.cv, fitted.cv),
+            level_=lvl,
+            noise_um=noise_um,
+            min_share=policy.min_share,
+            unknowns=-added,
+            exact=exact,
+        )
+        judged = math.isfinite(keep.gain.statistic)
+        if not judged:
+            reason = "kept: " + keep.reason
+        else:
+            reason = ("it no longer earns its place: " if not keep.accepted else "it earns its place: ") + keep.reason
+        d = Decision(
+            "drop",
+            move.effects,
+            fitted.names,
+            current.names,
+            gain(fitted.cv, current.cv),
+            keep.threshold,
+            keep.needed_um2,
+            judged and not keep.accepted,
+            reason,
+            added,
+            exact,
+        )
+    if not fitted.converged:
+        d = Decision(
+            d.move,
+            d.effects,
+            d.candidate,
+            d.reference,
+            d.gain,
+            d.threshold,
+            d.needed_um2,
+            False,
+            "the candidate's fit did not converge",
+            d.unknowns,
+            d.exact,
+        )
+    return d
+
+
+def _near(d: Decision, move: Move, band: float) -> bool:
+    """The screen may have decided ``d`` wrongly: accepted, within the band of its
+    threshold, or not computed."""
+    stat = d.gain.statistic
+    if move.kind == "drop":
+        # The statistic of keeping the effect is minus the drop's.
+        stat = -stat
+    if not math.isfinite(stat) or not math.isfinite(d.threshold):
+        return True
+    return d.accepted or abs(stat - d.threshold) <= band
 
 
 def screen_copy(record: Record) -> Record | None:
@@ -239,6 +367,8 @@ def screen_copy(record: Record) -> Record | None:
 
 def _full_only(move: Move, record: Record, current: Scored, copy: Record) -> bool:
     """The copy cannot hold ``move`` (module docs)."""
+    if move.kind == "structure":
+        return True
     if any(effect_class(k).full_rate_only for k in move.adds):
         return True
     if any(effect_class(k).signature == "peak" for k in move.adds):
@@ -247,81 +377,172 @@ def _full_only(move: Move, record: Record, current: Scored, copy: Record) -> boo
     return False
 
 
-def _on_copy(copy: Record | None, current: Scored, conv: Convergence, folds: int) -> Scored | None:
+@dataclass
+class _Judged:
+    """A round's moves with their candidates and decisions (one place to update them)."""
+
+    moves: list[Move]
+    candidates: list[Model | str]
+    decisions: dict[int, Decision] = field(default_factory=dict)
+
+    def rows(self) -> list[tuple[Move, Decision, Model]]:
+        return [
+            (m, self.decisions[k], c)
+            for k, (m, c) in enumerate(zip(self.moves, self.candidates))
+            if k in self.decisions and not isinstance(c, str)
+        ]
+
+
+class _Round:
+    """One round on one record: the candidates fitted, judged, confirmed where it counts."""
+
+    def __init__(
+        self,
+        record: Record,
+        current: Model,
+        moves: list[Move],
+        candidates: list[Model | str],
+        noise_um: float,
+        policy: DiagnosisPolicy,
+        workers: int | None,
+        screen: bool = True,
+        round_: int = 1,
+    ):
+        self.record, self.noise_um, self.policy, self.workers = record, noise_um, policy, workers
+        self.screen = screen
+        self.current = current
+        self.level = level(policy.alpha, len(moves), round_)
+        self.judged = _Judged(moves, candidates)
+
+    def confirm(self, model: Model) -> Model:
+        return fits.confirmed(self.record, model, self.workers)
+
+    def decide(self) -> None:
+        j = self.judged
+        for k, (m, c) in enumerate(zip(j.moves, j.candidates)):
+            if not isinstance(c, str):
+                j.decisions[k] = _decide(m, c, self.current, self.noise_um, self.policy, self.level)
+
+    def settle(self) -> None:
+        """Decide every move, then confirm by refits each decision the screen may have
+        decided wrongly and each candidate that may share the best one's ambiguity set,
+        until none is left (module docs)."""
+        j, band = self.judged, self.policy.screen_band
+        if not self.screen:
+            self.current = self.confirm(self.current)
+            j.candidates = [c if isinstance(c, str) else self.confirm(c) for c in j.candidates]
+        self.decide()
+        for _ in range(len(j.moves) + 1):
+            todo = {k for k, d in j.decisions.items() if not d.exact and _near(d, j.moves[k], band)}
+            best = self.best()
+            if best is not None:
+                bcv = j.candidates[best]
+                assert not isinstance(bcv, str)
+                for k, d in j.decisions.items():
+                    c = j.candidates[k]
+                    if d.exact or j.moves[k].kind == "drop" or isinstance(c, str):
+                        continue
+                    g = gain(c.cv, bcv.cv)
+                    if not math.isfinite(g.statistic) or abs(g.statistic) <= d.threshold + band:
+                        todo.add(k)
+                if not j.decisions[best].exact:
+                    todo.add(best)
+            if not todo:
+                break
+            self.current = self.confirm(self.current)
+            for k in sorted(todo):
+                c = j.candidates[k]
+                if not isinstance(c, str):
+                    j.candidates[k] = self.confirm(c)
+            self.decide()
+
+    def best(self) -> int | None:
+        """The move the round would take before its ambiguity set (its index): of the
+        accepted adds, swaps and structures, one that no other beats by the judge's
+        test in a direct comparison — from the largest statistic against the current
+        model, on to any accepted candidate that passes the test against it."""
+        j = self.judged
+        accepted = [
+            k
+            for k, d in j.decisions.items()
+            if j.moves[k].kind != "drop" and d.accepted and not isinstance(j.candidates[k], str)
+        ]
+        if not accepted:
+            return None
+        best = max(accepted, key=lambda k: (j.decisions[k].gain.statistic, -k))
+        for _ in range(len(accepted)):
+            bcv = self._model(best).cv
+            beaten = [(gain(self._model(k).cv, bcv), k) for k in accepted if k != best]
+            beaten = [(g, k) for g, k in beaten if g.statistic > threshold(self.level, g.dof)]
+            if not beaten:
+                break
+            best = max(beaten, key=lambda gk: (gk[0].statistic, -gk[1]))[1]
+        return best
+
+    def _model(self, k: int) -> Model:
+        c = self.judged.candidates[k]
+        assert not isinstance(c, str)
+        return c
+
+
+def _on_copy(copy: Record | None, current: Model, conv: Convergence, policy: DiagnosisPolicy) -> Scored | None:
     """The current model refitted and scored on the copy, or None where the copy cannot
     hold it."""
-    if copy is None or any(effect_class(k).full_rate_only for k in current.names):
+    if copy is None or not isinstance(current, Scored) or any(effect_class(k).full_rate_only for k in current.names):
         return None
     fit = current.fit
     if simulate_chain(fit.params, fit.effects, copy.u, copy.dt, fit.h0) is None:
         return None
-    moved = refit(copy, fit, fit.effects, conv)
-    return None if moved is None else scored(copy, solved_at(copy, moved), folds, conv)
+    moved = fits.refit(copy, fit, fit.effects, conv)
+    if moved is None:
+        return None
+    solved = fits.solved_at(copy, moved)
+    return fits.scored(copy, solved, Folds.of(copy, policy.folds, policy.first_origin, solved.jacobian), conv)
 
 
-def _judged(
-    record: Record,
-    current: Scored,
-    moves: list[Move],
-    fitted: list[Scored | str],
-    t_min: float,
-    noise_um: float,
-    policy: DiagnosisPolicy,
-) -> tuple[list[tuple[Move, Decision, Scored]], dict[str, str]]:
-    decisions: list[tuple[Move, Decision, Scored]] = []
-    rejected: dict[str, str] = {}
-    for m, f in zip(moves, fitted):
-        if isinstance(f, str):
-            rejected[" ".join((m.kind, *m.effects))] = f
-            continue
-        d = _decide(m, f, current, t_min, noise_um, policy)
-        decisions.append((m, _unconverged(d) if not f.converged else d, f))
-    return decisions, rejected
-
-
-def _screened(
-    record: Record,
+def _chosen_on_copy(
     copy: Record,
     on_copy: Scored,
     current: Scored,
+    record: Record,
     moves: list[Move],
-    t_min: float,
-    noise_um: float,
     conv: Convergence,
     policy: DiagnosisPolicy,
+    noise_um: float,
     workers: int | None,
-) -> tuple[list[Scored | str], list[Decision]]:
-    """The full-record candidates of ``moves`` after screening (module docs): a reason
-    for each move the copy leaves out, and the decisions on the copy."""
+    round_: int,
+) -> tuple[list[bool], list[Decision], list[Any]]:
+    """Which moves the full record fits (module docs), the decisions on the copy, and
+    each move's fit on the copy (None where it has none) to start the full record's."""
     full = [_full_only(m, record, current, copy) for m in moves]
-    on = [m for m, f in zip(moves, full) if not f]
-    fitted = thread_map(lambda m: _candidate(copy, on_copy, m, conv=conv, policy=policy), on, workers)
-    decisions, _ = _judged(copy, on_copy, on, fitted, t_min, noise_um, policy)
-    # A move with no candidate on the copy (no start simulates there, or its fit is not
-    # what its name says at the copy's rate) is one the copy cannot hold.
-    for m, f in zip(on, fitted):
+    on = [k for k, f in enumerate(full) if not f]
+    folds = on_copy.cv.folds
+    cache: dict[frozenset[str], Model | str] = {}
+    fitted = thread_map(lambda k: _candidate(copy, on_copy, moves[k], conv, policy, folds, cache, None), on, workers)
+    rnd = _Round(copy, on_copy, [moves[k] for k in on], fitted, noise_um, policy, workers, True, round_)
+    rnd.decide()
+    chosen = set()
+    # A move with no candidate on the copy is one the copy cannot hold.
+    for k, f in zip(on, fitted):
         if isinstance(f, str):
-            full[moves.index(m)] = True
-    chosen: set[int] = set()
-    growing = [(m, d, f) for m, d, f in decisions if m.kind != "drop"]
+            full[k] = True
+    rows = rnd.judged.rows()
+    growing = [(i, m, d, f) for i, (m, d, f) in enumerate(rows) if m.kind != "drop"]
+    index = {id(m): k for k, m in enumerate(moves)}
     if growing:
-        best = min(growing, key=lambda t: _finite(t[2].cv.rms_um))
-        folds, batches = policy.folds, policy.batches
-        chosen |= {id(m) for m, _, f in growing if m is best[0] or not apart(f.cv, best[2].cv, folds, batches, t_min)}
+        best = min(growing, key=lambda t: _finite(t[3].cv.rms_um))
+        for _, m, _, f in growing:
+            if m is best[1] or not apart(f.cv, best[3].cv, rnd.level):
+                chosen.add(index[id(m)])
     # A move the copy sees any held-out gain from goes on: an effect whose time scale is
     # near the copy's sampling interval (a lag's corner, a creep's fastest element) shows
     # only part of itself there.
-    chosen |= {id(m) for m, d, _ in decisions if d.accepted or d.gain.mean_um2 > 0}
-
-    def on_full(k: int) -> Scored | str:
-        m = moves[k]
-        if full[k]:
-            return _candidate(record, current, m, conv=conv, policy=policy)
-        if id(m) not in chosen:
-            return "not among the moves the screened copy ranks first"
-        return _candidate(record, current, m, conv=conv, policy=policy)
-
-    return thread_map(on_full, list(range(len(moves))), workers), [d for _, d, _ in decisions]
+    chosen |= {index[id(m)] for m, d, _ in rows if d.accepted or d.gain.mean_um2 > 0}
+    starts: list[Any] = [None] * len(moves)
+    for k, f in zip(on, fitted):
+        if isinstance(f, Scored):
+            starts[k] = f.fit
+    return [f or k in chosen for k, f in enumerate(full)], [d for _, d, _ in rows], starts
 
 
 def search(
@@ -335,11 +556,16 @@ def search(
     say: Callable[[str], None],
 ) -> Search:
     """The loop of moves (module docs) from the base model ``base``."""
-    state = Search(base)
+    state = Search(base, base)
+    state.fitted[frozenset(base.names)] = base
     seen = {frozenset(base.names)}
+    folds = base.cv.folds
     copy = screen_copy(record)
-    for _ in range(2 * policy.max_effects + 2):
+    for _ in range(policy.rounds):
         current = state.current
+        if not isinstance(current, Scored):
+            state.stopped = "the other structure proposes no move"
+            break
         left = unexplained(record, current.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
         if left.consistent_with_noise:
             state.stopped = "the residual is consistent with the record's noise"
@@ -347,35 +573,62 @@ def search(
         moves = [
             m
             for m in proposals(current.names, state.rivals, policy.max_effects)
-            if frozenset(_after(current.names, m)) not in seen
+            if _after(current.names, m) not in seen
         ]
         if not moves:
             state.stopped = "no move left to try"
             break
-        t_min = threshold(policy.alpha, len(moves), policy.batches)
-        on_copy = _on_copy(copy, current, conv, policy.folds)
+        on_copy = _on_copy(copy, current, conv, policy)
         screened: list[Decision] = []
         say(
             f"round {len(state.rounds) + 1}: {len(moves)} moves from {list(current.names) or 'the base model'}"
             + (f", screened on every {round(copy.dt / record.dt)}th sample" if on_copy is not None and copy else "")
         )
+        wanted = [True] * len(moves)
+        copied: list[Any] = [None] * len(moves)
         if on_copy is not None and copy is not None:
-            fitted, screened = _screened(record, copy, on_copy, current, moves, t_min, noise_um, conv, policy, workers)
-        else:
-            fitted = thread_map(partial(_candidate, record, current, conv=conv, policy=policy), moves, workers)
-        decisions, rejected = _judged(record, current, moves, fitted, t_min, noise_um, policy)
-        for _, d, f in decisions:
+            wanted, screened, copied = _chosen_on_copy(
+                copy, on_copy, current, record, moves, conv, policy, noise_um, workers, len(state.rounds) + 1
+            )
+
+        candidates = thread_map(
+            lambda job: (
+                _candidate(record, job[0], job[1], conv, policy, folds, state.fitted, 1, job[3])
+                if job[2]
+                else "not among the moves the screened copy ranks first"
+            ),
+            [(current, m, w, c) for m, w, c in zip(moves, wanted, copied)],
+            workers,
+        )
+        rnd = _Round(record, current, moves, candidates, noise_um, policy, workers, conv.screen, len(state.rounds) + 1)
+        rnd.settle()
+        # The round's fits, confirmed where it confirmed them, kept for the rest of the search.
+        confirmed_current = rnd.current
+        assert isinstance(confirmed_current, Scored)
+        state.current = state.input_driven = current = confirmed_current
+        state.fitted[frozenset(current.names)] = current
+        for k, c in enumerate(rnd.judged.candidates):
+            if not isinstance(c, str):
+                state.fitted[_after(current.names, moves[k])] = c
+        rows = rnd.judged.rows()
+        for _, d, f in rows:
             verdict = "accepted" if d.accepted else "no"
-            say(f"  {d.label:28s} held-out RMS {f.cv.rms_um:.4g} µm: {verdict} ({d.reason})")
+            how = "" if d.exact else ", screened"
+            say(f"  {d.label:28s} held-out RMS {f.cv.rms_um:.4g} µm: {verdict} ({d.reason}{how})")
+        rejected = {
+            " ".join((m.kind, *m.effects)): c for m, c in zip(moves, rnd.judged.candidates) if isinstance(c, str)
+        }
         signatures = tuple(sorted(named(lookalike_tests(record, current.x))))
-        round_ = _take(decisions, current, t_min, policy, state, signatures, rejected, tuple(screened))
+        round_ = _take(rnd, state, signatures, rejected, tuple(screened))
         state.rounds.append(round_)
-        state.swaps = {frozenset(f.names): f for m, _, f in decisions if m.kind == "swap"}
+        state.swaps = {frozenset(f.names): f for m, _, f in rows if m.kind == "swap" and isinstance(f, Scored)}
         if round_.taken is None:
             state.stopped = "no move is accepted"
             break
-        chosen = next(f for m, d, f in decisions if d is round_.taken)
+        chosen = next(f for m, d, f in rows if d is round_.taken)
         state.current = chosen
+        if isinstance(chosen, Scored):
+            state.input_driven = chosen
         state.swaps = {}
         seen.add(frozenset(chosen.names))
         say(f"took {round_.taken.label}: held-out RMS {current.cv.rms_um:.4g} → {chosen.cv.rms_um:.4g} µm")
@@ -384,74 +637,13 @@ def search(
     return state
 
 
-def structure_move(
-    record: Record,
-    final: Scored,
-    *,
-    noise_um: float,
-    policy: DiagnosisPolicy,
-    say: Callable[[str], None],
-) -> tuple[Structure | None, Decision | None, str]:
-    """The other structure (module docs of :mod:`boucwen.diagnosis`, step 7): the
-    hysteretic oscillator judged against the input-driven model the search returned,
-    where that model holds a mode (an effect of signature ``"peak"``). Returns the
-    oscillator, the decision (``"swap"`` input-driven → oscillator) and why it was not
-    tried (empty where it was)."""
-    if not any(effect_class(k).signature == "peak" for k in final.names):
-        return None, None, "the input-driven model holds no mode, the mark of a mechanical structure"
-    say("fitting the hysteretic oscillator (hysteresis driven by the output's motion) and its blocks")
-    osc = oscillator(record, policy.folds)
-    if isinstance(osc, str):
-        return None, None, osc
-    t_min = threshold(policy.alpha, 1, policy.batches)
-    d = judge(
-        "swap",
-        ("input-driven", osc.name),
-        osc.names,
-        final.names,
-        gain(osc.cv, final.cv, policy.folds, policy.batches),
-        t_min=t_min,
-        noise_um=noise_um,
-        min_share=policy.min_share,
-        unknowns=osc.unknowns - final.unknowns,
-    )
-    if not osc.converged:
-        d = _unconverged(d)
-    verdict = "accepted" if d.accepted else "no"
-    say(f"  {d.label:28s} held-out RMS {osc.cv.rms_um:.4g} µm: {verdict} ({d.reason})")
-    return osc, d, ""
-
-
 def _finite(value: float) -> float:
-    """``value``, or +∞ where it is nan (a model no block of which could be judged)."""
+    """``value``, or +∞ where it is nan (a model no fold of which could be judged)."""
     return value if math.isfinite(value) else math.inf
 
 
-def _after(names: tuple[str, ...], move: Move) -> set[str]:
-    out = set(names) - ({move.drops} if move.drops else set())
-    return out | set(move.adds)
-
-
-def _unconverged(d: Decision) -> Decision:
-    return Decision(
-        d.move,
-        d.effects,
-        d.candidate,
-        d.reference,
-        d.gain,
-        d.threshold,
-        d.needed_um2,
-        False,
-        "the candidate's fit did not converge",
-        d.unknowns,
-    )
-
-
 def _take(
-    decisions: list[tuple[Move, Decision, Scored]],
-    current: Scored,
-    t_min: float,
-    policy: DiagnosisPolicy,
+    rnd: _Round,
     state: Search,
     signatures: tuple[str, ...],
     rejected: dict[str, str],
@@ -459,37 +651,44 @@ def _take(
 ) -> Round:
     """The decision the round takes and its ambiguity set (module docs); updates the
     rivals of the model's effects."""
-    folds, batches = policy.folds, policy.batches
-    all_decisions = tuple(d for _, d, _ in decisions)
+    rows = rnd.judged.rows()
+    all_decisions = tuple(d for _, d, _ in rows)
     # Swaps the record cannot tell from the current model keep the pair rivals; swaps it
     # refutes (the current model clearly better) part them.
-    for m, d, _ in decisions:
+    for m, d, _ in rows:
         if m.kind == "swap" and m.drops is not None:
             (f,) = m.adds
-            if abs(d.gain.t) <= t_min:
+            if abs(d.gain.statistic) <= d.threshold:
                 state.rivals.setdefault(m.drops, set()).add(f)
-            elif d.gain.t < -t_min:
+            elif d.gain.statistic < -d.threshold:
                 state.rivals.get(m.drops, set()).discard(f)
-    drops = [(m, d, f) for m, d, f in decisions if m.kind == "drop" and d.accepted]
+    drops = [(m, d, f) for m, d, f in rows if m.kind == "drop" and d.accepted]
     if drops:
-        dropped, decision, fit = max(drops, key=lambda t: (t[1].gain.t, vocabulary_order(t[0].effects)))
+        # The effect that earns least: the largest statistic of the model without it.
+        dropped, decision, fit = max(drops, key=lambda t: (t[1].gain.statistic, vocabulary_order(t[0].effects)))
         assert dropped.drops is not None
         state.rivals.pop(dropped.drops, None)
         return Round(all_decisions, decision, ((decision, fit.cv.rms_um),), rejected, signatures, screened)
-    growing = [(m, d, f) for m, d, f in decisions if m.kind != "drop"]
-    accepted = [t for t in growing if t[1].accepted]
-    if not accepted:
+    best_k = rnd.best()
+    if best_k is None:
         return Round(all_decisions, None, (), rejected, signatures, screened)
-    best = max(accepted, key=lambda t: t[1].gain.mean_um2)
-    tied = [t for t in growing if t is best or not apart(t[2].cv, best[2].cv, folds, batches, t_min)]
+    j = rnd.judged
+    best = j.candidates[best_k]
+    assert not isinstance(best, str)
+    growing = [(m, d, f) for m, d, f in rows if m.kind != "drop"]
+    tied = [t for t in growing if t[2] is best or not apart(t[2].cv, best.cv, rnd.level)]
     eligible = [t for t in tied if t[1].accepted]
-    move, decision, _ = min(eligible, key=lambda t: (t[2].unknowns, vocabulary_order(t[0].adds)))
+    move, decision, _ = min(eligible, key=lambda t: (t[2].unknowns, -t[1].gain.statistic))
     added = set(move.adds)
     others = {k for mm, _, _ in tied for k in mm.adds if k not in added}
     if move.drops is not None:
         # The effect swapped out stays a rival of the one swapped in.
         others.add(move.drops)
         state.rivals.pop(move.drops, None)
+    if move.kind == "structure":
+        # The effects of the input-driven model the structure refutes keep it as a rival.
+        for k in rnd.current.names:
+            state.rivals.setdefault(k, set()).add(OSCILLATOR)
     for k in move.adds:
         state.rivals[k] = set(others)
     ambiguity = tuple((t[1], t[2].cv.rms_um) for t in sorted(tied, key=lambda t: _finite(t[2].cv.rms_um)))

@@ -2,9 +2,8 @@
 
 Two kinds of unseen data judge the returned model:
 
-* **blocked cross-validation** over contiguous folds of the record itself
-  (:mod:`~boucwen.diagnosis.judge`: each block predicted by the model refitted
-  without it), for every record;
+* **forward validation** on the record itself (:mod:`~boucwen.diagnosis.judge`: each
+  fold predicted by the model refitted on the record before it), for every record;
 * a **second record of the same device** (``validate``), where the user has one: the
   model fitted on the first record carried to the second. What is carried is the
   *device*: the hysteresis and every effect of the actuator, its amplifier and its
@@ -46,7 +45,7 @@ from ..effects import ExtendedFit, effect_class, simulate_chain
 from ..effects.base import without
 from ..metrics import max_abs, rms
 from ..record import Record
-from .judge import CrossValidation, Decision, gain, judge, threshold
+from .judge import CrossValidation, Decision, gain, judge, level
 from .policy import DiagnosisPolicy
 
 __all__ = [
@@ -104,9 +103,9 @@ class Unseen:
     """Errors [µm] on data the fits did not see.
 
     Attributes:
-        folds: contiguous folds of the blocked cross-validation.
+        folds: folds of the forward validation.
         cv_rms_before_um, cv_rms_after_um: its RMS error, base and returned models [µm],
-            over the blocks whose refits converged for both.
+            over the folds whose refits converged for both.
         validation: with a validation record, both models carried to it; else None.
     """
 
@@ -196,7 +195,7 @@ def judged_on(
         for k in current.effects.names
         if not effect_class(k).of_record and not any(effect_class(o).partner == k for o in current.effects.names)
     ]
-    t_min = threshold(policy.alpha, max(len(names), 1), policy.batches)
+    lvl = level(policy.alpha, len(names))
     decisions: list[Decision] = []
     for name in names:
         with_it = carried(current, validation)
@@ -204,15 +203,15 @@ def judged_on(
         without_it = None if rest is None else carried(rest, validation)
         if with_it is None or without_it is None or rest is None:
             continue
-        keep_cv = CrossValidation.of(validation.x - with_it[0], validation.x - with_it[0], policy.folds)
-        rest_cv = CrossValidation.of(validation.x - without_it[0], validation.x - without_it[0], policy.folds)
+        keep_cv = CrossValidation.whole(validation.x - with_it[0])
+        rest_cv = CrossValidation.whole(validation.x - without_it[0])
         keep = judge(
             "add",
             (name,),
             tuple(current.effects.names),
             tuple(rest.effects.names),
-            gain(keep_cv, rest_cv, policy.folds, policy.batches),
-            t_min=t_min,
+            gain(keep_cv, rest_cv),
+            level_=lvl,
             noise_um=noise_um,
             min_share=policy.min_share,
             unknowns=0,
@@ -222,7 +221,7 @@ def judged_on(
             + ("it earns its place: " if keep.accepted else "it does not earn its place: ")
             + keep.reason
         )
-        g = gain(rest_cv, keep_cv, policy.folds, policy.batches)
+        g = gain(rest_cv, keep_cv)
         decisions.append(
             Decision(
                 "drop",
@@ -230,7 +229,7 @@ def judged_on(
                 tuple(rest.effects.names),
                 tuple(current.effects.names),
                 g,
-                t_min,
+                keep.threshold,
                 keep.needed_um2,
                 not keep.accepted,
                 reason,
@@ -262,30 +261,31 @@ def settled(
     that cannot be carried is not refuted. Returns the indices left and the decisions
     (``"swap"`` from the refuted to the one that refutes it, accepted where it does)."""
     out = [carried(m, validation) for m in members]
-    cvs = {
-        i: CrossValidation.of(validation.x - o[0], validation.x - o[0], policy.folds)
-        for i, o in enumerate(out)
-        if o is not None
-    }
-    pairs = [(i, j) for i in cvs for j in cvs if i != j]
-    t_min = threshold(policy.alpha, max(len(pairs) // 2, 1), policy.batches)
+    cvs = {i: CrossValidation.whole(validation.x - o[0]) for i, o in enumerate(out) if o is not None}
+    # Each pair is tested once, in both directions at once (a two-sided test at level α
+    # over the pairs: α/2 per side).
+    pairs = [(i, j) for i in cvs for j in cvs if i < j]
+    lvl = level(policy.alpha, 2 * max(len(pairs), 1))
     refuted: set[int] = set()
     decisions: list[Decision] = []
     for i, j in pairs:
+        g = gain(cvs[j], cvs[i])
+        # Oriented so that the candidate is the one that predicts the record better.
+        a, b = (i, j) if g.mean_um2 >= 0 else (j, i)
         d = judge(
             "swap",
-            (labels[i], labels[j]),
-            (labels[j],),
-            (labels[i],),
-            gain(cvs[j], cvs[i], policy.folds, policy.batches),
-            t_min=t_min,
+            (labels[a], labels[b]),
+            (labels[b],),
+            (labels[a],),
+            gain(cvs[b], cvs[a]),
+            level_=lvl,
             noise_um=noise_um,
             min_share=policy.min_share,
             unknowns=0,
         )
         decisions.append(replace(d, reason="on the validation record: " + d.reason))
         if d.accepted:
-            refuted.add(i)
+            refuted.add(a)
     left = tuple(i for i in range(len(members)) if i not in refuted)
     for i, o in enumerate(out):
         err = "cannot be simulated" if o is None else f"{o[1].rms_um:.4g} µm"

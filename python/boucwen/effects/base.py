@@ -194,6 +194,11 @@ class Effect(ABC):
         or None."""
         return None
 
+    def rejects_on(self, record: Record, before: FloatArray) -> str | None:
+        """Why the fitted effect is no candidate on ``record``, where the fitted model
+        without this effect predicts ``before`` [µm] (what the effect acts on), or None."""
+        return None
+
 
 def _plain(value: Any) -> Any:
     return list(value) if isinstance(value, tuple) else value

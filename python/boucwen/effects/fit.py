@@ -7,11 +7,15 @@ from u alone with :func:`boucwen.simulate_extended`, by ``scipy.optimize.least_s
 usual starting point here).
 
 Unknowns, in this order (see :class:`Layout`): the base model's kv [µm/V], x0 [µm], A,
-β, γ, n, δ (units of :class:`boucwen.Params`) and the initial hysteresis state h0
-[µm]; then, for each effect present in signal-chain order, the unknowns its class
+β + γ, β − γ, n, δ (units of :class:`boucwen.Params`) and the initial hysteresis state
+h0 [µm]; then, for each effect present in signal-chain order, the unknowns its class
 declares (:meth:`~boucwen.effects.Effect.unknowns`: the creep gains, ln fc, ln fn and
 ln ζ, the drift rate; the creep time constants and the delay are held fixed), with
-their bounds, typical sizes and sign constraints.
+their bounds, typical sizes and sign constraints. β + γ and β − γ are bounded below by
+0: a fit cannot leave the admissible region, where h stays bounded
+(:mod:`boucwen.region`), and a start outside it is refused (:class:`boucwen.InvalidParams`);
+on a record (:meth:`Layout.for_record`) |δ| is kept within the limit of
+:func:`boucwen.fit.record_delta_limit`, as in :func:`boucwen.fit`.
 
 Residual, Jacobian (exact, from the Rust core in one pass with the simulation:
 :func:`boucwen._core.simulate_extended_with_jacobian`, whose columns are these unknowns
@@ -21,6 +25,7 @@ in this order) and optimiser are those of :mod:`boucwen.lsq`, shared with
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -30,27 +35,33 @@ from numpy.typing import ArrayLike
 
 from .._core import EffectSet, Params, simulate_extended, simulate_extended_with_jacobian
 from ..checks import FloatArray
-from ..fit import N_BOUNDS
+from ..fit import N_BOUNDS, record_delta_limit
 from ..levenberg import STATISTICAL_MARGIN
 from ..lsq import Method, OutputErrorProblem, with_jacobian_or_none
 from ..metrics import max_abs, rms
 from ..record import Record, validate_record
+from ..region import PAIR_NAMES, SPLIT_JACOBIAN, check, pair, split
 from .base import Context, Effect, Start, simulate_chain, with_effect
 from .registry import effect_class, effect_set, effects_of
 
 __all__ = [
+    "Box",
     "ExtendedFit",
     "Layout",
     "Solved",
     "candidate_starts",
+    "fit_box",
     "fit_extended",
     "fit_extended_record",
     "jacobian_extended",
     "solve_extended_record",
 ]
 
-#: The base model's unknowns: the seven parameters and h0.
-_BASE = (*Params.names, "h0")
+#: The base model's unknowns: the seven parameters, β and γ as β ± γ (the coordinates in
+#: which the admissible region is a box), and h0.
+_BASE = ("kv", "x0", "A", *PAIR_NAMES, "n", "delta", "h0")
+#: Where β ± γ sit in the vector of unknowns (and β, γ in the core's Jacobian).
+_PAIR = slice(3, 5)
 
 
 @dataclass(frozen=True)
@@ -63,15 +74,24 @@ class Layout:
             not unknowns (creep τ_i, delay) stay as they are here.
         dt: sampling interval [s].
         duration_s: record length [s].
+        delta_limit: the largest |δ| [µm/(V·s)] of a fit on the record
+            (:func:`boucwen.fit.record_delta_limit`; inf: no limit).
     """
 
     effects: tuple[Effect, ...]
     dt: float
     duration_s: float
+    delta_limit: float = math.inf
 
     @classmethod
     def of(cls, effects: EffectSet, dt: float, duration_s: float) -> Layout:
         return cls(effects=effects_of(effects), dt=float(dt), duration_s=float(duration_s))
+
+    @classmethod
+    def for_record(cls, effects: EffectSet, record: Record) -> Layout:
+        """The layout of a fit of ``effects`` on ``record``, δ within its limit there."""
+        dt = record.dt
+        return cls(effects_of(effects), float(dt), dt * max(len(record) - 1, 1), record_delta_limit(record))
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -92,13 +112,16 @@ class Layout:
         if tuple(e.name for e in present) != self.names:
             raise ValueError(f"the layout is for the effects {list(self.names)}, got {effects.names}")
         v = [*list(params.to_array()), float(h0)]
+        v[_PAIR] = pair(params.beta, params.gamma)
         for e in present:
             v += e.pack()
         return np.asarray(v, dtype=np.float64)
 
     def unpack(self, v: FloatArray) -> tuple[Params, EffectSet, float]:
         """Vector of unknowns → (params, effects, h0); ValueError if invalid."""
-        params = Params.from_array(v[:7])
+        base = np.array(v[:7], dtype=np.float64)
+        base[_PAIR] = split(float(v[3]), float(v[4]))
+        params = Params.from_array(base)
         h0 = float(v[7])
         i = len(_BASE)
         fitted = []
@@ -124,12 +147,19 @@ class Layout:
             p, e, h0 = self.unpack(v)
         except (ValueError, OverflowError):
             return None
-        return with_jacobian_or_none(lambda: simulate_extended_with_jacobian(p, e, u, dt, h0))
+        out = with_jacobian_or_none(lambda: simulate_extended_with_jacobian(p, e, u, dt, h0))
+        if out is not None:
+            # The core's columns ∂/∂β, ∂/∂γ → ∂/∂(β + γ), ∂/∂(β − γ).
+            out[1][:, _PAIR] = out[1][:, _PAIR] @ SPLIT_JACOBIAN
+        return out
 
     def bounds(self) -> tuple[FloatArray, FloatArray]:
-        """Lower and upper bounds of the unknowns."""
+        """Lower and upper bounds of the unknowns (β ± γ ≥ 0: the admissible region; |δ|
+        within :attr:`delta_limit`)."""
         base = [(-np.inf, np.inf)] * len(_BASE)
+        base[3] = base[4] = (0.0, np.inf)
         base[5] = N_BOUNDS
+        base[6] = (-self.delta_limit, self.delta_limit)
         return _columns(base, [b for e in self.effects for b in e.bounds(self.context)])
 
     def sign_bounds(self, static_gain: float) -> tuple[FloatArray, FloatArray]:
@@ -145,8 +175,8 @@ class Layout:
             "kv": span_x / span_u,
             "x0": span_x,
             "A": span_x / span_u,
-            "beta": 1e-3,
-            "gamma": 1e-3,
+            PAIR_NAMES[0]: 1e-3,
+            PAIR_NAMES[1]: 1e-3,
             "n": 1.0,
             "delta": 1e-3,
             "h0": 0.01 * span_x,
@@ -256,8 +286,9 @@ def fit_extended(
     Args:
         u: voltage [V] (1-D, finite); x: measured displacement [µm], same length.
         dt: sampling interval [s].
-        params, effects, h0: starting point; ``effects`` also fixes which effects are
-            present, the creep time constants and the delay (see the module docs).
+        params, effects, h0: starting point (``params`` in the admissible region);
+            ``effects`` also fixes which effects are present, the creep time constants
+            and the delay (see the module docs).
         max_nfev: most trial points (a fit stopped there has ``success`` False).
         tol: relative change of the cost or of the unknowns that stops (``"lm"``), or
             ``xtol``/``ftol``/``gtol`` (``"trf"``).
@@ -269,7 +300,8 @@ def fit_extended(
         An :class:`ExtendedFit` (errors over the given record).
 
     Raises:
-        ValueError: invalid data or a starting point that cannot be simulated.
+        ValueError: invalid data or a starting point that cannot be simulated;
+            :class:`boucwen.InvalidParams` for a start outside the admissible region.
     """
     record = validate_record(u, x, dt)
     return fit_extended_record(record, params, effects, h0, max_nfev=max_nfev, tol=tol, method=method, margin=margin)
@@ -308,6 +340,33 @@ def fit_extended_record(
     ).fit
 
 
+@dataclass(frozen=True, eq=False)
+class Box:
+    """Where a fit of a record starts and may go: its :class:`Layout`, the start ``v0``,
+    the bounds ``lower`` ≤ v ≤ ``upper`` (the layout's, narrowed by the sign the
+    model's static gain gives: :meth:`Layout.sign_bounds`) with ``v0`` just inside them,
+    and the optimiser's scale of each unknown (``scale``)."""
+
+    layout: Layout
+    v0: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+    scale: FloatArray
+
+
+def fit_box(record: Record, params: Params, effects: EffectSet, h0: float) -> Box:
+    """The :class:`Box` of a fit of ``record`` started at (params, effects, h0)."""
+    u, x = record.u, record.x
+    layout = Layout.for_record(effects, record)
+    v0 = layout.pack(params, effects, h0)
+    lo, hi = layout.bounds()
+    sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))
+    lo, hi = np.maximum(lo, sign_lo), np.minimum(hi, sign_hi)
+    inside = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    v0 = np.clip(v0, lo + inside, hi - inside)
+    return Box(layout, v0, lo, hi, _typical(layout, v0, u, x))
+
+
 def solve_extended_record(
     record: Record,
     params: Params,
@@ -320,6 +379,8 @@ def solve_extended_record(
     margin: float = STATISTICAL_MARGIN,
     weights: FloatArray | None = None,
     reuse_jacobian: bool = False,
+    fit_until: int | None = None,
+    start: tuple[FloatArray, FloatArray] | None = None,
 ) -> Solved:
     """:func:`fit_extended_record` with the fit's simulated displacement and the
     optimiser's Jacobian at the solution, for the callers that score the fit.
@@ -327,28 +388,39 @@ def solve_extended_record(
     a block of the record: the model still runs through them); the errors of the
     result are over every sample.
     ``reuse_jacobian``: keep a Jacobian while it predicts the steps (``"lm"``; a start
-    near the optimum: :func:`boucwen.levenberg.levenberg_marquardt`)."""
-    u, x, dt = record.u, record.x, record.dt
-    layout = Layout.of(effects, dt, dt * max(u.size - 1, 1))
-    v0 = layout.pack(params, effects, h0)
-    lo, hi = layout.bounds()
-    sign_lo, sign_hi = layout.sign_bounds(static_gain(params, effects))
-    lo, hi = np.maximum(lo, sign_lo), np.minimum(hi, sign_hi)
-    inside = 1e-9 * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    v0 = np.clip(v0, lo + inside, hi - inside)
-    typ = _typical(layout, v0, u, x)
-    chain: _Chain = _Chain(layout, u, dt) if weights is None else _Weighted(layout, u, dt, weights)
-    prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights)
+    near the optimum: :func:`boucwen.levenberg.levenberg_marquardt`).
+    ``fit_until``: fit the samples before this index alone (the model simulated only that
+    far while it is fitted; the bounds and scales are the whole record's), a refit on
+    the record's past; ``start``: the residual x − x̂ and the Jacobian ∂x̂/∂v at the start
+    over those samples, where the caller has them (``"lm"``: the first linearisation is
+    not computed again)."""
+    check(params)
+    box = fit_box(record, params, effects, h0)
+    layout, v0, lo, hi = box.layout, box.v0, box.lower, box.upper
+    stop = len(record) if fit_until is None else int(fit_until)
+    u, x, dt = record.u[:stop], record.x[:stop], record.dt
+    chain: _Chain = _Chain(layout, u, dt) if weights is None else _Weighted(layout, u, dt, weights[:stop])
+    prob = OutputErrorProblem(chain, chain.with_jacobian, x if weights is None else x * weights[:stop])
     if prob.simulate(v0) is None:
         raise ValueError("the starting point of fit_extended cannot be simulated")
+    first = None if start is None else (-start[0][:stop], start[1][:stop])
     res = prob.solve(
-        v0, lo, hi, x_scale=typ, tol=tol, max_nfev=max_nfev, method=method, margin=margin, reuse_jacobian=reuse_jacobian
+        v0,
+        lo,
+        hi,
+        x_scale=box.scale,
+        tol=tol,
+        max_nfev=max_nfev,
+        method=method,
+        margin=margin,
+        reuse_jacobian=reuse_jacobian,
+        start=first,
     )
     p, e, h = layout.unpack(res.x)
-    xs = simulate_chain(p, e, u, dt, h)
+    xs = simulate_chain(p, e, record.u, dt, h)
     if xs is None:  # pragma: no cover - the optimiser never accepts a failing point
         raise ValueError("the fitted parameters cannot be simulated")
-    err = x - xs
+    err = record.x - xs
     fit = ExtendedFit(
         params=p,
         effects=e,

@@ -6,6 +6,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
+import numpy as np
+
+from ..checks import FloatArray
+from ..record import Record, travel_steps
 from .base import Context, Effect, Start
 
 __all__ = ["Saturation"]
@@ -42,6 +46,17 @@ class Saturation(Effect):
 
     def typical(self, context: Context, span_u: float, span_x: float) -> tuple[float, ...]:
         return (1e-2 * span_x, 1e-2 * span_x)
+
+    def rejects_on(self, record: Record, before: FloatArray) -> str | None:
+        """A clip is seen where the motion runs into the range's end: one that no sample
+        of a moving voltage reaches (all it clips is held at rest, a level the base
+        model's offset holds) is no saturation."""
+        clipped = (before > self.max_um) | (before < self.min_um)
+        steps = travel_steps(record)
+        moving = np.concatenate([[False], steps > 0]) | np.concatenate([steps > 0, [False]])
+        if not np.any(clipped & moving):
+            return "the fitted clip holds no moving sample: it is no saturation the record shows"
+        return None
 
     @classmethod
     def starts(cls, at: Start) -> list[Saturation]:

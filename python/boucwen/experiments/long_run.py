@@ -16,9 +16,10 @@ level is the only measurement error on x). Noise seed :data:`SEED` (+1 for the r
 input's record); the random input's own seed is :data:`SEED` too.
 
 **Start.** The traditional model: :func:`boucwen.fit` on the first 3 s of the record
-(the first 1 Hz part of the schedule; seed :data:`SEED`). Its β, γ, n may lie outside the
-region where the model is well posed (on this bench the fit has β + γ < 0); every
-method is started from it *projected* onto the region (:func:`project`: β ± γ raised
+(the first 1 Hz part of the schedule; seed :data:`SEED`). The fit keeps to the
+admissible region (β ± γ ≥ 0: docs/design.md, "The admissible region"), but its β ± γ
+may lie below the identifiers' margin and its n outside their bounds; every method is
+started from it *projected* onto the identifiers' region (:func:`project`: β ± γ raised
 to :data:`REGION_MARGIN`, n clamped to :data:`N_BOUNDS`, as the horizon method projects
 its updates), so that the region check below holds the methods to account from the
 first sample on. The traditional model itself (not projected) is the baseline.

@@ -720,11 +720,18 @@ def run(
 
     # The paper method's window for the headline row: the sweep's N whose worst
     # period-ahead error, as a ratio to the traditional fit's, is smallest.
-    worst_ratio = {w: max(r["period_ahead"][f] / table1["traditional"][f] for f in freqs) for w, r in sweep.items()}
+    ratios = {w: [r["period_ahead"][f] / table1["traditional"][f] for f in freqs] for w, r in sweep.items()}
+    worst_ratio = {w: max(v) for w, v in ratios.items()}
+    mean_ratio = {w: sum(v) / len(v) for w, v in ratios.items()}
+    # Where the gates hold every update at some frequency the worst ratio is the
+    # traditional fit's own, 1, at several N: the mean over the frequencies then tells
+    # the N where the updates the method does take help most.
     paper_window = {
-        "chosen": int(min(worst_ratio, key=lambda w: worst_ratio[w])) if sweep else window,
-        "rule": "the window of the sweep with the smallest worst period-ahead ratio to the traditional fit",
+        "chosen": int(min(sweep, key=lambda w: (worst_ratio[w], mean_ratio[w]))) if sweep else window,
+        "rule": "the window of the sweep with the smallest worst period-ahead ratio to the traditional fit, "
+        "ties broken by the smallest mean ratio",
         "worst_ratio_to_traditional": worst_ratio,
+        "mean_ratio_to_traditional": mean_ratio,
     }
     results: dict[str, Any] = {
         "paper_window": paper_window,

@@ -84,6 +84,7 @@ struct Estimate {
     damping: f64,
     step_limited: bool,
     projected: bool,
+    held: bool,
     window_samples: u64,
     window_travel_v: f64,
 }
@@ -131,7 +132,7 @@ impl Shared {
         w(est::UA, e.ua.to_bits());
         w(est::RMS, e.rms_um.to_bits());
         w(est::DAMPING, e.damping.to_bits());
-        w(est::FLAGS, u64::from(e.step_limited) | u64::from(e.projected) << 1);
+        w(est::FLAGS, u64::from(e.step_limited) | u64::from(e.projected) << 1 | u64::from(e.held) << 2);
         w(est::WINDOW_SAMPLES, e.window_samples);
         w(est::WINDOW_TRAVEL, e.window_travel_v.to_bits());
         self.seq.store(s + 2, Ordering::Release);
@@ -170,6 +171,7 @@ impl Shared {
             damping,
             step_limited: flags & 1 == 1,
             projected: flags & 2 == 2,
+            held: flags & 4 == 4,
             window_samples,
             window_travel_v,
         })
@@ -225,6 +227,7 @@ fn estimate_of(id: &HorizonIdentifier, index: u64) -> Estimate {
         damping: s.damping,
         step_limited: s.step_limited,
         projected: s.projected,
+        held: s.held,
         window_samples: s.window_samples,
         window_travel_v: s.window_travel_v,
     }
@@ -438,6 +441,7 @@ impl BackgroundHorizon {
         self.status.damping = e.damping;
         self.status.step_limited = e.step_limited;
         self.status.projected = e.projected;
+        self.status.held = e.held;
         self.status.window_samples = e.window_samples;
         self.status.window_travel_v = e.window_travel_v;
         self.shared.adopted.store(e.updates, Ordering::Release);

@@ -47,7 +47,9 @@ pub struct HorizonConfig {
     /// With an identified input lag, its corner frequency is held within these
     /// bounds \[Hz\]. Default (10, 1e5).
     pub fc_bounds_hz: (f64, f64),
-    /// β + γ and β − γ are held at or above this [µm^(1−n)/V]. Default 1e-6.
+    /// β + γ and β − γ are held at or above this [µm^(1−n)/V] (> 0: inside the
+    /// admissible region, where the δ term is dissipated on both branches of the loop).
+    /// Default 1e-6.
     pub margin: f64,
     /// Scale of each parameter (kv, x0, A, β, γ, n, δ) and of the window's initial h
     /// \[µm\]: the update works on θᵢ/scaleᵢ. Default (0.2, 0.1, 0.07, 0.02, 0.02, 1.5,
@@ -111,8 +113,10 @@ impl HorizonConfig {
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
             return bad("fc_bounds_hz", lo, "need 0 < fc_min <= fc_max, both finite");
         }
-        if !(self.margin.is_finite() && self.margin >= 0.0) {
-            return bad("margin", self.margin, "must be finite and >= 0");
+        // > 0: the δ the method estimates is dissipated only where β + γ and β − γ are
+        // both > 0 (the admissible region, docs/design.md).
+        if !(self.margin.is_finite() && self.margin > 0.0) {
+            return bad("margin", self.margin, "must be finite and > 0");
         }
         for v in self.scales {
             if !(v.is_finite() && v > 0.0) {
@@ -167,8 +171,13 @@ pub struct HorizonStatus {
     pub damping: f64,
     /// The trust region scaled the last update down.
     pub step_limited: bool,
-    /// The projection onto the well-posed region moved n, β or γ in the last update.
+    /// The projection onto the well-posed region moved n, β or γ in the last update
+    /// (after the step was held on it: what rounding and the trust region left outside).
     pub projected: bool,
+    /// The last update's step would have left the well-posed region (n outside
+    /// `n_bounds`, β + γ or β − γ below `margin`) and was held on its boundary: those
+    /// constraints made active and the step solved again on the rest.
+    pub held: bool,
     /// How far the estimates in use lag the newest sample \[samples\]: samples pushed
     /// after the last one the pass of the last update ran over (all samples before the
     /// first update). In sync mode at most about one pass (the window / 15); where the

@@ -267,12 +267,13 @@ const NC: usize = 3;
 /// break are made active (held on their boundary) and the step is solved again on
 /// the rest, up to [`NC`] times. Clamping a coordinate after the solve would instead
 /// keep the moves of the others that assumed it had moved (and stall against a bound).
+/// Returns the step and whether a constraint was made active (the step held).
 fn constrained_step(
     ch: &nalgebra::Cholesky<f64, nalgebra::Const<NZ>>,
     g: &Vector,
     p: &Params,
     cfg: &HorizonConfig,
-) -> Vector {
+) -> (Vector, bool) {
     let s = &cfg.scales;
     let free = ch.solve(g);
     let mut active = [false; NC];
@@ -324,7 +325,7 @@ fn constrained_step(
             None => break,
         }
     }
-    step
+    (step, active.iter().any(|&a| a))
 }
 
 /// The moving-horizon identifier (see the module docs).
@@ -378,8 +379,9 @@ pub struct HorizonIdentifier {
 }
 
 impl HorizonIdentifier {
-    /// An identifier for samples every `dt` \[s\], starting from `init` (used as given)
-    /// with model state `h0` \[µm\].
+    /// An identifier for samples every `dt` \[s\], starting from `init` (used as given;
+    /// it must lie in the admissible region, [`Params::check_admissible`], and is refused
+    /// otherwise) with model state `h0` \[µm\].
     pub fn new(dt: f64, init: Params, h0: f64, config: HorizonConfig) -> Result<Self> {
         Self::with_effects(dt, init, &EffectSet::none(), h0, config)
     }
@@ -407,7 +409,7 @@ impl HorizonIdentifier {
     /// u → u_a → (kv·u_a + x0 + h) of [`crate::effects`]. Other effects are rejected.
     pub fn with_effects(dt: f64, init: Params, effects: &EffectSet, h0: f64, config: HorizonConfig) -> Result<Self> {
         positive_dt(dt)?;
-        init.validate()?;
+        init.check_admissible()?;
         config.validate()?;
         finite_sample("h0", h0)?;
         effects.validate()?;
@@ -689,8 +691,10 @@ impl HorizonIdentifier {
         };
         status.step_limited = false;
         status.projected = false;
+        status.held = false;
         let mut delta = Vector::zeros();
-        if let Some(mut step) = step.filter(|s| s.iter().all(|v| v.is_finite())) {
+        if let Some((mut step, held)) = step.filter(|(s, _)| s.iter().all(|v| v.is_finite())) {
+            status.held = held;
             // Trust region: no parameter moves by more than `max_step` times its own
             // size (its scale where it is smaller), so that large parameters can travel
             // geometrically fast while small ones stay careful.

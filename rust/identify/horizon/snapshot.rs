@@ -119,6 +119,7 @@ impl Snapshot for HorizonIdentifier {
             damping: s_damping,
             step_limited,
             projected,
+            held,
             behind_samples,
             behind_s,
         } = status;
@@ -128,7 +129,8 @@ impl Snapshot for HorizonIdentifier {
         w.u64(*window_samples);
         w.f64s(&[*window_travel_v, *rms_um, *s_damping]);
         w.u8(*step_limited as u8);
-        w.u8(*projected as u8);
+        // Both flags of the region in one byte (bit 0 projected, bit 1 held).
+        w.u8(*projected as u8 | (*held as u8) << 1);
         w.u64(*behind_samples);
         w.f64(*behind_s);
         w.u8(match mode {
@@ -259,7 +261,13 @@ impl Snapshot for HorizonIdentifier {
         id.status.rms_um = rms;
         id.status.damping = damping;
         id.status.step_limited = r.bool()?;
-        id.status.projected = r.bool()?;
+        let at = r.offset();
+        let region = r.u8()?;
+        if region > 3 {
+            return Err(corrupt(at, "snapshot holds unknown region flags"));
+        }
+        id.status.projected = region & 1 == 1;
+        id.status.held = region & 2 == 2;
         id.status.behind_samples = r.u64()?;
         id.status.behind_s = r.f64()?;
         let at = r.offset();

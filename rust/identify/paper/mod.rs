@@ -565,10 +565,12 @@ impl PartialEq for FitScratch {
 }
 
 impl PaperIdentifier {
-    /// An identifier for samples every `dt` \[s\], starting from `init` with model state `h0` \[µm\].
+    /// An identifier for samples every `dt` \[s\], starting from `init` with model state
+    /// `h0` \[µm\]; `init` must lie in the admissible region ([`Params::check_admissible`];
+    /// refused otherwise), which step 5 keeps to.
     pub fn new(dt: f64, init: Params, h0: f64, config: PaperConfig) -> Result<Self> {
         positive_dt(dt)?;
-        init.validate()?;
+        init.check_admissible()?;
         config.validate()?;
         finite_sample("h0", h0)?;
         Ok(PaperIdentifier {
@@ -920,7 +922,9 @@ impl PaperIdentifier {
         } else {
             status.split_fit = StepStatus::held(Reason::OutOfBounds, 0);
         }
-        if p.validate().is_err() {
+        // Whatever the steps gave must stay in the admissible region (a δ from step 2
+        // beside β ± γ = 0 would not be dissipated): else the estimates are held.
+        if p.check_admissible().is_err() {
             status.split_fit = StepStatus::held(Reason::OutOfBounds, 0);
             return (self.params, status);
         }

@@ -54,7 +54,9 @@ pub struct RpemConfig {
     pub max_offset_step_um: f64,
     /// n is held within these bounds. Default (1.0, 4.0).
     pub n_bounds: (f64, f64),
-    /// β + γ and β − γ are held at or above this [µm^(1−n)/V]. Default 1e-6.
+    /// β + γ and β − γ are held at or above this [µm^(1−n)/V] (> 0: inside the
+    /// admissible region, where the δ term is dissipated on both branches of the loop).
+    /// Default 1e-6.
     pub margin: f64,
     /// Scale of each parameter (kv, x0, A, β, γ, n, δ, in their units): the
     /// identifier works on θᵢ/scaleᵢ. Default (0.2, 0.1, 0.07, 0.02, 0.02, 1.5, 0.007):
@@ -157,8 +159,10 @@ impl RpemConfig {
         if self.memory_travel_v.is_nan() || self.memory_travel_v <= 0.0 {
             return bad("memory_travel_v", self.memory_travel_v, "must be > 0 V (inf turns travel forgetting off)");
         }
-        if !(self.margin.is_finite() && self.margin >= 0.0) {
-            return bad("margin", self.margin, "must be finite and >= 0");
+        // > 0: the δ the method estimates is dissipated only where β + γ and β − γ are
+        // both > 0 (the admissible region, docs/design.md).
+        if !(self.margin.is_finite() && self.margin > 0.0) {
+            return bad("margin", self.margin, "must be finite and > 0");
         }
         if !(self.creep_gain_scale_um_per_v.is_finite() && self.creep_gain_scale_um_per_v > 0.0) {
             return bad("creep_gain_scale_um_per_v", self.creep_gain_scale_um_per_v, "must be finite and > 0");

@@ -133,8 +133,9 @@ pub struct RpemIdentifier {
 
 impl RpemIdentifier {
     /// An identifier of the base model for samples every `dt` \[s\], starting from
-    /// `init` with model state `h0` \[µm\]. `init` is projected into the admissible
-    /// region first (n within `n_bounds`, β ± γ ≥ `margin`).
+    /// `init` with model state `h0` \[µm\]. `init` must lie in the admissible region
+    /// ([`Params::check_admissible`]; refused otherwise) and is projected onto the
+    /// region the updates keep to (n within `n_bounds`, β ± γ ≥ `margin`).
     pub fn new(dt: f64, init: Params, h0: f64, config: RpemConfig) -> Result<Self> {
         Self::with_effects(dt, init, &EffectSet::none(), h0, config)
     }
@@ -152,7 +153,7 @@ impl RpemIdentifier {
     /// A creep gain given below 5 % of `creep_gain_scale_um_per_v` starts there.
     pub fn with_effects(dt: f64, init: Params, effects: &EffectSet, h0: f64, config: RpemConfig) -> Result<Self> {
         positive_dt(dt)?;
-        init.validate()?;
+        init.check_admissible()?;
         config.validate()?;
         effects.validate()?;
         finite_sample("h0", h0)?;
