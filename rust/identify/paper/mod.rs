@@ -589,12 +589,22 @@ impl PaperIdentifier {
             status: PaperStatus::default(),
             touched: TOUCH_ALL,
             cache: SubFitCache::default(),
-            scratch: Scratch::default(),
+            // Sized here where the output gate is on, so that no push allocates.
+            scratch: if config.output_gate == f64::INFINITY {
+                Scratch::default()
+            } else {
+                Scratch { u: Vec::with_capacity(config.window_len), x: Vec::with_capacity(config.window_len) }
+            },
             u_seen: (f64::INFINITY, f64::NEG_INFINITY),
             since_fit: 0,
             noise_floor2: f64::INFINITY,
             fit_carry: None,
-            fit_buffers: FitScratch::default(),
+            // Made here where the window fit runs, so that no push allocates.
+            fit_buffers: FitScratch(if config.fit_iterations > 0 {
+                window_fit::FitBuffers::new(config.window_len, init, dt)
+            } else {
+                window_fit::FitBuffers::default()
+            }),
         })
     }
 

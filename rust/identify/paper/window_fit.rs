@@ -43,7 +43,7 @@ use alloc::vec::Vec;
 use nalgebra::{Cholesky, Const, SMatrix, SVector};
 
 use super::{hysteresis_bounded, Point, Reason, StepStatus, SubFit};
-use crate::effects::chain::{Chain, Slots, FIXED_SLOTS, SLOT_H0, SLOT_KV, SLOT_X0};
+use crate::effects::chain::{Chain, ChainScalar, Slots, FIXED_SLOTS, SLOT_H0, SLOT_KV, SLOT_X0};
 use crate::effects::EffectSet;
 use crate::math;
 use crate::model::scalar::Dual;
@@ -171,22 +171,53 @@ fn fraction_to_boundary(cfg: &PaperConfig, th: &Col, step: &Col) -> f64 {
     })
 }
 
-/// Buffers of the window fit: the window's u and x, copied once per run. A pure cache,
-/// never saved or compared.
+/// Buffers of the window fit: the window's u and x, copied once per run, and the
+/// simulators of its evaluations, restarted on each (one identifier's samples share one
+/// dt; made on first use where [`FitBuffers::new`] did not make them), so that a run
+/// allocates nothing. A pure cache, never saved or compared.
 #[derive(Debug, Clone, Default)]
 pub(super) struct FitBuffers {
     u: Vec<f64>,
     x: Vec<f64>,
+    wide: Option<Chain<Wide>>,
+    plain: Option<Chain<f64>>,
+}
+
+impl FitBuffers {
+    /// Buffers for windows of `window_len` points, the simulators made at `init`
+    /// (validated) for samples every `dt` \[s\]: a fit then allocates nothing.
+    pub(super) fn new(window_len: usize, init: Params, dt: f64) -> Self {
+        let none = EffectSet::none();
+        let slots = Slots::of(&none);
+        FitBuffers {
+            u: Vec::with_capacity(window_len),
+            x: Vec::with_capacity(window_len),
+            wide: Chain::new(init, &none, dt, 0.0, &slots).ok(),
+            plain: Chain::new(init, &none, dt, 0.0, &slots).ok(),
+        }
+    }
+}
+
+/// The plain Bouc–Wen chain (no effects) of `slot`, restarted at `p` (validated) and h =
+/// `h0` \[µm\]; made on first use.
+fn restarted<S: ChainScalar>(slot: &mut Option<Chain<S>>, p: Params, dt: f64, h0: f64) -> Option<&mut Chain<S>> {
+    match slot {
+        Some(chain) => chain.restart(p, h0),
+        None => {
+            let none = EffectSet::none();
+            *slot = Some(Chain::new(p, &none, dt, h0, &Slots::of(&none)).ok()?);
+        }
+    }
+    slot.as_mut()
 }
 
 /// The output error, its normal equations JᵀJ, Jᵀr and h at the window's newest point,
 /// at the unknowns `th`; `None` where the model cannot be simulated or leaves the
 /// finite numbers.
-fn normal_equations(th: &Col, b: &FitBuffers, dt: f64) -> Option<(f64, Mat, Col, f64)> {
+fn normal_equations(th: &Col, b: &mut FitBuffers, dt: f64) -> Option<(f64, Mat, Col, f64)> {
     let p = params_of(th);
     p.validate().ok()?;
-    let none = EffectSet::none();
-    let mut chain = Chain::<Wide>::new(p, &none, dt, th[I_H0], &Slots::of(&none)).ok()?;
+    let chain = restarted(&mut b.wide, p, dt, th[I_H0])?;
     let (mut sse, mut jtj, mut jtr) = (0.0, Mat::zeros(), Col::zeros());
     for (&u, &x) in b.u.iter().zip(&b.x) {
         let out = chain.step(u);
@@ -202,13 +233,12 @@ fn normal_equations(th: &Col, b: &FitBuffers, dt: f64) -> Option<(f64, Mat, Col,
 }
 
 /// The output error at `th` (plain numbers; ∞ where it cannot be simulated).
-fn output_error(th: &Col, b: &FitBuffers, dt: f64) -> f64 {
+fn output_error(th: &Col, b: &mut FitBuffers, dt: f64) -> f64 {
     let p = params_of(th);
     if p.validate().is_err() {
         return f64::INFINITY;
     }
-    let none = EffectSet::none();
-    let Ok(mut chain) = Chain::<f64>::new(p, &none, dt, th[I_H0], &Slots::of(&none)) else {
+    let Some(chain) = restarted(&mut b.plain, p, dt, th[I_H0]) else {
         return f64::INFINITY;
     };
     let sse = b.u.iter().zip(&b.x).fold(0.0, |acc, (&u, &x)| {
@@ -245,7 +275,7 @@ struct Fitted {
 
 /// Levenberg–Marquardt from `th` over the unknowns `free`, at most `iterations`
 /// simulations on duals.
-fn levenberg(r: &Run<'_>, mut th: Col, free: &[bool; NU], b: &FitBuffers, iterations: usize) -> Option<Fitted> {
+fn levenberg(r: &Run<'_>, mut th: Col, free: &[bool; NU], b: &mut FitBuffers, iterations: usize) -> Option<Fitted> {
     let (cfg, init, dt) = (r.cfg, r.init, r.dt);
     let (mut sse, mut jtj, mut jtr, mut h_end) = normal_equations(&th, b, dt)?;
     let mut damping = DAMPING_START;
@@ -363,7 +393,7 @@ pub(super) fn run(r: &Run<'_>, window: &Ring<Point>, buffers: &mut FitBuffers) -
     // h at the oldest point as each starting model reads it there.
     let start_of = |p: &Params| unknowns_of(cfg, p, x0 - p.kv * u0 - p.x0);
     let all = [true; NU];
-    let fit_from = |p: &Params| levenberg(r, start_of(p)?, &all, buffers, cfg.fit_iterations);
+    let mut fit_from = |p: &Params| levenberg(r, start_of(p)?, &all, buffers, cfg.fit_iterations);
     let from_held = fit_from(held);
     let from_carried = r.carried.and_then(|c| fit_from(&c));
     let full = match (from_held, from_carried) {
@@ -513,7 +543,7 @@ mod tests {
         for i in [3, 4, 5] {
             free[i] = false;
         }
-        let f = levenberg(&run, th, &free, &b, 40).unwrap();
+        let f = levenberg(&run, th, &free, &mut b, 40).unwrap();
         let p = params_of(&f.th);
         assert!(rel(p.a, truth.a) > 0.1, "{p:?}");
         assert!(math::sqrt(f.sse / 800.0) > 0.01, "residual {} µm", math::sqrt(f.sse / 800.0));
