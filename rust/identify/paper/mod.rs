@@ -79,7 +79,7 @@ use crate::model::{advance_h, output, simulate_into};
 use crate::params::Params;
 pub use config::{Decomposition, PaperConfig};
 pub use status::{PaperStatus, Reason, StepStatus, SubFit};
-use window::{Ring, WindowSums};
+use window::{Ring, SlidingRange, WindowSums};
 
 /// Which sub-fit a window point feeds, decided when it enters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -538,6 +538,10 @@ pub struct PaperIdentifier {
     scratch: Scratch,
     /// Least and greatest u seen since construction or reset \[V\] (the stroke).
     u_seen: (f64, f64),
+    /// Least and greatest u of the window's rising and falling points \[V\] (the
+    /// stroke bound, [`PaperConfig::min_stroke_frac`]; empty where it is off). Rebuilt
+    /// from the window's points on restore.
+    spans: [SlidingRange; 2],
     /// Window points entered since the window fit last ran.
     since_fit: u64,
     /// The least window noise variance of x seen with a full window \[µm²\] (∞ before):
@@ -596,6 +600,11 @@ impl PaperIdentifier {
                 Scratch { u: Vec::with_capacity(config.window_len), x: Vec::with_capacity(config.window_len) }
             },
             u_seen: (f64::INFINITY, f64::NEG_INFINITY),
+            // Sized here where the stroke bound is on, so that no push allocates.
+            spans: {
+                let len = if config.min_stroke_frac > 0.0 { config.window_len } else { 0 };
+                [SlidingRange::new(len), SlidingRange::new(len)]
+            },
             since_fit: 0,
             noise_floor2: f64::INFINITY,
             fit_carry: None,
@@ -741,6 +750,16 @@ impl PaperIdentifier {
         point
     }
 
+    /// Slides the stroke bound's spans of u to window point number `seq` (from 0 since
+    /// construction or reset), the point `q`: a point where u moves enters the span of
+    /// its branch (rising where u̇ > 0, falling where u̇ < 0).
+    fn slide_spans(&mut self, seq: u64, q: &Point) {
+        let branch = (q.udot != 0.0).then_some((q.udot < 0.0) as usize);
+        for (b, span) in self.spans.iter_mut().enumerate() {
+            span.slide(seq, (branch == Some(b)).then_some(q.u));
+        }
+    }
+
     /// The window fit (module `window_fit`, [`PaperConfig::fit_every`]), when due: once the
     /// window is full, each time `fit_every`·N points have entered since its last run.
     /// Where it is taken, the model's h follows it: the fit's h at the window's newest
@@ -814,13 +833,7 @@ impl PaperIdentifier {
         // A window whose rising or falling points span too little of the stroke holds
         // every step (`min_stroke_frac`).
         if self.window.is_full() && cfg.min_stroke_frac > 0.0 {
-            let spans = self.window.iter().fold([(f64::INFINITY, f64::NEG_INFINITY); 2], |mut s, q| {
-                if q.udot != 0.0 {
-                    let b = &mut s[(q.udot < 0.0) as usize];
-                    *b = (b.0.min(q.u), b.1.max(q.u));
-                }
-                s
-            });
+            let spans = self.spans.each_ref().map(SlidingRange::range);
             // (An input that has never moved is step 1's to report: no excitation.)
             let stroke = self.u_seen.1 - self.u_seen.0;
             if stroke > 0.0 && !spans.iter().all(|&(lo, hi)| hi - lo >= cfg.min_stroke_frac * stroke) {
@@ -976,6 +989,7 @@ impl OnlineIdentifier for PaperIdentifier {
             }
             let point = self.complete((j - first) as usize, mj);
             let leaving = self.window.push(point);
+            self.slide_spans(self.entered, &point);
             self.entered += 1;
             status.half_width = m as u32;
             self.since_fit += 1;
@@ -1034,6 +1048,7 @@ impl OnlineIdentifier for PaperIdentifier {
         self.touched = TOUCH_ALL;
         self.cache = SubFitCache::default();
         self.u_seen = (f64::INFINITY, f64::NEG_INFINITY);
+        self.spans.iter_mut().for_each(SlidingRange::clear);
         self.since_fit = 0;
         self.noise_floor2 = f64::INFINITY;
         self.fit_carry = None;

@@ -1,7 +1,8 @@
 //! Save and restore of the paper's identifier (format: `crate::format`): every field the identifier carries
 //! between samples. The shadow half of the window sums is not stored: it is the
 //! sum, in arrival order, of the newest `(samples − 2) mod N` window points, and
-//! is recomputed from them with the same additions.
+//! is recomputed from them with the same additions; so are the stroke bound's spans of
+//! u (the same slides).
 
 use alloc::vec::Vec;
 
@@ -247,6 +248,13 @@ impl Snapshot for PaperIdentifier {
             }
         }
         id.sums = rebuild_window_sums(window_len, &sums, &shadow, count);
+        // The stroke bound's spans are a function of the window's points alone.
+        let first_seq = id.entered - points;
+        for i in 0..points as usize {
+            if let Some(q) = id.window.get(i).copied() {
+                id.slide_spans(first_seq + i as u64, &q);
+            }
+        }
         Ok(id)
     }
 }

@@ -442,3 +442,55 @@ fn the_window_fit_identifies_the_papers_model_from_a_start_20_percent_off() {
     assert!((p.a / truth.a - 1.0).abs() < 0.05 && (p.kv / truth.kv - 1.0).abs() < 0.05, "{p:?}");
     assert!((p.n - truth.n).abs() < 0.1, "{p:?}");
 }
+
+/// The window's span of u on each branch as a scan of its points gives it (the stroke
+/// bound's definition, O(N)).
+fn scanned_spans(id: &PaperIdentifier) -> [(f64, f64); 2] {
+    id.window.iter().fold([(f64::INFINITY, f64::NEG_INFINITY); 2], |mut s, q| {
+        if q.udot != 0.0 {
+            let b = &mut s[(q.udot < 0.0) as usize];
+            *b = (b.0.min(q.u), b.1.max(q.u));
+        }
+        s
+    })
+}
+
+/// The stroke bound's spans, kept per push, equal a scan of the window after every push
+/// and after a restore: an input that rises and falls by random steps (quantised, so
+/// that equal values occur, and sometimes still) over runs of random length, shorter
+/// and longer than the window.
+#[test]
+fn stroke_spans_match_a_scan_of_the_window() {
+    use crate::format::Snapshot;
+    let window = 40;
+    let cfg = PaperConfig { fit_iterations: 0, output_gate: f64::INFINITY, ..PaperConfig::with_window(window) };
+    let steps = dither(6_000, 1.0);
+    let noise = dither(6_000 + 7, 1e-3);
+    let mut id = PaperIdentifier::new(1e-4, Params::paper_1hz(), 0.0, cfg).unwrap();
+    let (mut u, mut rising, mut left) = (0.0f64, true, 0usize);
+    let mut restored: Option<PaperIdentifier> = None;
+    for (k, s) in steps.iter().enumerate() {
+        if left == 0 {
+            rising = !rising;
+            left = 1 + ((s.abs() * 1e6) as usize) % (3 * window);
+        }
+        left -= 1;
+        let step = (s.abs() * 4.0).floor() * 0.25;
+        u += if rising { step } else { -step };
+        let x = 0.1 * u + noise[k + 7];
+        id.push(u, x).unwrap();
+        let kept = id.spans.each_ref().map(SlidingRange::range);
+        assert_eq!(kept, scanned_spans(&id), "push {k}");
+        if let Some(r) = restored.as_mut() {
+            r.push(u, x).unwrap();
+            assert_eq!(r.spans.each_ref().map(SlidingRange::range), kept, "restored, push {k}");
+        }
+        if k % 997 == 500 {
+            let r = PaperIdentifier::from_bytes(&id.to_bytes()).unwrap();
+            assert_eq!(r.spans.each_ref().map(SlidingRange::range), kept, "restore at push {k}");
+            restored = Some(r);
+        }
+    }
+    // Both branches were seen and the bound was live.
+    assert!(id.spans.iter().all(|s| s.range().0 < s.range().1));
+}
