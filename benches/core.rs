@@ -19,13 +19,19 @@ fn record() -> (Vec<f64>, Vec<f64>) {
     (u, x)
 }
 
-fn push(c: &mut Criterion) {
+/// The paper's steps alone: the output gate and the window fit off (their O(N) work is
+/// measured by `push_defaults`).
+fn steps_only(window: usize) -> PaperConfig {
+    PaperConfig { output_gate: f64::INFINITY, fit_iterations: 0, ..PaperConfig::with_window(window) }
+}
+
+/// One warmed `push` per window, in the group `name`, with the config `config(window)`.
+fn push_group(c: &mut Criterion, name: &str, windows: &[usize], config: impl Fn(usize) -> PaperConfig) {
     let (u, x) = record();
-    let mut group = c.benchmark_group("paper_push");
+    let mut group = c.benchmark_group(name);
     group.throughput(Throughput::Elements(1));
-    for window in [100usize, 1_000, 10_000, 100_000] {
-        let mut id =
-            PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(window)).expect("valid config");
+    for &window in windows {
+        let mut id = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, config(window)).expect("valid config");
         // Warm up past the first full window so every sub-fit runs.
         let mut k = 0usize;
         for _ in 0..(window + 1000).min(u.len()) {
@@ -43,8 +49,21 @@ fn push(c: &mut Criterion) {
     group.finish();
 }
 
-/// `push_many` over the whole paper record (3.38 s at 10 kHz), window 10 000, from a
-/// warmed identifier: the batch path a Python caller gets with one call.
+/// The paper's steps per push: O(1) in N.
+fn push(c: &mut Criterion) {
+    push_group(c, "paper_push", &[100, 1_000, 10_000, 100_000], steps_only);
+}
+
+/// The defaults per push, averaged over many pushes: the output gate simulates the
+/// window where a step proposes an update (O(N) per push), the window fit refits it once
+/// per `fit_every`·N points (its cost per push averages to a constant).
+fn push_defaults(c: &mut Criterion) {
+    push_group(c, "paper_push_defaults", &[100, 1_000], PaperConfig::with_window);
+}
+
+/// `push_many` over the whole paper record (3.38 s at 10 kHz), windows 1 000 and 10 000,
+/// the paper's steps alone, from a warmed identifier: the batch path a Python caller gets
+/// with one call.
 fn push_many(c: &mut Criterion) {
     let (u, x) = record();
     let mut out = vec![0.0; u.len()];
@@ -53,7 +72,7 @@ fn push_many(c: &mut Criterion) {
     group.sample_size(20);
     for window in [1_000usize, 10_000] {
         let mut id = AnyIdentifier::Paper(
-            PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, PaperConfig::with_window(window)).expect("valid config"),
+            PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, steps_only(window)).expect("valid config"),
         );
         id.push_many(&u, &x, &mut out).expect("finite");
         group.bench_with_input(BenchmarkId::from_parameter(window), &window, |b, _| {
@@ -175,5 +194,15 @@ fn compensator_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, push, push_many, simulate, model_step, rpem_push, inverse_step, compensator_step);
+criterion_group!(
+    benches,
+    push,
+    push_defaults,
+    push_many,
+    simulate,
+    model_step,
+    rpem_push,
+    inverse_step,
+    compensator_step
+);
 criterion_main!(benches);

@@ -174,7 +174,9 @@ typedef struct {
 // What one step of the paper's method did (see `StepStatus` in the Rust docs): `fit`
 // 0 = held, 1 = reduced, 2 = ran; `reason` 0 = none, 1 = window filling, 2 = no
 // excitation, 3 = too few points, 4 = no spread, 5 = noise, 6 = out of bounds, 7 =
-// upstream (step 5: steps 3 and 4 both held); `points` the window points it had;
+// upstream (step 5: steps 3 and 4 both held), 8 = worse output (the update would make
+// the window's output error worse than holding), 9 = misfit (the window fit: the model
+// does not explain the window to its noise); `points` the window points it had;
 // `noise` their residual scatter about its fit (in the step's units).
 typedef struct {
   uint32_t fit;
@@ -184,7 +186,8 @@ typedef struct {
 } BwStepStatus;
 
 // What the last push of a paper identifier did (see `PaperStatus` in the Rust docs):
-// steps 1–5 in `line_fit`, `rate_fit`, `shape_fit`, `return_fit`, `split_fit`.
+// steps 1–5 in `line_fit`, `rate_fit`, `shape_fit`, `return_fit`, `split_fit`, and the
+// window fit's last run in `window_fit`.
 typedef struct {
   uint64_t samples;
   bool window_full;
@@ -200,6 +203,7 @@ typedef struct {
   BwStepStatus shape_fit;
   BwStepStatus return_fit;
   BwStepStatus split_fit;
+  BwStepStatus window_fit;
 } BwPaperStatus;
 
 // What the last push of an identifier did: `method` says which of `horizon`, `rpem`

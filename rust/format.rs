@@ -23,13 +23,14 @@ use crate::params::Params;
 
 /// First bytes of every snapshot.
 pub const MAGIC: [u8; 4] = *b"BWSN";
-/// Version of the layout written by this build (6: the paper identifier's derivative
+/// Version of the layout written by this build (7: the paper identifier's output gate;
+/// 6: the paper identifier's derivative
 /// stencil (raw ring, next sample, points entered) and its per-step status; 5: the horizon identifier's refine
 /// mode, its pass's end, the update awaiting adoption and how far the estimates lag;
 /// 4: the horizon pass's carried |h|^n and ln|h|; 3: the model's carried |h|^n; 2: the
 /// horizon identifier's pending update). Snapshots of other versions are refused with a
 /// clear error.
-pub const VERSION: u8 = 6;
+pub const VERSION: u8 = 7;
 
 /// Largest window \[samples\] a snapshot may declare (and the Python binding
 /// accepts): 10⁷ samples, about 0.6 GB of window points. A corrupt length must

@@ -162,6 +162,28 @@ class PaperConfig:
     the starting model's saturation amplitude (``math.inf``: no bound)."""
     max_delta_ratio: float = _PAPER["max_delta_ratio"]
     """Step 2 keeps a fitted δ only while |δ|·rms(u) ≤ this × |A + kv|·rms(u̇) over its points."""
+    output_gate: float = _PAPER["output_gate"]
+    """A step's update is held (reason "worse_output") when it raises the window's own
+    output error Σ(x − x̂)² (the model simulated over the window from h at its oldest
+    point) by more than this × k·σ̂² over holding, k the unknowns it changes, σ̂² the
+    window's noise variance of x (``math.inf``: no gate)."""
+    min_stroke_frac: float = _PAPER["min_stroke_frac"]
+    """Every step holds (reason "no_spread") while the window's rising points or its
+    falling points span less than this fraction of the range of u seen since the start
+    (0: no bound; the window fit has its own gates)."""
+    fit_every: float = _PAPER["fit_every"]
+    """The window fit (``PaperStatus.window_fit``: kv, x0, A, β, γ, n, δ and h at the
+    window's start by least squares on the window's own output error) runs each time
+    this fraction of the window's points has entered since its last run (0 < this ≤ 1)."""
+    fit_iterations: int = _PAPER["fit_iterations"]
+    """Largest number of Gauss–Newton iterations of one window fit (a fit not converged
+    continues in the next run); 0: no window fit, the paper's steps alone."""
+    min_fit_t: float = _PAPER["min_fit_t"]
+    """The window fit is taken only where kv, A and n are each at least this many of its
+    standard errors from 0 (else held, reason "noise")."""
+    max_misfit: float = _PAPER["max_misfit"]
+    """The window fit is taken only where its residual standard deviation is at most this
+    × the window's noise of x (else held, reason "misfit"; ``math.inf``: no check)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "n_bounds", tuple(self.n_bounds))

@@ -21,7 +21,10 @@ A [µm/V], β and γ [µm^(1−n)/V], n [-], δ [µm/(V·s)].
   per sample) instead of being kept as running sums, and step 1 is an exact
   least-squares fit of the window instead of a recursive one. Its model's h comes
   from the core's integrator (:func:`boucwen.simulate`): the identification method is
-  what it restates. The results therefore differ from the Rust core by rounding only.
+  what it restates. It restates the paper's five steps and their gates, not the window
+  fit (``PaperConfig.fit_iterations``): it is the Rust identifier with
+  ``fit_iterations=0``, and its ``status.window_fit`` always says held. The results
+  therefore differ from that Rust identifier by rounding only.
 
 Parameters may be given as a :class:`boucwen.Params`, a mapping with the keys
 ``kv, x0, A, beta, gamma, n, delta`` or a sequence of the seven values in that
@@ -370,6 +373,8 @@ class PaperIdentifier:
         n_bounds: tuple[float, float] = (0.5, 4.0),
         max_hysteresis_gain: float = 4.0,
         max_delta_ratio: float = 1.0,
+        output_gate: float = 1.0,
+        min_stroke_frac: float = 0.5,
     ) -> None:
         self.dt = _positive_dt(dt)
         self.init = RefParams.from_any(init)
@@ -400,6 +405,7 @@ class PaperIdentifier:
             ("min_line_t", min_line_t),
             ("noise_gate", noise_gate),
             ("min_u_std_v", min_u_std_v),
+            ("min_stroke_frac", min_stroke_frac),
         ]:
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"invalid {name} = {v}: must be finite and >= 0")
@@ -423,6 +429,10 @@ class PaperIdentifier:
             raise ValueError(f"invalid max_delta_ratio = {max_delta_ratio}: must be > 0 (inf: no bound)")
         self.max_hysteresis_gain = float(max_hysteresis_gain)
         self.max_delta_ratio = float(max_delta_ratio)
+        if math.isnan(output_gate) or output_gate < 0.0:
+            raise ValueError(f"invalid output_gate = {output_gate}: must be >= 0 (inf: no gate)")
+        self.output_gate = float(output_gate)
+        self.min_stroke_frac = float(min_stroke_frac)
         self.reset()
 
     # -- public -----------------------------------------------------------
@@ -435,8 +445,9 @@ class PaperIdentifier:
         self._samples = 0
         self._next = 0  # index of the next sample to complete
         self._window: deque[_Point] = deque(maxlen=self.window_len)
+        self._u_seen = (math.inf, -math.inf)  # least and greatest u seen (the stroke)
         held = _step()
-        self._status = PaperStatus(0, False, False, 0, 0.0, 0.0, held, held, held, held, held)
+        self._status = PaperStatus(0, False, False, 0, 0.0, 0.0, held, held, held, held, held, held)
 
     @property
     def params(self) -> RefParams:
@@ -458,6 +469,7 @@ class PaperIdentifier:
         """Takes u [V] and measured x [µm]; returns the prediction [µm] made before using x."""
         u = _finite("u", u)
         x = _finite("x", x)
+        self._u_seen = (min(self._u_seen[0], u), max(self._u_seen[1], u))
         p = self._params
         if self._raw:
             # The model's own h from the core's integrator: the identification method
@@ -599,11 +611,57 @@ class PaperIdentifier:
         ln_total = math.log(total) if total > 0.0 else -math.inf
         return ln_total + n * ln_hs <= math.log(self.max_hysteresis_gain * abs(self.init.A))
 
+    def _window_sse(self, p: dict[str, float]) -> float:
+        """The window's own output error of the estimates ``p``: Σ (x − x̂)² over the
+        window's points, x̂ the model simulated over the window's inputs from h at the
+        oldest point as ``p`` reads it there (x − kv·u − x0); inf where it cannot be
+        simulated or leaves the finite numbers."""
+        pts = list(self._window)
+        h0 = pts[0].x - p["kv"] * pts[0].u - p["x0"]
+        try:
+            xs, _ = core_simulate(Params(*RefParams(**p)), np.array([q.u for q in pts]), self.dt, h0)
+        except ValueError:
+            return math.inf
+        sse = 0.0
+        for q, v in zip(pts, xs.tolist()):
+            e = q.x - v
+            sse = sse + e * e
+        return sse if math.isfinite(sse) else math.inf
+
+    def _gate(self, held: dict[str, float], candidate: dict[str, float], k: float, memo: list[float]) -> bool:
+        """The output gate: whether ``candidate`` (changing ``k`` unknowns of ``held``) is
+        taken, i.e. it raises the window's output error by at most output_gate·k·σ̂²;
+        ``memo`` holds the error of the estimates taken so far (empty until needed)."""
+        if self.output_gate == math.inf or candidate == held:
+            return True
+        if not memo:
+            memo.append(self._window_sse(held))
+        before, after = memo[0], self._window_sse(candidate)
+        per_unknown = self.output_gate * self._x_noise2()
+        taken = math.isfinite(after) and (before == math.inf or after <= before + k * per_unknown)
+        if taken:
+            memo[0] = after
+        return taken
+
     def _refit(self) -> None:
         p = self._params._asdict()
         w = self._window_columns()
         count = len(self._window)
         steps: dict[str, StepStatus] = {}
+        memo: list[float] = []  # the output gate's error of the estimates taken so far
+
+        # A window whose rising or falling points span too little of the stroke holds
+        # every step (min_stroke_frac).
+        if count == self.window_len and self.min_stroke_frac > 0.0:
+            # (An input that has never moved is step 1's to report: no excitation.)
+            stroke = self._u_seen[1] - self._u_seen[0]
+            branches = ([q.u for q in self._window if q.udot > 0.0], [q.u for q in self._window if q.udot < 0.0])
+            if stroke > 0.0 and not all(b and max(b) - min(b) >= self.min_stroke_frac * stroke for b in branches):
+                none = _step(reason="no_spread")
+                steps.update(line_fit=_step(reason="no_spread", points=count), rate_fit=none)
+                steps.update(shape_fit=none, return_fit=none, split_fit=none)
+                self._finish(p, steps)
+                return
 
         # Step 1: kv, x0 = least squares of y on [u, 1] over the full window.
         excited = count >= 2 and float(np.var(w["u"])) > self.min_u_std_v**2
@@ -622,8 +680,12 @@ class PaperIdentifier:
                 var_u = float(np.mean(w["u"] ** 2)) - float(np.mean(w["u"])) ** 2
                 se_kv = math.sqrt(rss / (count - 2.0) / (count * var_u)) if count > 2 else math.inf
                 if np.all(np.isfinite(theta)) and abs(kv) >= self.min_line_t * se_kv:
-                    p["kv"], p["x0"] = kv, x0
-                    steps["line_fit"] = _step("ran", points=count, noise=math.sqrt(rss / (count - 2.0)))
+                    candidate = {**p, "kv": kv, "x0": x0}
+                    if self._gate(p, candidate, 2.0, memo):
+                        p = candidate
+                        steps["line_fit"] = _step("ran", points=count, noise=math.sqrt(rss / (count - 2.0)))
+                    else:
+                        steps["line_fit"] = _step(reason="worse_output", points=count)
 
         if count < self.window_len:  # steps 2–5 wait for the window's N points
             filling = _step(reason="window_filling")
@@ -679,14 +741,18 @@ class PaperIdentifier:
                 steps["rate_fit"] = _step("reduced", why, npts, reduced_noise)
                 new_delta = p["delta"]
             if math.isfinite(a_plus_kv):
-                p["A"] = a_plus_kv - p["kv"]
-                p["delta"] = new_delta
+                candidate = {**p, "A": a_plus_kv - p["kv"], "delta": new_delta}
+                if not self._gate(p, candidate, 2.0 if why == "none" else 1.0, memo):
+                    steps["rate_fit"] = _step(reason="worse_output", points=npts)
+                else:
+                    p = candidate
             else:
                 steps["rate_fit"] = _step(reason="out_of_bounds", points=npts)
 
         # Step 3 (eqs. 10–12): ln|A − r| = ln|β+γ| + n·ln h on the loading points
         # of the larger sign group.
         sum_bg = p["beta"] + p["gamma"]
+        n_new = p["n"]
         pos = (kind == _LOADING) & w["positive"]
         neg = (kind == _LOADING) & ~w["positive"]
         sel, sign = (pos, 1.0) if pos.sum() >= neg.sum() else (neg, -1.0)
@@ -707,7 +773,7 @@ class PaperIdentifier:
             elif not (self.n_bounds[0] <= n <= self.n_bounds[1] and math.isfinite(log_mag)):
                 steps["shape_fit"] = _step(reason="out_of_bounds", points=npts)
             else:
-                p["n"] = n
+                n_new = n
                 sum_bg = sign * math.exp(log_mag)
                 noise = math.sqrt(max(var_w - cov * cov / var_z, 0.0) * npts / max(npts - 2.0, 1.0))
                 steps["shape_fit"] = _step("ran", points=npts, noise=noise)
@@ -720,7 +786,7 @@ class PaperIdentifier:
         npts = int(sel.sum())
         steps["return_fit"] = _step(reason="too_few_points", points=npts)
         if npts >= self.min_points:
-            dd = w["b"][sel] - p["n"] * w["a"][sel]
+            dd = w["b"][sel] - n_new * w["a"][sel]
             log_mag = min(max(float(np.mean(dd)), -700.0), 700.0)
             if math.isfinite(log_mag):
                 diff_gb = sign * math.exp(log_mag)
@@ -735,12 +801,15 @@ class PaperIdentifier:
         beta, gamma = 0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb)
         if steps["shape_fit"].outcome != "ran" and steps["return_fit"].outcome != "ran":
             steps["split_fit"] = _step(reason="upstream")
-        elif beta + gamma > 0.0 and beta - gamma > 0.0 and self._hysteresis_bounded(beta, gamma, p["n"]):
-            p["beta"], p["gamma"] = beta, gamma
-            steps["split_fit"] = _step("ran")
+        elif beta + gamma > 0.0 and beta - gamma > 0.0 and self._hysteresis_bounded(beta, gamma, n_new):
+            candidate = {**p, "beta": beta, "gamma": gamma, "n": n_new}
+            if self._gate(p, candidate, 3.0, memo):
+                p = candidate
+                steps["split_fit"] = _step("ran")
+            else:
+                steps["split_fit"] = _step(reason="worse_output")
         else:
             steps["split_fit"] = _step(reason="out_of_bounds")
-            p["n"] = self._params.n
         self._finish(p, steps)
 
     def _finish(self, p: dict[str, float], steps: dict[str, StepStatus]) -> None:

@@ -22,15 +22,27 @@ StepOutcome = Literal["ran", "reduced", "held"]
 kept), or held the previous estimate."""
 
 StepReason = Literal[
-    "none", "window_filling", "no_excitation", "too_few_points", "no_spread", "noise", "out_of_bounds", "upstream"
+    "none",
+    "window_filling",
+    "no_excitation",
+    "too_few_points",
+    "no_spread",
+    "noise",
+    "out_of_bounds",
+    "upstream",
+    "worse_output",
+    "misfit",
 ]
 """Why a step held or ran reduced ("none" when it ran in full): the window is not full
 yet (step 1); u does not move over it (step 1); fewer points than ``min_points``; the
 points do not spread enough to resolve the unknown (step 2's u̇ and u collinear, step 3's
 ln h spread); the estimate is not resolved above the noise (kv, δ below their t gates,
 step 3's r² below ``min_r2``); the estimate leaves the bounded region (n bounds, δ
-ratio, step 5's β ± γ > 0 and hysteresis bound) or is not finite; or (step 5) neither
-step 3 nor step 4 gave a value to combine."""
+ratio, step 5's β ± γ > 0 and hysteresis bound) or is not finite; (step 5) neither
+step 3 nor step 4 gave a value to combine; or (steps 1, 2, 5) the update would make the
+window's own output error worse than holding the previous estimate (the output gate,
+``PaperConfig.output_gate``); or (the window fit) the model does not explain the window
+to its noise, or its iterations have not converged yet (``PaperConfig.max_misfit``)."""
 
 
 @dataclass(frozen=True)
@@ -75,15 +87,21 @@ class PaperStatus:
     """Step 4, γ − β."""
     split_fit: StepStatus
     """Step 5, β and γ from β + γ and γ − β."""
+    window_fit: StepStatus
+    """The window fit's last run (``PaperConfig.fit_every``): every unknown of steps 1–4
+    and h at the window's start from the window's own output error; ``noise`` its
+    residual standard deviation [µm]; ran reduced where δ is held (not resolved)."""
 
     def steps(self) -> dict[str, StepStatus]:
-        """The five steps by name, in order (``line_fit`` … ``split_fit``)."""
+        """The five steps and the window fit by name, in order (``line_fit`` …
+        ``split_fit``, ``window_fit``)."""
         return {
             "line_fit": self.line_fit,
             "rate_fit": self.rate_fit,
             "shape_fit": self.shape_fit,
             "return_fit": self.return_fit,
             "split_fit": self.split_fit,
+            "window_fit": self.window_fit,
         }
 
 

@@ -428,6 +428,18 @@ impl<S: ChainScalar> Chain<S> {
         x
     }
 
+    /// The same chain (effects, dt and the unknowns' slots kept) from the Bouc–Wen
+    /// parameters `params` (validated by the caller) and h = `h0` \[µm\], the past
+    /// forgotten: what [`Chain::new`] gives, without allocating (a fit's evaluations
+    /// reuse one chain).
+    pub(crate) fn restart(&mut self, params: Params, h0: f64) {
+        self.params = params;
+        self.kv = S::unknown(params.kv, SLOT_KV);
+        self.x0 = S::unknown(params.x0, SLOT_X0);
+        self.h0 = S::unknown(h0, SLOT_H0);
+        self.reset();
+    }
+
     /// Forgets the past (h = h0, no previous sample, t = 0).
     pub(crate) fn reset(&mut self) {
         self.started = false;

@@ -475,7 +475,9 @@ impl From<InverseStatus> for BwInverseStatus {
 /// What one step of the paper's method did (see `StepStatus` in the Rust docs): `fit`
 /// 0 = held, 1 = reduced, 2 = ran; `reason` 0 = none, 1 = window filling, 2 = no
 /// excitation, 3 = too few points, 4 = no spread, 5 = noise, 6 = out of bounds, 7 =
-/// upstream (step 5: steps 3 and 4 both held); `points` the window points it had;
+/// upstream (step 5: steps 3 and 4 both held), 8 = worse output (the update would make
+/// the window's output error worse than holding), 9 = misfit (the window fit: the model
+/// does not explain the window to its noise); `points` the window points it had;
 /// `noise` their residual scatter about its fit (in the step's units).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -502,7 +504,8 @@ impl From<StepStatus> for BwStepStatus {
 }
 
 /// What the last push of a paper identifier did (see `PaperStatus` in the Rust docs):
-/// steps 1–5 in `line_fit`, `rate_fit`, `shape_fit`, `return_fit`, `split_fit`.
+/// steps 1–5 in `line_fit`, `rate_fit`, `shape_fit`, `return_fit`, `split_fit`, and the
+/// window fit's last run in `window_fit`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BwPaperStatus {
@@ -520,6 +523,7 @@ pub struct BwPaperStatus {
     pub shape_fit: BwStepStatus,
     pub return_fit: BwStepStatus,
     pub split_fit: BwStepStatus,
+    pub window_fit: BwStepStatus,
 }
 
 impl From<PaperStatus> for BwPaperStatus {
@@ -536,6 +540,7 @@ impl From<PaperStatus> for BwPaperStatus {
             shape_fit: s.shape_fit.into(),
             return_fit: s.return_fit.into(),
             split_fit: s.split_fit.into(),
+            window_fit: s.window_fit.into(),
         }
     }
 }

@@ -82,6 +82,12 @@ pub(crate) fn paper_slots(c: &mut PaperConfig) -> Vec<(&'static str, Slot<'_>)> 
         ("n_bounds", Slot::Pair(&mut c.n_bounds)),
         ("max_hysteresis_gain", Slot::Float(&mut c.max_hysteresis_gain)),
         ("max_delta_ratio", Slot::Float(&mut c.max_delta_ratio)),
+        ("output_gate", Slot::Float(&mut c.output_gate)),
+        ("min_stroke_frac", Slot::Float(&mut c.min_stroke_frac)),
+        ("fit_every", Slot::Float(&mut c.fit_every)),
+        ("fit_iterations", Slot::Count(&mut c.fit_iterations)),
+        ("min_fit_t", Slot::Float(&mut c.min_fit_t)),
+        ("max_misfit", Slot::Float(&mut c.max_misfit)),
     ]
 }
 

@@ -479,6 +479,7 @@ pub(super) fn status_object<'py>(py: Python<'py>, status: AnyStatus) -> PyResult
             d.set_item("shape_fit", step_object(py, s.shape_fit)?)?;
             d.set_item("return_fit", step_object(py, s.return_fit)?)?;
             d.set_item("split_fit", step_object(py, s.split_fit)?)?;
+            d.set_item("window_fit", step_object(py, s.window_fit)?)?;
             status_class(py, "PaperStatus", &d)
         }
         AnyStatus::Rpem(s) => {

@@ -206,8 +206,19 @@ fn check_identifier(window_len: usize, decomposition: Decomposition) {
     // Step 5's physical bound is set wide: on this dithered record the β, γ that steps
     // 3–4 find with N = 100 are far outside the default bound, step 5 would hold them
     // and report the sub-fits as held, and the coverage check below would not see them
-    // run. The bound's own code still runs (it allocates nothing either way).
-    let config = PaperConfig { decomposition, max_hysteresis_gain: 1e12, ..PaperConfig::with_window(window_len) };
+    // run. The bound's own code still runs (it allocates nothing either way). The output
+    // gate is off for the same reason: this record is the start model's own output, so
+    // the gate holds every update of step 1 as worse than the start (that the gate
+    // allocates nothing is checked with the defaults, in `every_online_method_conforms`
+    // and the C ABI's test), and so is the stroke bound: a window of 100 points spans
+    // under half this record's stroke, where it holds every step.
+    let config = PaperConfig {
+        decomposition,
+        max_hysteresis_gain: 1e12,
+        output_gate: f64::INFINITY,
+        min_stroke_frac: 0.0,
+        ..PaperConfig::with_window(window_len)
+    };
     let mut id = PaperIdentifier::new(DT, Params::paper_1hz(), 0.0, config).expect("valid config");
     for (&a, &b) in u[..warm].iter().zip(&x[..warm]) {
         id.push(a, b).expect("finite sample");

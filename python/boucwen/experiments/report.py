@@ -82,10 +82,19 @@ def _table1(r: Mapping[str, Any], rows: Sequence[tuple[str, str, bool]]) -> str:
         "oracle": r["refit_oracle"],
         "best_fixed": r["best_fixed_per_frequency"],
     }
+    # The paper method's row at the window its sweep chose (the run's window without a sweep).
+    chosen = r.get("paper_window", {}).get("chosen", r.get("window", {}).get("samples"))
+    sweep = r.get("window_sweep") or {}
+    if str(chosen) in sweep:
+        sources["paper_chosen"] = sweep[str(chosen)]["period_ahead"]
+    elif "online_paper" in t1:
+        sources["paper_chosen"] = t1["online_paper"]
     lines = [_HEAD.format("method")]
     for key, label, bold in rows:
         values = sources.get(key) or t1[key]
-        lines.append(_freq_row(label, values, bold=bold, fmt="{:.2f}" if key.startswith("paper") else "{:.3f}"))
+        label = label.replace("{paper_window}", str(chosen))
+        fmt = "{:.2f}" if key in ("paper", "paper_online") else "{:.3f}"
+        lines.append(_freq_row(label, values, bold=bold, fmt=fmt))
     return "\n".join(lines)
 
 
@@ -102,7 +111,7 @@ _README_TABLE1 = (
     ("paper", "traditional, paper", False),
     ("online_horizon", "online `horizon` (library default, input lag identified)", True),
     ("online_rpem", "online `rpem`", False),
-    ("online_paper", "online `paper` (the paper's method, N = 50)", False),
+    ("paper_chosen", "online `paper` (the paper's method, N = {paper_window} chosen by its sweep)", False),
     ("oracle", "refit oracle (offline fit on the 2 periods before)", False),
 )
 _RESULTS_TABLE1 = (
@@ -116,6 +125,7 @@ _RESULTS_TABLE1 = (
     ("online_horizon_base", "online `horizon`, seven parameters only (`Identifier.horizon`)", False),
     ("online_rpem", "online `rpem` (recursive prediction error)", False),
     ("online_paper", "online `paper` (the paper's method, default repair, N = 50)", False),
+    ("paper_chosen", "online `paper`, N = {paper_window} (chosen by its window sweep)", False),
     ("online_paper_literal", "online `paper`, literal line decomposition", False),
     ("paper_online", "online, paper", False),
     ("oracle", "refit oracle: offline fit on the 2 periods before the scored one", False),
@@ -146,6 +156,7 @@ _STEPS = (
     ("shape_fit", "3, n and β + γ"),
     ("return_fit", "4, γ − β"),
     ("split_fit", "5, β and γ"),
+    ("window_fit", "window fit, 1–4 on the window's output (last run)"),
 )
 _NAMES = ("kv", "x0", "A", "beta", "gamma", "n", "delta")
 
@@ -186,12 +197,36 @@ def _exact_table1(r: Mapping[str, Any]) -> str:
 
 
 def _exact_sweep(r: Mapping[str, Any]) -> str:
-    lines = ["| N | period-ahead 1 / 10 / 100 / 200 Hz | one step 1 / 10 / 100 / 200 Hz |", "|---|---|---|"]
+    lines = [
+        "| N | period-ahead 1 / 10 / 100 / 200 Hz | one step 1 / 10 / 100 / 200 Hz | meets the paper's figures at |",
+        "|---|---|---|---|",
+    ]
     for w, row in r["sweep"].items():
         pa = " / ".join(f"{row['period_ahead'][f]:.3f}" for f in FREQUENCIES)
         os_ = " / ".join(f"{row['one_step'][f]:.3f}" for f in FREQUENCIES)
         mark = " (chosen)" if int(w) == r["chosen_window"] else ""
-        lines.append(f"| {w}{mark} | {pa} | {os_} |")
+        met = [f"{f} Hz" for f in FREQUENCIES if row.get("meets", {}).get(f, {}).get("both")]
+        lines.append(f"| {w}{mark} | {pa} | {os_} | {', '.join(met) or 'none'} |")
+    return "\n".join(lines)
+
+
+def _exact_needs(r: Mapping[str, Any]) -> str:
+    """What one window N needs on the paper's record (``paper_exact.needs``)."""
+    nd = r["needs"]
+    slow, fast = f"{nd['slow_hz']:g} Hz", f"{nd['fast_hz']:g} Hz"
+    lines = [f"| N | bound on A at {slow}, best-placed window | resolves A to 10 % (≤ {nd['resolve_A']:.1e}) |"]
+    lines.append("|---|---|---|")
+    for w, b in nd["bound_A_slow"].items():
+        lines.append(f"| {w} | {b:.1e} | {'yes' if b <= nd['resolve_A'] else 'no'} |")
+    lines += [
+        "",
+        f"- {slow}: the window fit resolves A from N = {nd['n_min']}.",
+        f"- {fast}: its part holds {nd['fast_part_samples']} samples; a run of the window fit falls on a window "
+        f"wholly inside it for sure up to N = {nd['n_max']}.",
+        f"- One N for both would need a {fast} part of {nd['fast_part_needed']} samples, or a sensor noise of at "
+        f"most {nd['noise_needed_um'] * 1e3:.2f} nm (the bound on A at N = {nd['n_max']} and {slow} is "
+        f"{nd['bound_A_slow_at_n_max']:.1e} at the record's noise).",
+    ]
     return "\n".join(lines)
 
 
@@ -218,6 +253,44 @@ def _exact_budget(r: Mapping[str, Any]) -> str:
                 f"{b['half_width']} |"
             )
     return "\n".join(lines)
+
+
+def _exact_bound(r: Mapping[str, Any]) -> str:
+    """The Cramér–Rao bound of one window beside the error reached (``paper_exact``)."""
+    quantities = (("A", "A"), ("delta", "δ"), ("n", "n"), ("beta+gamma", "β + γ"), ("A+kv", "A + kv"))
+    lines = [
+        "| N | f | " + " | ".join(label for _, label in quantities) + " |",
+        "|---|---|" + "---|" * len(quantities),
+    ]
+    for w, rows in r["bound"]["windows"].items():
+        for f in FREQUENCIES:
+            cells = []
+            for q, _ in quantities:
+                e = rows[f][q]
+                # An infinite bound is written to JSON as null.
+                bound = "∞" if e["bound"] is None or e["bound"] == float("inf") else f"{e['bound']:.1e}"
+                cells.append(bound + (f" / {e['reached']:.1e}" if "reached" in e else ""))
+            lines.append(f"| {w} | {f} Hz | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _bench_sweep(r: Mapping[str, Any]) -> str:
+    """The paper method's window sweep on the bench: period-ahead error per frequency and
+    its worst ratio to the traditional fit (``reproduce``)."""
+    trad = r["table1"]["traditional"]
+    chosen = r.get("paper_window", {}).get("chosen")
+    lines = ["| N | period-ahead 1 / 10 / 100 / 200 Hz | worst ratio to the traditional fit |", "|---|---|---|"]
+    for w, row in (r.get("window_sweep") or {}).items():
+        pa = " / ".join(_num(row["period_ahead"][f], "{:.3f}") for f in FREQUENCIES)
+        ratio = max(row["period_ahead"][f] / trad[f] for f in FREQUENCIES)
+        mark = " (chosen)" if chosen is not None and int(w) == chosen else ""
+        lines.append(f"| {w}{mark} | {pa} | {ratio:.2f} |")
+    return "\n".join(lines)
+
+
+def _second(r: Mapping[str, Any]) -> dict[str, Any]:
+    """The second paper-exact plant's results with the paper's tables beside them."""
+    return {**r["second"], "paper": r["paper"]}
 
 
 #: Every table the documents may hold, by marker name.
@@ -247,12 +320,18 @@ BLOCKS: dict[str, Block] = {
     "diagnosis_suite": Block("diagnosis_suite", lambda r: _suite(r)),
     "diagnosis_speed": Block("diagnosis_speed", lambda r: _speed(r)),
     "plant_family": Block("plant_family", lambda r: _family(r)),
+    "bench_window_sweep": Block("reproduce", _bench_sweep),
     "bench_paper_steps": Block("reproduce", lambda r: _steps(r["paper_steps"]["online_paper"])),
     "exact_table1": Block("paper_exact", _exact_table1),
     "exact_sweep": Block("paper_exact", _exact_sweep),
     "exact_table2": Block("paper_exact", _exact_table2),
     "exact_steps": Block("paper_exact", lambda r: _steps(r["sweep"][str(r["chosen_window"])]["steps"])),
     "exact_budget": Block("paper_exact", _exact_budget),
+    "exact_bound": Block("paper_exact", _exact_bound),
+    "exact_needs": Block("paper_exact", _exact_needs),
+    "exact_second_sweep": Block("paper_exact", lambda r: _exact_sweep(_second(r))),
+    "exact_second_table1": Block("paper_exact", lambda r: _exact_table1(_second(r))),
+    "exact_second_table2": Block("paper_exact", lambda r: _exact_table2(_second(r))),
 }
 
 #: The online methods of the plant family's table, in its order, with their labels.

@@ -104,6 +104,80 @@ pub struct PaperConfig {
     /// thousands of times its size (|δ| ≈ 28 µm/(V·s) on noise-free bench data at
     /// N = 5000), and the model's h, and with it step 1, follow. Default 1.
     pub max_delta_ratio: f64,
+    /// The output gate: a step's update is taken only where it does not make the
+    /// window's own output error worse than holding the previous estimate. The error is
+    /// Σ (x − x̂)² over the window's points, x̂ the model simulated over the window's
+    /// inputs from h at its oldest point as the estimates read it there (x − kv·u − x0);
+    /// an update is held ([`Reason::WorseOutput`]) when it raises that sum by more than
+    /// this × k·σ̂², k the unknowns the step changes and σ̂² the window's noise variance
+    /// of x (`PaperStatus::x_noise_um`²): refitting k unknowns to noise moves the sum by
+    /// about k·σ̂², so a smaller rise is no evidence against the update. Steps 1
+    /// (kv, x0), 2 (A, δ; A alone where it ran reduced) and 3–5 (n, β, γ) are gated in
+    /// turn, each against the estimates the steps before it left. Without it the
+    /// update of a window can take a model that fits the window worse than the one it
+    /// replaces, and the next window starts from it: the method runs away (a period-ahead
+    /// error of 969 µm at 1 Hz on the simulated bench at N = 50). `f64::INFINITY`: no
+    /// gate. Default 1.
+    pub output_gate: f64,
+    /// Every step holds (reason [`Reason::NoSpread`]) while the window's rising points
+    /// (u̇ > 0) or its falling points (u̇ < 0) span less than this fraction of the stroke,
+    /// the range of u seen since the start or the last reset. The model's kv·u + x0 and
+    /// its hysteresis are used over the whole loop, and a window that sees part of it
+    /// cannot tell them apart: the line and the loop's width part only between the two
+    /// branches over a common range of u, so a window on one branch, or over a turn with
+    /// a short stretch of the other, fits a local chord. On the paper's record the
+    /// Cramér–Rao bound of A from one window (docs/results.md, "What one window can
+    /// tell") is above 10 % of |A| at 1 Hz for N ≤ 1000, and a window over a fraction of a
+    /// slow loop fits a chord (kv = −9.4 µm/V on the simulated bench at N = 50 and 1 Hz)
+    /// that its own output error prefers, so the output gate alone does not stop it. Both
+    /// branches, not the window's whole span: at the start of a record the stroke seen is
+    /// the first rise itself, which a window spans whole (on the simulated bench at
+    /// N = 500 step 1 took such a chord in the first quarter period and held it, 1.19 µm
+    /// at 1 Hz against the traditional fit's 0.48 µm); and a window of a quarter period
+    /// at 100 Hz (N = 25) spans 70 % of the stroke on one branch (2.9 µm at 100 Hz against
+    /// 1.24 µm). The window fit has its own gates and does not use this one. 0: no
+    /// bound. Default 0.5.
+    pub min_stroke_frac: f64,
+    /// The window fit ([`PaperStatus::window_fit`]) runs each time this fraction of
+    /// the window's points has entered since its last run (0 < this ≤ 1). It refits the
+    /// whole window, O(N) work, so it runs once per slide of this fraction rather than
+    /// at every push: the data change by that fraction between two runs, and the
+    /// amortised cost per sample is 1/this times one run's cost per point. A smaller
+    /// fraction also lets a window that lies wholly within one part of a record (a
+    /// window just shorter than a frequency's part) be fitted before the part ends.
+    /// Default 0.125.
+    pub fit_every: f64,
+    /// Largest number of Gauss–Newton (Levenberg–Marquardt) iterations of one window
+    /// fit, each one simulation of the window on dual numbers (value and the eight
+    /// derivatives), plus at most [`PaperConfig::FIT_TRIALS`] plain simulations for its
+    /// damping. A fit that has not converged within them is carried to the next run as
+    /// its starting point, so the iterations of several runs add up. A budget, not a
+    /// tolerance: from one row of the paper's Table 2 to another (100 to 200 Hz) the fit
+    /// takes 12 to 19 iterations, and a window in the flat valley of a slow loop (1 Hz)
+    /// moves by more than a tenth of a standard error per iteration for about as many;
+    /// 16 finishes most such moves in one run and the rest in the next, and one run
+    /// costs about 16·(N points on duals + N in plain numbers). 0: no window fit (the
+    /// paper's steps alone). Default 16.
+    pub fit_iterations: usize,
+    /// The window fit is taken only where it resolves the loop's gain, width and shape:
+    /// kv, A and n each at least this many standard errors from 0, the standard errors
+    /// σ·√diag((JᵀJ)⁻¹) of the fit itself (σ² its residual variance, J its Jacobian:
+    /// the window's own Cramér–Rao bound at the estimate). At 10 each is known to 10 %
+    /// at one standard error, as step 1 asks of kv (`min_line_t`); below it the window
+    /// cannot tell the value from its neighbours and the estimate in use is kept
+    /// (reason [`Reason::Noise`]). Default 10.
+    pub min_fit_t: f64,
+    /// The window fit is taken only where the model explains the window to its noise:
+    /// residual standard deviation at most this × the noise of x (the least window
+    /// estimate `PaperStatus::x_noise_um` seen since the start: each is an upper bound,
+    /// the signal's curvature adding to it at fast inputs). A window that one parameter
+    /// set cannot fit that closely holds a change of the plant (a switch of frequency
+    /// inside it, on the paper's record: hundreds of nm of residual) or an effect the
+    /// model lacks, and its fit has no precision to claim (reason [`Reason::Misfit`]).
+    /// Under the model the residual variance over N − 8 degrees of freedom exceeds 4σ²
+    /// (twice the noise) with a probability that vanishes for any window of more than a
+    /// few tens of points. `f64::INFINITY`: no check. Default 2.
+    pub max_misfit: f64,
 }
 
 impl PaperConfig {
@@ -116,6 +190,12 @@ impl PaperConfig {
     pub const MIN_HALF_WIDTH: usize = 2;
     /// Largest accepted `max_half_width` (1 s at 100 kHz).
     pub const MAX_HALF_WIDTH: usize = 100_000;
+    /// Largest accepted `fit_iterations`.
+    pub const MAX_FIT_ITERATIONS: usize = 1000;
+    /// Damped trials of one window-fit iteration: the damping grows fourfold after each
+    /// trial that does not lower the window's output error, 4⁸ ≈ 6.6·10⁴-fold at most,
+    /// after which the fit has converged as far as its local model tells.
+    pub const FIT_TRIALS: usize = 8;
 
     /// Defaults with window N = `window_len`.
     pub fn with_window(window_len: usize) -> Self {
@@ -138,6 +218,12 @@ impl PaperConfig {
             n_bounds: (0.5, 4.0),
             max_hysteresis_gain: 4.0,
             max_delta_ratio: 1.0,
+            output_gate: 1.0,
+            min_stroke_frac: 0.5,
+            fit_every: 0.125,
+            fit_iterations: 16,
+            min_fit_t: 10.0,
+            max_misfit: 2.0,
         }
     }
 
@@ -170,7 +256,21 @@ impl PaperConfig {
             ("min_line_t", self.min_line_t),
             ("noise_gate", self.noise_gate),
             ("min_u_std_v", self.min_u_std_v),
+            ("min_stroke_frac", self.min_stroke_frac),
+            ("min_fit_t", self.min_fit_t),
         ];
+        if !(self.fit_every > 0.0 && self.fit_every <= 1.0) {
+            return bad("fit_every", self.fit_every, "must be > 0 and <= 1");
+        }
+        if self.fit_iterations > Self::MAX_FIT_ITERATIONS {
+            return bad("fit_iterations", self.fit_iterations as f64, "must be at most 1000");
+        }
+        if self.max_misfit.is_nan() || self.max_misfit <= 0.0 {
+            return bad("max_misfit", self.max_misfit, "must be > 0 (inf: no check)");
+        }
+        if self.output_gate.is_nan() || self.output_gate < 0.0 {
+            return bad("output_gate", self.output_gate, "must be >= 0 (inf: no gate)");
+        }
         for (name, v) in fractions {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(name, v, "must be finite and >= 0");

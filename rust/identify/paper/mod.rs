@@ -51,6 +51,16 @@
 //!    ratios divide by u̇). A step with too few points or too little spread keeps its
 //!    previous estimate; [`PaperStatus`] says, for each step, whether it ran, ran
 //!    reduced or held, why, on how many points and with what scatter.
+//!
+//!    Two rules hold an update that would make the model worse: the output gate
+//!    ([`PaperConfig::output_gate`]: steps 1, 2 and 5 each against the window's own
+//!    output error) and the stroke bound ([`PaperConfig::min_stroke_frac`]: every step
+//!    holds while the window's rising or falling points span too little of the stroke).
+//! 5. **The window fit** (module `window_fit`, once per slide of `fit_every`·N points): the
+//!    unknowns of steps 1–4 (and h at the window's start) jointly, by least squares on
+//!    the window's own output error, at the precision the window's data allow; taken
+//!    where the model explains the window to its noise and resolves kv, A and n
+//!    ([`PaperStatus::window_fit`]). Where taken, the model's h follows it.
 
 use nalgebra::{Matrix2, Vector2};
 
@@ -60,15 +70,16 @@ mod status;
 #[cfg(test)]
 mod tests;
 pub mod window;
+mod window_fit;
 
 use super::OnlineIdentifier;
 use crate::error::{finite_sample, positive_dt, Error, Result};
 use crate::math;
-use crate::model::{advance_h, output};
+use crate::model::{advance_h, output, simulate_into};
 use crate::params::Params;
 pub use config::{Decomposition, PaperConfig};
 pub use status::{PaperStatus, Reason, StepStatus, SubFit};
-use window::{Ring, WindowSums};
+use window::{Ring, SlidingRange, WindowSums};
 
 /// Which sub-fit a window point feeds, decided when it enters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -410,6 +421,87 @@ fn hysteresis_bounded(cfg: &PaperConfig, init: &Params, beta: f64, gamma: f64, n
     }
 }
 
+/// Work buffers of the output gate (the window's inputs and the simulated outputs). A
+/// pure cache: not saved in snapshots, never compared (two identifiers in the same
+/// state are equal whatever their buffers hold).
+#[derive(Debug, Clone, Default)]
+struct Scratch {
+    u: Vec<f64>,
+    x: Vec<f64>,
+}
+
+impl PartialEq for Scratch {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
+}
+
+/// The window's own output error of the estimates `p` (the output gate,
+/// [`PaperConfig::output_gate`]): Σ (x − x̂)² over the window's points, x̂ the model `p`
+/// simulated over the window's inputs (`scratch.u`, filled by the caller) from h at
+/// the oldest point as `p` reads it there, x − kv·u − x0. Infinite where the model
+/// cannot be simulated or leaves the finite numbers.
+fn window_sse(window: &Ring<Point>, scratch: &mut Scratch, dt: f64, p: &Params) -> f64 {
+    let Some(first) = window.iter().next() else {
+        return 0.0;
+    };
+    let h0 = first.x - p.kv * first.u - p.x0;
+    scratch.x.resize(scratch.u.len(), 0.0);
+    if simulate_into(p, &scratch.u, dt, h0, None, &mut scratch.x).is_err() {
+        return f64::INFINITY;
+    }
+    let sse = window.iter().zip(&scratch.x).fold(0.0, |acc, (q, xs)| {
+        let e = q.x - xs;
+        acc + e * e
+    });
+    if sse.is_finite() {
+        sse
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The output gate's state within one refit: the window's output error of the
+/// estimates taken so far (computed when first needed) and the tolerance per unknown.
+struct Gate {
+    on: bool,
+    /// `scratch.u` holds this refit's window inputs.
+    filled: bool,
+    held_sse: Option<f64>,
+    /// `output_gate`·σ̂² \[µm²\]: the rise of the sum allowed per unknown changed.
+    per_unknown: f64,
+}
+
+impl Gate {
+    /// Whether `candidate` (changing `k` unknowns of `held`) is taken; on yes, its error
+    /// becomes the one to beat.
+    fn accepts(
+        &mut self,
+        window: &Ring<Point>,
+        scratch: &mut Scratch,
+        dt: f64,
+        held: &Params,
+        candidate: &Params,
+        k: f64,
+    ) -> bool {
+        if !self.on || candidate == held {
+            return true;
+        }
+        if !self.filled {
+            scratch.u.clear();
+            scratch.u.extend(window.iter().map(|q| q.u));
+            self.filled = true;
+        }
+        let before = *self.held_sse.get_or_insert_with(|| window_sse(window, scratch, dt, held));
+        let after = window_sse(window, scratch, dt, candidate);
+        let taken = after.is_finite() && (before == f64::INFINITY || after <= before + k * self.per_unknown);
+        if taken {
+            self.held_sse = Some(after);
+        }
+        taken
+    }
+}
+
 /// Savitzky–Golay sums of a stencil of half-width m: S = Σₖ k² over −m … m, and the
 /// centre weight w₀ of the local quadratic's value with its numerator constant c₀ and
 /// denominator (weights wₖ = (c₀ − 15k²)/den).
@@ -443,6 +535,37 @@ pub struct PaperIdentifier {
     /// Point classes that entered or left since the last refit ([`TOUCH_ALL`] after a refresh).
     touched: u8,
     cache: SubFitCache,
+    scratch: Scratch,
+    /// Least and greatest u seen since construction or reset \[V\] (the stroke).
+    u_seen: (f64, f64),
+    /// Least and greatest u of the window's rising and falling points \[V\] (the
+    /// stroke bound, [`PaperConfig::min_stroke_frac`]; empty where it is off). Rebuilt
+    /// from the window's points on restore.
+    spans: [SlidingRange; 2],
+    /// Window points entered since the window fit last ran.
+    since_fit: u64,
+    /// The least window noise variance of x seen with a full window \[µm²\] (∞ before):
+    /// the window fit's noise ([`PaperConfig::max_misfit`]). Each window's estimate is an
+    /// upper bound of the sensor's noise, the signal's curvature adding to it the more
+    /// the faster the input (about 1.2 nm at 1 and 10 Hz, 8.5 nm at 100 Hz on the
+    /// paper-exact plant of 1.15 nm), and the sensor's noise does not depend on the
+    /// input: the least bound seen is the tightest.
+    noise_floor2: f64,
+    /// The last window fit's result where it was not taken (the next run may start
+    /// from it).
+    fit_carry: Option<Params>,
+    fit_buffers: FitScratch,
+}
+
+/// The window fit's buffers ([`window_fit::FitBuffers`]): a pure cache, not saved in
+/// snapshots, never compared.
+#[derive(Debug, Clone, Default)]
+struct FitScratch(window_fit::FitBuffers);
+
+impl PartialEq for FitScratch {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
 }
 
 impl PaperIdentifier {
@@ -470,6 +593,27 @@ impl PaperIdentifier {
             status: PaperStatus::default(),
             touched: TOUCH_ALL,
             cache: SubFitCache::default(),
+            // Sized here where the output gate is on, so that no push allocates.
+            scratch: if config.output_gate == f64::INFINITY {
+                Scratch::default()
+            } else {
+                Scratch { u: Vec::with_capacity(config.window_len), x: Vec::with_capacity(config.window_len) }
+            },
+            u_seen: (f64::INFINITY, f64::NEG_INFINITY),
+            // Sized here where the stroke bound is on, so that no push allocates.
+            spans: {
+                let len = if config.min_stroke_frac > 0.0 { config.window_len } else { 0 };
+                [SlidingRange::new(len), SlidingRange::new(len)]
+            },
+            since_fit: 0,
+            noise_floor2: f64::INFINITY,
+            fit_carry: None,
+            // Made here where the window fit runs, so that no push allocates.
+            fit_buffers: FitScratch(if config.fit_iterations > 0 {
+                window_fit::FitBuffers::new(config.window_len, init, dt)
+            } else {
+                window_fit::FitBuffers::default()
+            }),
         })
     }
 
@@ -606,6 +750,70 @@ impl PaperIdentifier {
         point
     }
 
+    /// Slides the stroke bound's spans of u to window point number `seq` (from 0 since
+    /// construction or reset), the point `q`: a point where u moves enters the span of
+    /// its branch (rising where u̇ > 0, falling where u̇ < 0).
+    fn slide_spans(&mut self, seq: u64, q: &Point) {
+        let branch = (q.udot != 0.0).then_some((q.udot < 0.0) as usize);
+        for (b, span) in self.spans.iter_mut().enumerate() {
+            span.slide(seq, (branch == Some(b)).then_some(q.u));
+        }
+    }
+
+    /// The window fit (module `window_fit`, [`PaperConfig::fit_every`]), when due: once the
+    /// window is full, each time `fit_every`·N points have entered since its last run.
+    /// Where it is taken, the model's h follows it: the fit's h at the window's newest
+    /// point, carried over the samples not yet in the window with the new estimates.
+    fn window_fit(&mut self) {
+        let cfg = self.config;
+        if cfg.fit_iterations == 0 {
+            self.status.window_fit = StepStatus::held(Reason::None, 0);
+            return;
+        }
+        if !self.window.is_full() {
+            self.status.window_fit = StepStatus::held(Reason::WindowFilling, count_u32(self.window.len() as f64));
+            return;
+        }
+        self.noise_floor2 = self.noise_floor2.min(self.x_noise2());
+        let every = math::ceil(cfg.fit_every * cfg.window_len as f64).max(1.0);
+        if (self.since_fit as f64) < every {
+            return;
+        }
+        self.since_fit = 0;
+        let noise2 = self.noise_floor2;
+        let run = window_fit::Run {
+            cfg: &cfg,
+            init: &self.init,
+            dt: self.dt,
+            held: self.params,
+            carried: self.fit_carry,
+            noise2,
+        };
+        let out = window_fit::run(&run, &self.window, &mut self.fit_buffers.0);
+        self.status.window_fit = out.status;
+        self.fit_carry = out.carry;
+        let Some((p, h_end)) = out.taken else {
+            return;
+        };
+        self.params = p;
+        // The window's newest point is the raw sample `next − 1`; the raw samples after
+        // it wait for their stencils.
+        let first = self.status.samples - self.raw.len() as u64;
+        let mut h = h_end;
+        let from = (self.next.saturating_sub(first) as usize).max(1);
+        for i in from..self.raw.len() {
+            let Some(before) = self.raw.get(i - 1).map(|r| r.u) else {
+                break;
+            };
+            let Some(now) = self.raw.get_mut(i) else {
+                break;
+            };
+            h = advance_h(&p, h, before, now.u, self.dt);
+            now.h_model = h;
+        }
+        self.h_model = h;
+    }
+
     /// Steps 1–5 from the sums; returns the new estimates and what ran.
     fn refit(&mut self) -> (Params, PaperStatus) {
         let cfg = self.config;
@@ -613,6 +821,29 @@ impl PaperIdentifier {
         let mut p = self.params;
         let mut status = self.status;
         let count = s[CNT];
+        // The output gate (`output_gate`): each step's update against the estimates the
+        // steps before it left, on the window's own output error.
+        let mut gate = Gate {
+            on: cfg.output_gate != f64::INFINITY,
+            filled: false,
+            held_sse: None,
+            per_unknown: cfg.output_gate * self.x_noise2(),
+        };
+
+        // A window whose rising or falling points span too little of the stroke holds
+        // every step (`min_stroke_frac`).
+        if self.window.is_full() && cfg.min_stroke_frac > 0.0 {
+            let spans = self.spans.each_ref().map(SlidingRange::range);
+            // (An input that has never moved is step 1's to report: no excitation.)
+            let stroke = self.u_seen.1 - self.u_seen.0;
+            if stroke > 0.0 && !spans.iter().all(|&(lo, hi)| hi - lo >= cfg.min_stroke_frac * stroke) {
+                let narrow = StepStatus::held(Reason::NoSpread, count_u32(count));
+                let none = StepStatus::held(Reason::NoSpread, 0);
+                (status.line_fit, status.rate_fit, status.shape_fit, status.return_fit, status.split_fit) =
+                    (narrow, none, none, none, none);
+                return (p, status);
+            }
+        }
 
         // Step 1.
         let var_u = s[SUU] / count - math::powi(s[SU] / count, 2);
@@ -635,11 +866,15 @@ impl PaperIdentifier {
             let rss = (s[SYY] - kv * s[SUY] - x0 * s[SY]).max(0.0);
             let se_kv = if count > 2.0 { math::sqrt(rss / (count - 2.0) / (count * var_u)) } else { f64::INFINITY };
             if self.rls.active && kv.abs() >= cfg.min_line_t * se_kv {
-                p.kv = kv;
-                p.x0 = x0;
-                let noise = math::sqrt(rss / (count - 2.0));
-                status.line_fit =
-                    StepStatus { fit: SubFit::Ran, reason: Reason::None, points: count_u32(count), noise };
+                let candidate = Params { kv, x0, ..p };
+                if gate.accepts(&self.window, &mut self.scratch, self.dt, &p, &candidate, 2.0) {
+                    p = candidate;
+                    let noise = math::sqrt(rss / (count - 2.0));
+                    status.line_fit =
+                        StepStatus { fit: SubFit::Ran, reason: Reason::None, points: count_u32(count), noise };
+                } else {
+                    status.line_fit.reason = Reason::WorseOutput;
+                }
             } else {
                 status.line_fit.reason = Reason::Noise;
             }
@@ -668,8 +903,13 @@ impl PaperIdentifier {
         let rate = *self.cache.rate.get_or_insert_with(|| rate_fit(&cfg, s, p.delta, span));
         status.rate_fit = rate.status;
         if rate.status.fit != SubFit::Held {
-            p.a = rate.a_plus_kv - p.kv;
-            p.delta = rate.delta_out;
+            let candidate = Params { a: rate.a_plus_kv - p.kv, delta: rate.delta_out, ..p };
+            let unknowns = if rate.status.fit == SubFit::Ran { 2.0 } else { 1.0 };
+            if gate.accepts(&self.window, &mut self.scratch, self.dt, &p, &candidate, unknowns) {
+                p = candidate;
+            } else {
+                status.rate_fit = StepStatus::held(Reason::WorseOutput, rate.status.points);
+            }
         }
 
         if touched & TOUCH_LOADING != 0 {
@@ -678,16 +918,12 @@ impl PaperIdentifier {
         let shape = *self.cache.shape.get_or_insert_with(|| shape_fit(&cfg, s));
         status.shape_fit = shape.status;
         let shape_ran = shape.status.fit == SubFit::Ran;
-        let mut sum_bg = p.beta + p.gamma;
-        if shape_ran {
-            p.n = shape.n;
-            sum_bg = shape.sum_bg;
-        }
+        let (n, sum_bg) = if shape_ran { (shape.n, shape.sum_bg) } else { (p.n, p.beta + p.gamma) };
 
-        if touched & TOUCH_UNLOADING != 0 || self.cache.ret.is_some_and(|r| r.n_in != p.n) {
+        if touched & TOUCH_UNLOADING != 0 || self.cache.ret.is_some_and(|r| r.n_in != n) {
             self.cache.ret = None;
         }
-        let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, s, p.n));
+        let ret = *self.cache.ret.get_or_insert_with(|| return_fit(&cfg, s, n));
         status.return_fit = ret.status;
         let ret_ran = ret.status.fit == SubFit::Ran;
         let diff_gb = if ret_ran { ret.diff_gb } else { p.gamma - p.beta };
@@ -698,13 +934,16 @@ impl PaperIdentifier {
         let (beta, gamma) = (0.5 * (sum_bg - diff_gb), 0.5 * (sum_bg + diff_gb));
         if !(shape_ran || ret_ran) {
             status.split_fit = StepStatus::held(Reason::Upstream, 0);
-        } else if beta + gamma > 0.0 && beta - gamma > 0.0 && hysteresis_bounded(&cfg, &self.init, beta, gamma, p.n) {
-            p.beta = beta;
-            p.gamma = gamma;
-            status.split_fit = StepStatus { fit: SubFit::Ran, ..StepStatus::default() };
+        } else if beta + gamma > 0.0 && beta - gamma > 0.0 && hysteresis_bounded(&cfg, &self.init, beta, gamma, n) {
+            let candidate = Params { beta, gamma, n, ..p };
+            if gate.accepts(&self.window, &mut self.scratch, self.dt, &p, &candidate, 3.0) {
+                p = candidate;
+                status.split_fit = StepStatus { fit: SubFit::Ran, ..StepStatus::default() };
+            } else {
+                status.split_fit = StepStatus::held(Reason::WorseOutput, 0);
+            }
         } else {
             status.split_fit = StepStatus::held(Reason::OutOfBounds, 0);
-            p.n = self.params.n;
         }
         // Whatever the steps gave must stay in the admissible region (a δ from step 2
         // beside β ± γ = 0 would not be dissipated): else the estimates are held.
@@ -723,6 +962,7 @@ impl OnlineIdentifier for PaperIdentifier {
         finite_sample("u", u)?;
         finite_sample("x", x)?;
 
+        self.u_seen = (self.u_seen.0.min(u), self.u_seen.1.max(u));
         // Predict with the estimates from before this sample.
         if let Some(prev) = self.raw.last() {
             self.h_model = advance_h(&self.params, self.h_model, prev.u, u, self.dt);
@@ -749,8 +989,10 @@ impl OnlineIdentifier for PaperIdentifier {
             }
             let point = self.complete((j - first) as usize, mj);
             let leaving = self.window.push(point);
+            self.slide_spans(self.entered, &point);
             self.entered += 1;
             status.half_width = m as u32;
+            self.since_fit += 1;
             if self.sums.slide(&point.contribution(), leaving.map(|l| l.contribution()).as_ref()) {
                 status.refreshed = true;
                 self.touched = TOUCH_ALL;
@@ -771,6 +1013,7 @@ impl OnlineIdentifier for PaperIdentifier {
         let (params, status) = self.refit();
         self.params = params;
         self.status = status;
+        self.window_fit();
         Ok(prediction)
     }
 
@@ -804,5 +1047,10 @@ impl OnlineIdentifier for PaperIdentifier {
         self.status = PaperStatus::default();
         self.touched = TOUCH_ALL;
         self.cache = SubFitCache::default();
+        self.u_seen = (f64::INFINITY, f64::NEG_INFINITY);
+        self.spans.iter_mut().for_each(SlidingRange::clear);
+        self.since_fit = 0;
+        self.noise_floor2 = f64::INFINITY;
+        self.fit_carry = None;
     }
 }

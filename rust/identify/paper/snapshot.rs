@@ -1,7 +1,8 @@
 //! Save and restore of the paper's identifier (format: `crate::format`): every field the identifier carries
 //! between samples. The shadow half of the window sums is not stored: it is the
 //! sum, in arrival order, of the newest `(samples − 2) mod N` window points, and
-//! is recomputed from them with the same additions.
+//! is recomputed from them with the same additions; so are the stroke bound's spans of
+//! u (the same slides).
 
 use alloc::vec::Vec;
 
@@ -33,13 +34,26 @@ impl Snapshot for PaperIdentifier {
             c.n_bounds.1,
             c.max_hysteresis_gain,
             c.max_delta_ratio,
+            c.output_gate,
+            c.min_stroke_frac,
+            c.fit_every,
+            c.min_fit_t,
+            c.max_misfit,
         ]);
         w.u64(c.max_half_width as u64);
+        w.u64(c.fit_iterations as u64);
         w.f64(self.dt);
         w.params(&self.init);
         w.f64(self.h0);
         w.params(&self.params);
         w.f64(self.h_model);
+        w.f64s(&[self.u_seen.0, self.u_seen.1]);
+        w.u64(self.since_fit);
+        w.f64(self.noise_floor2);
+        w.u8(self.fit_carry.is_some() as u8);
+        if let Some(p) = &self.fit_carry {
+            w.params(p);
+        }
         w.u64(self.raw.len() as u64);
         for r in self.raw.iter() {
             w.f64s(&[r.u, r.x, r.h_model]);
@@ -68,7 +82,7 @@ impl Snapshot for PaperIdentifier {
         w.u8(s.refreshed as u8);
         w.u64(s.half_width as u64);
         w.f64s(&[s.x_noise_um, s.xdot_noise_um_s]);
-        for f in [s.line_fit, s.rate_fit, s.shape_fit, s.return_fit, s.split_fit] {
+        for f in [s.line_fit, s.rate_fit, s.shape_fit, s.return_fit, s.split_fit, s.window_fit] {
             w.u8(match f.fit {
                 SubFit::Held => 0,
                 SubFit::Reduced => 1,
@@ -95,13 +109,18 @@ impl Snapshot for PaperIdentifier {
         };
         let [h_zero_frac, rate_frac] = r.f64s::<2>()?;
         let min_points = usize::try_from(r.u64()?).map_err(|_| corrupt(at, "min_points out of range"))?;
-        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, derivative_phase, min_delta_t, min_u_std_v, n_lo, n_hi, max_hysteresis_gain, max_delta_ratio] =
-            r.f64s::<13>()?;
+        let [rank_tol, min_log_spread, min_r2, min_arg_frac, min_line_t, noise_gate, derivative_phase, min_delta_t, min_u_std_v, n_lo, n_hi, max_hysteresis_gain, max_delta_ratio, output_gate, min_stroke_frac, fit_every, min_fit_t, max_misfit] =
+            r.f64s::<18>()?;
         let at = r.offset();
         let max_half_width = usize::try_from(r.u64()?)
             .ok()
             .filter(|&m| m <= PaperConfig::MAX_HALF_WIDTH)
             .ok_or_else(|| corrupt(at, "derivative half-width out of range"))?;
+        let at = r.offset();
+        let fit_iterations = usize::try_from(r.u64()?)
+            .ok()
+            .filter(|&k| k <= PaperConfig::MAX_FIT_ITERATIONS)
+            .ok_or_else(|| corrupt(at, "window-fit iterations out of range"))?;
         let config = PaperConfig {
             window_len,
             decomposition,
@@ -121,6 +140,12 @@ impl Snapshot for PaperIdentifier {
             n_bounds: (n_lo, n_hi),
             max_hysteresis_gain,
             max_delta_ratio,
+            output_gate,
+            min_stroke_frac,
+            fit_every,
+            fit_iterations,
+            min_fit_t,
+            max_misfit,
         };
         let dt = r.f64()?;
         let init = r.params()?;
@@ -129,6 +154,11 @@ impl Snapshot for PaperIdentifier {
         let mut id = PaperIdentifier::new(dt, init, h0, config)?;
         id.params = r.params()?;
         id.h_model = r.finite()?;
+        let [u_lo, u_hi] = r.f64s::<2>()?;
+        id.u_seen = (u_lo, u_hi);
+        id.since_fit = r.u64()?;
+        id.noise_floor2 = r.f64()?;
+        id.fit_carry = if r.bool()? { Some(r.params()?) } else { None };
         let at = r.offset();
         let raws = r.u64()?;
         if raws > id.raw.capacity() as u64 {
@@ -168,7 +198,7 @@ impl Snapshot for PaperIdentifier {
         let refreshed = r.bool()?;
         let half_width = u32::try_from(r.u64()?).map_err(|_| corrupt(at, "half-width out of range"))?;
         let [x_noise_um, xdot_noise_um_s] = r.f64s::<2>()?;
-        let mut fits = [StepStatus::default(); 5];
+        let mut fits = [StepStatus::default(); 6];
         for f in fits.iter_mut() {
             f.fit = match r.u8()? {
                 0 => SubFit::Held,
@@ -182,7 +212,7 @@ impl Snapshot for PaperIdentifier {
             f.noise = r.f64()?;
         }
         r.end()?;
-        let [line_fit, rate_fit, shape_fit, return_fit, split_fit] = fits;
+        let [line_fit, rate_fit, shape_fit, return_fit, split_fit, window_fit] = fits;
         id.status = PaperStatus {
             samples,
             window_full,
@@ -195,6 +225,7 @@ impl Snapshot for PaperIdentifier {
             shape_fit,
             return_fit,
             split_fit,
+            window_fit,
         };
 
         // The shadow sum holds the newest `entered mod N` window points; every raw
@@ -217,6 +248,13 @@ impl Snapshot for PaperIdentifier {
             }
         }
         id.sums = rebuild_window_sums(window_len, &sums, &shadow, count);
+        // The stroke bound's spans are a function of the window's points alone.
+        let first_seq = id.entered - points;
+        for i in 0..points as usize {
+            if let Some(q) = id.window.get(i).copied() {
+                id.slide_spans(first_seq + i as u64, &q);
+            }
+        }
         Ok(id)
     }
 }
