@@ -62,6 +62,7 @@
 //!    where the model explains the window to its noise and resolves kv, A and n
 //!    ([`PaperStatus::window_fit`]). Where taken, the model's h follows it.
 
+use alloc::vec::Vec;
 use nalgebra::{Matrix2, Vector2};
 
 mod config;
