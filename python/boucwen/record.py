@@ -197,23 +197,31 @@ TRAVEL_SMOOTHING_S = 1e-3
 TRAVEL_DEADBAND = 3.0
 
 
-def travel_steps(record: Record) -> FloatArray:
-    """The voltage's travel [V] from each sample to the next (n − 1 of them): the
-    increments of u smoothed over :data:`TRAVEL_SMOOTHING_S`, those within
-    :data:`TRAVEL_DEADBAND` noise standard deviations of u counted as none (a rest, a
-    hold). A u whose differences are mostly zero (a command held between steps) has no
-    noise at the sample level."""
+def travel_levels(record: Record) -> tuple[FloatArray, float]:
+    """The voltage smoothed over :data:`TRAVEL_SMOOTHING_S` [V] and the least difference
+    of two of its samples that is travel [V]: :data:`TRAVEL_DEADBAND` standard
+    deviations of such a difference under u's noise alone. A u whose differences are
+    mostly zero (a command held between steps) has no noise at the sample level."""
     from scipy.ndimage import uniform_filter1d
 
     from .residual.noise import noise_level  # deferred: boucwen.residual imports this module
 
     u = record.u
     m = max(1, round(TRAVEL_SMOOTHING_S / record.dt))
-    smooth = uniform_filter1d(u, m, mode="nearest") if m > 1 else u
-    steps = np.abs(np.diff(smooth))
+    smooth: FloatArray = uniform_filter1d(u, m, mode="nearest") if m > 1 else u
     level = noise_level(u) if u.size > 8 else None
     sigma = (level.sigma_um if level is not None and level.order > 0 else 0.0) * math.sqrt(2.0) / math.sqrt(m)
-    out: FloatArray = np.where(steps > TRAVEL_DEADBAND * sigma, steps, 0.0)
+    return smooth, TRAVEL_DEADBAND * sigma
+
+
+def travel_steps(record: Record) -> FloatArray:
+    """The voltage's travel [V] from each sample to the next (n − 1 of them): the
+    increments of u smoothed over :data:`TRAVEL_SMOOTHING_S`, those within
+    :data:`TRAVEL_DEADBAND` noise standard deviations of u counted as none (a rest, a
+    hold): :func:`travel_levels`."""
+    smooth, least = travel_levels(record)
+    steps = np.abs(np.diff(smooth))
+    out: FloatArray = np.where(steps > least, steps, 0.0)
     return out
 
 

@@ -30,8 +30,9 @@ not told what it contains, and selects a model by one loop under one judge:
    it (neither's gain over the other passes the test): the model takes the accepted
    member with the fewest unknowns, then the largest statistic; the others are its
    rivals, reported with their held-out errors and tried as swaps later.
-6. **Repeat** from 3 until no move is accepted or the residual is consistent with the
-   record's noise (:func:`boucwen.residual.unexplained`). A model already held is never
+6. **Repeat** from 3 until no move is accepted. Where the residual is consistent with
+   the record's noise (:func:`boucwen.residual.unexplained`) a round proposes only the
+   drops, and the search ends where none is accepted. A model already held is never
    proposed again.
 7. **The other structure** is one more move of every round: the input-driven model
    replaced by the hysteretic oscillator (:mod:`boucwen.oscillator`: the hysteresis
@@ -228,7 +229,6 @@ def diagnose_record(
         f"base model: RMS {base.fit.rms_um:.4g} µm, held-out {base.cv.rms_um:.4g} µm "
         f"({forward.count} forward folds from sample {forward.tested.start})"
     )
-    resolution_um = fits.resolution(record, base.fit)
     state = search(
         record,
         base,
@@ -237,7 +237,6 @@ def diagnose_record(
         conv=conv,
         workers=workers,
         say=say,
-        resolution_um=resolution_um,
     )
     say(f"search ended: {state.stopped}")
     return _outcome(record, base, state, validate, policy, conv, noise_um, say, started, workers)

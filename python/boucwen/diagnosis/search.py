@@ -17,9 +17,11 @@ current model (:func:`~boucwen.diagnosis.judge.judge`). Then:
   fewest unknowns (the one-standard-error rule), then the largest statistic; the others
   are its rivals, reported with their held-out errors, and proposed as swaps in the
   rounds that follow;
-* nothing accepted, or a residual consistent with the record's noise
-  (:func:`boucwen.residual.unexplained`), ends the search. A model of the other
-  structure proposes no move: the search ends there.
+* nothing accepted ends the search. A residual consistent with the record's noise
+  (:func:`boucwen.residual.unexplained`) leaves nothing to add: that round proposes
+  only the drops (an effect added early may be redundant beside one added later) and
+  the search ends where none is accepted. A model of the other structure proposes no
+  move: the search ends there.
 
 A model the search has already held is never proposed again (floating selection cannot
 cycle). Every fit is kept by its set of effects for the whole search (a drop back to a
@@ -572,11 +574,15 @@ def search(
     conv: Convergence,
     workers: int | None,
     say: Callable[[str], None],
-    resolution_um: float = 0.0,
 ) -> Search:
-    """The loop of moves (module docs) from the base model ``base``; ``resolution_um``
-    the model's own sampling-rate error [µm RMS], below which a gain is not enough
-    (:func:`boucwen.diagnosis.judge.judge`)."""
+    """The loop of moves (module docs) from the base model ``base``.
+
+    Each round judges its moves against the current model's own sampling-rate error
+    (:func:`boucwen.diagnosis.fits.resolution`, below which a gain is not enough:
+    :func:`boucwen.diagnosis.judge.judge`), measured on the current model: what a
+    candidate can take up is the current model's error, and its stepping error is that of
+    the current model's parameters, not of a model fitted before the effects it now holds
+    (a base model that absorbs a drift has other parameters, and steps differently)."""
     state = Search(base, base)
     state.fitted[frozenset(base.names)] = base
     seen = {frozenset(base.names)}
@@ -588,16 +594,18 @@ def search(
             state.stopped = "the other structure proposes no move"
             break
         left = unexplained(record, current.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
-        if left.consistent_with_noise:
-            state.stopped = "the residual is consistent with the record's noise"
-            break
+        # A residual consistent with the noise leaves nothing to add, but an effect added
+        # early may have been made redundant by one added later (it took part of what the
+        # later one explains): the search stops after a round of drops.
+        quiet = left.consistent_with_noise
+        resolution_um = fits.resolution(record, current.fit)
         moves = [
             m
             for m in proposals(current.names, state.rivals, policy.max_effects)
-            if _after(current.names, m) not in seen
+            if _after(current.names, m) not in seen and (m.kind == "drop" or not quiet)
         ]
         if not moves:
-            state.stopped = "no move left to try"
+            state.stopped = "the residual is consistent with the record's noise" if quiet else "no move left to try"
             break
         on_copy = _on_copy(copy, current, conv, policy)
         screened: list[Decision] = []
@@ -665,7 +673,7 @@ def search(
         state.rounds.append(round_)
         state.swaps = {frozenset(f.names): f for m, _, f in rows if m.kind == "swap" and isinstance(f, Scored)}
         if round_.taken is None:
-            state.stopped = "no move is accepted"
+            state.stopped = "the residual is consistent with the record's noise" if quiet else "no move is accepted"
             break
         chosen = next(f for m, d, f in rows if d is round_.taken)
         state.current = chosen

@@ -9,10 +9,13 @@ from typing import ClassVar
 import numpy as np
 
 from ..checks import FloatArray
-from ..record import TRAVEL_SMOOTHING_S, Record, travel_steps
+from ..record import TRAVEL_SMOOTHING_S, Record, travel_levels, travel_steps
 from .base import Context, Effect, Start
 
-__all__ = ["Saturation"]
+__all__ = ["START_QUANTILE", "Saturation"]
+
+#: Share of the samples beyond each end of the second and third starts.
+START_QUANTILE = 0.01
 
 
 @dataclass(frozen=True)
@@ -24,7 +27,8 @@ class Saturation(Effect):
     The ends of the sensor's (or its A/D's) range. The output is piecewise linear in
     x_min and x_max (a sample inside the range does not depend on them; a clipped one
     has the bound's derivatives). The inverse does not undo it: it aims at the
-    stack's displacement. A fit starts from the record's extremes.
+    stack's displacement. A fit starts from the record's extremes and inside them
+    (:meth:`starts`).
 
     Attributes:
         min_um: lower end x_min [µm] (finite).
@@ -48,24 +52,43 @@ class Saturation(Effect):
         return (1e-2 * span_x, 1e-2 * span_x)
 
     def rejects_on(self, record: Record, before: FloatArray) -> str | None:
-        """A clip is seen where the input keeps moving while the reading stays at the
-        range's end. One that holds no such stretch (all it clips is held at rest, or a
-        rest beside a step's edge: a level the base model's offset and the effects' own
-        states hold as well) is no saturation. The input's travel is smoothed over
-        :data:`~boucwen.record.TRAVEL_SMOOTHING_S`, so a sample counts only where the
-        whole smoothing window about it is clipped: a step's edge spreads its travel
-        onto the held samples beside it."""
+        """A clip reads the range's end whatever the input: it is seen where the input
+        keeps moving while the reading stays there, or where holds at different
+        voltages (a staircase's upper steps) all read it. One that holds neither (all it
+        clips is one level held at rest, or a rest beside a step's edge: a level the
+        base model's offset and the effects' own states hold as well) is no saturation.
+        The input is smoothed over :data:`~boucwen.record.TRAVEL_SMOOTHING_S`, so a
+        sample counts only where the whole smoothing window about it is clipped: a
+        step's edge spreads its travel onto the held samples beside it."""
         from scipy.ndimage import minimum_filter1d
 
         clipped = (before > self.max_um) | (before < self.min_um)
         m = max(1, round(TRAVEL_SMOOTHING_S / record.dt))
         inside = minimum_filter1d(clipped.astype(np.uint8), 2 * m + 1, mode="nearest").astype(bool)
         steps = travel_steps(record)
-        if not np.any(inside[:-1] & inside[1:] & (steps > 0)):
-            return "the fitted clip holds no stretch of moving input: it is no saturation the record shows"
+        moving = bool(np.any(inside[:-1] & inside[1:] & (steps > 0)))
+        levels, least = travel_levels(record)
+        several = bool(np.any(inside)) and float(np.ptp(levels[inside])) > least
+        if not (moving or several):
+            return (
+                "the fitted clip holds no stretch of moving input and no two input levels: it is no saturation "
+                "the record shows"
+            )
         return None
 
     @classmethod
     def starts(cls, at: Start) -> list[Saturation]:
+        """The record's extremes, and each end moved to the reading's
+        :data:`START_QUANTILE` (the other at its extreme). A model fitted without the
+        clip follows the clipped reading, so a clip at the reading's extremes touches
+        none of its prediction and the fit cannot move it (no sample depends on it);
+        a clip that held a stretch of the record (a staircase's top step) holds more
+        than that share of the samples, and the quantile lies inside that stretch's
+        noise about the clip."""
         x = at.record.x
-        return [cls(min_um=float(x.min()), max_um=float(x.max()))]
+        lo, hi = float(x.min()), float(x.max())
+        q_lo, q_hi = (float(v) for v in np.quantile(x, [START_QUANTILE, 1.0 - START_QUANTILE]))
+        out = [cls(min_um=lo, max_um=hi)]
+        if q_lo < q_hi:
+            out += [cls(min_um=lo, max_um=q_hi), cls(min_um=q_lo, max_um=hi)]
+        return out
