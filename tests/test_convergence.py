@@ -41,16 +41,6 @@ def test_the_answer_on_suite_records_does_not_depend_on_the_solver(case):
     assert len(set(map(tuple, answers.values()))) == 1, (rec.label, answers)
 
 
-#: Why the micromanipulator's first 60 % gets two answers (a limit of the method there,
-#: kept visible as a strict xfail).
-_TWO_OPTIMA = (
-    "two optima of the least-squares cost: from the model with input_lag, electrostriction and drift, lm "
-    "converges the creep candidate to zero gains at 0.12770 µm RMS (the other unknowns move), trf to a creep "
-    "of 3.25 µm/V at 0.12824 µm, which predicts the held-out folds 8.9 standard errors better; the answer "
-    "(lm: three effects, tentative; trf: the same with creep, confident) follows the optimum the solver reaches"
-)
-
-
 def _measured_records():
     """The records the measured benchmark's cases diagnose: the identification record
     (its cross-record case) and the first 60 % of each record (its forward splits)."""
@@ -62,8 +52,7 @@ def _measured_records():
             continue
         if name == CROSS_RECORD[0]:
             out.append(pytest.param(rec, id=name))
-        marks = [pytest.mark.xfail(strict=True, reason=_TWO_OPTIMA)] if name == "micromanipulator" else []
-        out.append(pytest.param(forward_split(rec, FIT_SHARE).fitted, id=f"{name}-first-60", marks=marks))
+        out.append(pytest.param(forward_split(rec, FIT_SHARE).fitted, id=f"{name}-first-60"))
     return out or [pytest.param(None, id="no-measured-data")]
 
 
