@@ -369,7 +369,14 @@ def test_starts_of_the_new_effects():
     span = float(np.ptp(rec.x))
     assert starts("electrostriction") == [{"epsilon_per_um": b / span} for b in STROKE_BENDS]
     assert _same_starts(starts("resonance2"), _with_peak("resonance2", STARTS["resonance"], others))
-    assert starts("saturation") == [{"min_um": float(rec.x.min()), "max_um": float(rec.x.max())}]
+    # The extremes, and each end at the reading's 1 % quantile with the other at its extreme.
+    lo, hi = float(rec.x.min()), float(rec.x.max())
+    q_lo, q_hi = (float(v) for v in np.quantile(rec.x, [0.01, 0.99]))
+    assert starts("saturation") == [
+        {"min_um": lo, "max_um": hi},
+        {"min_um": lo, "max_um": q_hi},
+        {"min_um": q_lo, "max_um": hi},
+    ]
     # 50 and 60 Hz, three harmonics each below the 500 Hz Nyquist frequency, the
     # amplitudes fitted to the residual of the current model.
     lines = starts("pickup")
