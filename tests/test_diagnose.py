@@ -20,6 +20,7 @@ import pytest
 from boucwen import Drift, Params, diagnose, simulate, simulate_extended
 from boucwen.cli import main
 from boucwen.diagnosis import residual_evidence
+from boucwen.effects import VOCABULARY, effect_class
 from boucwen.experiments.undeclared_records import make_record
 from boucwen.experiments.undeclared_records import test_input as make_input  # not a test
 from boucwen.io import jsonable, read_csv, write_csv
@@ -97,11 +98,17 @@ def test_result_fields_and_json():
     assert left["rms_um"] == pytest.approx(d.rms_after_um)
     assert left["summary"] == d.unexplained.summary()
     # Every decision typed, and in the report as the same dicts; the round that took the
-    # drift lists every move it judged, each with its gain per fold.
+    # drift lists every move it judged, each with its gain per fold, and every move it
+    # proposed is either judged or listed with why it had no candidate (here the creep:
+    # its fit beside the trend ends with no creep).
     assert doc["decisions"] == [x.to_dict() for x in d.decisions]
     first = doc["evidence"]["rounds"][0]
     assert first["taken"] == "add drift"
-    assert {tuple(x["effects"]) for x in first["decisions"]} >= {("drift",), ("creep",)}
+    judged = {tuple(x["effects"]) for x in first["decisions"]}
+    assert ("drift",) in judged and ("input-driven", "oscillator") in judged
+    rejected = {key.split()[-1] for key in first["rejected"]}
+    proposed = {name for name in VOCABULARY if name != "resonance2" and effect_class(name).proposed}
+    assert proposed <= {e[-1] for e in judged} | rejected, (judged, first["rejected"])
     assert all(len(x["fold_gain_um2"]) == doc["evidence"]["policy"]["folds"] for x in first["decisions"])
     taken = next(x for x in d.decisions if x.move == "add" and x.effects == ("drift",))
     assert taken.accepted and taken.gain.t > taken.threshold and taken.gain.mean_um2 >= taken.needed_um2

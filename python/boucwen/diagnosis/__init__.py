@@ -32,7 +32,7 @@ not told what it contains, and selects a model by one loop under one judge:
    rivals, reported with their held-out errors and tried as swaps later.
 6. **Repeat** from 3 until no move is accepted. Where the residual is consistent with
    the record's noise (:func:`boucwen.residual.unexplained`) a round proposes only the
-   drops, and the search ends where none is accepted. A model already held is never
+   drops and the other structure, and the search ends where none is accepted. A model already held is never
    proposed again.
 7. **The other structure** is one more move of every round: the input-driven model
    replaced by the hysteretic oscillator (:mod:`boucwen.oscillator`: the hysteresis

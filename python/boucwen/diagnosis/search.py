@@ -20,7 +20,7 @@ current model (:func:`~boucwen.diagnosis.judge.judge`). Then:
 * nothing accepted ends the search. A residual consistent with the record's noise
   (:func:`boucwen.residual.unexplained`) leaves nothing to add: that round proposes
   only the drops (an effect added early may be redundant beside one added later) and
-  the search ends where none is accepted. A model of the other structure proposes no
+  the other structure, and the search ends where none is accepted. A model of the other structure proposes no
   move: the search ends there.
 
 A model the search has already held is never proposed again (floating selection cannot
@@ -596,13 +596,14 @@ def search(
         left = unexplained(record, current.x, alpha=policy.noise_alpha, tolerance=policy.noise_tolerance)
         # A residual consistent with the noise leaves nothing to add, but an effect added
         # early may have been made redundant by one added later (it took part of what the
-        # later one explains): the search stops after a round of drops.
+        # later one explains), and the other structure is a whole model the returned one
+        # must still beat: the search stops after a round of drops and the structure.
         quiet = left.consistent_with_noise
         resolution_um = fits.resolution(record, current.fit)
         moves = [
             m
             for m in proposals(current.names, state.rivals, policy.max_effects)
-            if _after(current.names, m) not in seen and (m.kind == "drop" or not quiet)
+            if _after(current.names, m) not in seen and (m.kind in ("drop", "structure") or not quiet)
         ]
         if not moves:
             state.stopped = "the residual is consistent with the record's noise" if quiet else "no move left to try"
