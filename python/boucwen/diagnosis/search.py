@@ -20,8 +20,8 @@ current model (:func:`~boucwen.diagnosis.judge.judge`). Then:
 * nothing accepted ends the search. A residual consistent with the record's noise
   (:func:`boucwen.residual.unexplained`) leaves nothing to add: that round proposes
   only the drops (an effect added early may be redundant beside one added later) and
-  the other structure, and the search ends where none is accepted. A model of the other structure proposes no
-  move: the search ends there.
+  the other structure, and the search ends where none is accepted. A model of the
+  other structure proposes no move: the search ends there.
 
 A model the search has already held is never proposed again (floating selection cannot
 cycle). Every fit is kept by its set of effects for the whole search (a drop back to a

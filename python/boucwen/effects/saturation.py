@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..checks import FloatArray
-from ..record import TRAVEL_SMOOTHING_S, Record, travel_levels, travel_steps
+from ..record import TRAVEL_SMOOTHING_S, Record, travel_levels
 from .base import Context, Effect, Start
 
 __all__ = ["START_QUANTILE", "Saturation"]
@@ -65,9 +65,9 @@ class Saturation(Effect):
         clipped = (before > self.max_um) | (before < self.min_um)
         m = max(1, round(TRAVEL_SMOOTHING_S / record.dt))
         inside = minimum_filter1d(clipped.astype(np.uint8), 2 * m + 1, mode="nearest").astype(bool)
-        steps = travel_steps(record)
-        moving = bool(np.any(inside[:-1] & inside[1:] & (steps > 0)))
         levels, least = travel_levels(record)
+        steps = np.abs(np.diff(levels))  # travel_steps, from the levels already at hand
+        moving = bool(np.any(inside[:-1] & inside[1:] & (steps > least)))
         several = bool(np.any(inside)) and float(np.ptp(levels[inside])) > least
         if not (moving or several):
             return (
