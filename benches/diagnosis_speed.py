@@ -1,8 +1,14 @@
-"""Wall time of `boucwen.diagnose` on two long records, beside a baseline run.
+"""Wall and CPU time of `boucwen.diagnose` on long records, beside a baseline run.
 
-    python benches/diagnosis_speed.py [--out DIR] [--baseline FILE] [--repeat N]
+    python benches/diagnosis_speed.py [--records NAME,...] [--out DIR] [--baseline FILE] [--repeat N]
 
-The records:
+The records (``--records``, default all that are here):
+
+* ``multisine_20k``: 20 000 samples at 10 kHz, a 2 s multisine, creep and an input lag of
+  0.1 µm each, 5 nm of noise (seed 7): a record of a positioning rig's length;
+* ``bouc_wen_train``: the Bouc–Wen benchmark's training record (40 960 samples at 750 Hz,
+  force in N and displacement in m read in µm), where the data directory holds it
+  (:func:`boucwen.datasets.load_bouc_wen`);
 
 * ``multisine_130k``: the record of ``python -m boucwen.experiments.diagnosis_suite
   --speed`` — 130 000 samples at 20 kHz, a 6.5 s multisine, creep and an input lag of
@@ -39,6 +45,25 @@ from boucwen.experiments.suite_records import make_suite_record
 
 #: The benchmark's oscillator: m [kg], c [N·s/m], k [N/m], α [N/m], β [1/m], γ, δ, ν.
 OSCILLATOR = {"m": 2.0, "c": 10.0, "k": 5e4, "alpha": 5e4, "beta": 1e3, "gamma": 0.8, "delta": -1.1, "nu": 1.0}
+
+
+def multisine_20k() -> tuple[np.ndarray, np.ndarray, float]:
+    rec = make_suite_record(
+        (("creep", 0.1), ("input_lag", 0.1)), "multisine", 7, fs_hz=10_000.0, noise_um=0.005, duration_s=2.0
+    )
+    return rec.u, rec.x, rec.dt
+
+
+def bouc_wen_train() -> tuple[np.ndarray, np.ndarray, float] | None:
+    """The shared training record (force [N], displacement [µm]), or None where the data
+    directory does not hold it."""
+    from boucwen import datasets
+
+    try:
+        rec = datasets.load_bouc_wen()
+    except datasets.DataNotFoundError:
+        return None
+    return rec.force, rec.y * 1e6, rec.dt
 
 
 def multisine_130k() -> tuple[np.ndarray, np.ndarray, float]:
@@ -89,34 +114,48 @@ def oscillator_40k(
     return force, out * 1e6 + rng.normal(0.0, noise_um, n), 1.0 / fs_hz
 
 
-RECORDS = {"multisine_130k": multisine_130k, "oscillator_40k": oscillator_40k}
+RECORDS = {
+    "multisine_20k": multisine_20k,
+    "bouc_wen_train": bouc_wen_train,
+    "multisine_130k": multisine_130k,
+    "oscillator_40k": oscillator_40k,
+}
 
 
-def run(repeat: int) -> dict[str, Any]:
+def run(repeat: int, names: list[str]) -> dict[str, Any]:
     out: dict[str, Any] = {"version": getattr(boucwen, "__version__", "?"), "records": {}}
-    for name, make in RECORDS.items():
-        u, x, dt = make()
-        times, answer = [], ""
+    for name in names:
+        made = RECORDS[name]()
+        if made is None:
+            print(f"{name}: not on this machine, skipped", file=sys.stderr, flush=True)
+            continue
+        u, x, dt = made
+        times, cpus, answer = [], [], ""
         for _ in range(repeat):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             d = boucwen.diagnose(u, x, dt)
             times.append(time.perf_counter() - t0)
+            cpus.append(time.process_time() - c0)
             answer = d.summary()
-        out["records"][name] = {"samples": int(u.size), "time_s": statistics.median(times), "answer": answer}
-        print(f"{name}: {u.size} samples, {statistics.median(times):.1f} s: {answer}", file=sys.stderr, flush=True)
+        wall, cpu = statistics.median(times), statistics.median(cpus)
+        out["records"][name] = {"samples": int(u.size), "time_s": wall, "cpu_s": cpu, "answer": answer}
+        print(f"{name}: {u.size} samples, {wall:.1f} s ({cpu:.1f} s CPU): {answer}", file=sys.stderr, flush=True)
     return out
 
 
 def table(now: dict[str, Any], baseline: dict[str, Any] | None) -> str:
     lines = [
-        "| record | samples | baseline [s] | this run [s] | ratio | answer (this run) |",
+        "| record | samples | baseline [s] (CPU) | this run [s] (CPU) | ratio (CPU) | answer (this run) |",
         "|---|---|---|---|---|---|",
     ]
     for name, row in now["records"].items():
         base = (baseline or {}).get("records", {}).get(name)
-        before = f"{base['time_s']:.1f}" if base else "-"
-        ratio = f"{base['time_s'] / row['time_s']:.2f}×" if base else "-"
-        lines.append(f"| {name} | {row['samples']} | {before} | {row['time_s']:.1f} | {ratio} | {row['answer']} |")
+        cpu = row.get("cpu_s", float("nan"))
+        before = f"{base['time_s']:.1f} ({base.get('cpu_s', float('nan')):.1f})" if base else "-"
+        ratio = f"{base['time_s'] / row['time_s']:.2f}× ({base.get('cpu_s', float('nan')) / cpu:.2f}×)" if base else "-"
+        lines.append(
+            f"| {name} | {row['samples']} | {before} | {row['time_s']:.1f} ({cpu:.1f}) | {ratio} | {row['answer']} |"
+        )
     return "\n".join(lines)
 
 
@@ -125,9 +164,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", help="folder for results.json")
     ap.add_argument("--baseline", help="results.json of a baseline run, printed beside this one")
     ap.add_argument("--repeat", type=int, default=1, help="runs per record (the median is reported)")
+    ap.add_argument("--records", default=",".join(RECORDS), help=f"comma-separated, of {', '.join(RECORDS)}")
     args = ap.parse_args(argv)
+    names = [n.strip() for n in args.records.split(",") if n.strip()]
+    unknown = [n for n in names if n not in RECORDS]
+    if unknown:
+        print(f"diagnosis_speed: no record {unknown[0]!r} (records: {', '.join(RECORDS)})", file=sys.stderr)
+        return 2
     baseline = json.loads(Path(args.baseline).read_text(encoding="utf-8")) if args.baseline else None
-    now = run(max(1, args.repeat))
+    now = run(max(1, args.repeat), names)
     now["table"] = table(now, baseline)
     print(now["table"])
     if args.out:

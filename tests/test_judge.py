@@ -7,18 +7,8 @@ import pytest
 
 from boucwen import EffectSet, Params, simulate_extended
 from boucwen.diagnosis import fits
-from boucwen.diagnosis.judge import (
-    CrossValidation,
-    Folds,
-    apart,
-    dependence_length,
-    excitation,
-    gain,
-    informed,
-    judge,
-    level,
-    threshold,
-)
+from boucwen.diagnosis.heldout import CrossValidation, Folds, excitation, informed
+from boucwen.diagnosis.judge import apart, dependence_length, gain, judge, level, threshold
 from boucwen.effects import ExtendedFit, solve_extended_record
 from boucwen.record import validate_record
 

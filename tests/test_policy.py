@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from boucwen import DiagnosisPolicy, EffectSet, Params, diagnose, simulate_extended
-from boucwen.diagnosis.fits import on_bounds
+from boucwen.diagnosis.fits import BOUND_TOLERANCE, on_bounds
 from boucwen.effects import ExtendedFit, Resonance, Resonance2
 from boucwen.record import validate_record
 
@@ -25,7 +25,7 @@ def test_the_default_policy_is_frozen_small_documented_and_serialisable():
     with pytest.raises(dataclasses.FrozenInstanceError):
         POLICY.alpha = 0.2  # type: ignore[misc]
     fields = [f.name for f in dataclasses.fields(DiagnosisPolicy)]
-    assert len(fields) <= 11
+    assert len(fields) <= 10
     # Each field documented once, as its own entry (not found inside another's name).
     assert _documented_fields(DiagnosisPolicy.__doc__ or "") == fields
     assert DiagnosisPolicy(**POLICY.to_dict()) == POLICY
@@ -69,10 +69,10 @@ def test_diagnose_refuses_a_policy_of_another_type():
 def test_bound_tolerance_reports_a_parameter_on_its_bound():
     record = validate_record(np.sin(np.arange(500) * 0.05), np.zeros(500), 1e-3)
     p = Params.paper_1hz().replace(n=6.0)  # the base fit's upper bound on n
-    on = on_bounds(ExtendedFit(p, EffectSet(), 0.0, 0.0, 0.0, 0, True), record, POLICY.bound_tolerance)
+    on = on_bounds(ExtendedFit(p, EffectSet(), 0.0, 0.0, 0.0, 0, True), record, BOUND_TOLERANCE)
     assert [(b.parameter, b.side) for b in on] == [("n", "upper")]
     near = ExtendedFit(p.replace(n=6.0 - 1e-3), EffectSet(), 0.0, 0.0, 0.0, 0, True)
-    assert on_bounds(near, record, POLICY.bound_tolerance) == []
+    assert on_bounds(near, record, BOUND_TOLERANCE) == []
     assert on_bounds(near, record, 1e-3) != []
 
 

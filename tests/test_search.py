@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from boucwen import DiagnosisPolicy, EffectSet, Params
-from boucwen.diagnosis.fits import Convergence, Leaveout, Scored
-from boucwen.diagnosis.judge import CrossValidation, Folds
+from boucwen.diagnosis.fits import Convergence, Scored
+from boucwen.diagnosis.heldout import CrossValidation, Folds, Leaveout
 from boucwen.diagnosis.search import OSCILLATOR, Move, Search, _decide, _Round, _take, proposals, search
 from boucwen.effects import ExtendedFit
 from boucwen.record import validate_record
@@ -175,7 +175,7 @@ def test_the_loop_adds_while_a_move_is_accepted_never_revisits_a_model_and_stops
     levels = {frozenset(): 1.0, frozenset({"creep"}): 0.1, frozenset({"creep", "input_lag"}): 0.0}
     tried = []
 
-    def candidate(rec, current, move, conv, policy, folds, fitted, workers, warm=None):
+    def candidate(rec, current, move, conv, policy, folds, fitted, workers, warm=None, ranked=None):
         if move.kind == "structure":
             return _scored((), 3.0)
         names = (set(current.names) - {move.drops}) | set(move.adds)
@@ -189,7 +189,9 @@ def test_the_loop_adds_while_a_move_is_accepted_never_revisits_a_model_and_stops
     monkeypatch.setattr(search_module, "_candidate", candidate)
     base = candidate(record, _scored((), 0.0), Move("add", ()), None, None, None, None, None)
     tried.clear()
-    state = search(record, base, noise_um=0.01, policy=POLICY, conv=Convergence(), workers=1, say=lambda s: None)
+    # Every move fitted (the score screen reads the fits this test replaces).
+    conv = Convergence(score=False)
+    state = search(record, base, noise_um=0.01, policy=POLICY, conv=conv, workers=1, say=lambda s: None)
     assert set(state.current.names) == {"creep", "input_lag"}
     assert [r.taken.label for r in state.rounds if r.taken] == ["add creep", "add input_lag"]
     assert frozenset() not in tried  # the base model is never proposed again

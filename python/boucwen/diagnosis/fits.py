@@ -16,27 +16,12 @@ the record at a few kHz (:func:`_ranked`) and the best :data:`STARTS` are each c
 on the record; the fit of least cost is the candidate. A drop refits the model without the effect from
 where it is.
 
-**Held-out errors** (:func:`held_out`; the folds are :class:`~boucwen.diagnosis.judge.Folds`):
-each fold's model is the whole-record fit refitted on the samples before the fold's
-origin, then run on through the fold. Two ways, one result up to the refits' own
-convergence:
-
-* the **screen**: the first Gauss–Newton step of that refit from the whole-record
-  optimum z*, δ_k = (J_kᵀJ_k)⁺·J_kᵀ·r_k on the rows before the origin (approximate
-  leave-out: Rad & Maleki 2020; the infinitesimal jackknife: Giordano et al. 2019) —
-  one linear solve on the Jacobian the fit already has and one simulation per fold;
-* the **refit**: Levenberg–Marquardt on those samples to its statistical stop, started
-  at z* with that Jacobian (its first step is the screen's), the independent folds run
-  at once on the available cores.
-
-The search reads the screen where a decision is far from its threshold and the refits
-everywhere else (:mod:`~boucwen.diagnosis.search`).
+Their held-out errors come from :mod:`~boucwen.diagnosis.heldout`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from typing import Any, Literal
 
@@ -58,17 +43,17 @@ from ..effects import (
 )
 from ..effects.base import with_effect, without
 from ..fit import FitResult
-from ..levenberg import STATISTICAL_MARGIN, first_step
-from ..lsq import thread_map
+from ..levenberg import STATISTICAL_MARGIN
 from ..metrics import rms
 from ..oscillator import UNKNOWNS as OSCILLATOR_UNKNOWNS
 from ..oscillator import OscillatorFit, linearised
 from ..oscillator import fit as fit_oscillator
 from ..oscillator import simulate as simulate_oscillator
 from ..record import Record
-from .judge import CrossValidation, Folds
+from .heldout import CrossValidation, Folds, Leaveout, held_out
 
 __all__ = [
+    "BOUND_TOLERANCE",
     "FOLD_NFEV",
     "MAX_NFEV",
     "RANK_NFEV",
@@ -91,6 +76,7 @@ __all__ = [
     "refit",
     "scored",
     "solved_at",
+    "starts_of",
     "swap",
 ]
 
@@ -121,9 +107,6 @@ _SAME = 1e-9
 #: An added effect that changes the fit's prediction of the record by less than this
 #: share of its residual RMS changes nothing the record holds.
 _UNSEEN_SHARE = 1e-3
-#: Tries of the screen's step (each a quarter of the one before), as the solver's first
-#: trust regions.
-_SCREEN_TRIES = 4
 
 
 @dataclass(frozen=True)
@@ -162,96 +145,20 @@ class Convergence:
             decision is far from its threshold (:mod:`~boucwen.diagnosis.search`);
             False reads every one from converged refits — the judge the screen must
             agree with, for checking it.
+        score: fit only the add moves whose score at the current model passes
+            (:mod:`~boucwen.diagnosis.score`); False fits every move (each still
+            scored and reported beside its decision: how the score is checked).
     """
 
     method: Literal["lm", "trf"] = "lm"
     margin: float = STATISTICAL_MARGIN
     tol: float = 1e-10
     screen: bool = True
+    score: bool = True
 
     def tighter(self, factor: float = 10.0) -> Convergence:
         """The same solver with its stopping tolerances ``factor`` times tighter."""
         return replace(self, margin=self.margin / factor, tol=self.tol / factor)
-
-
-@dataclass(frozen=True, eq=False)
-class Leaveout:
-    """A converged fit as its fold refits need it (module docs).
-
-    Attributes:
-        z: its unknowns.
-        jacobian: ∂x̂/∂z over the record [µm per unit], one row per sample.
-        lower, upper: the unknowns' bounds.
-        scale: each unknown's typical size (the metric of the screen's step).
-        simulate: (z, stop) → x̂ [µm] over the first ``stop`` samples, or None.
-        refit: train → (x̂ [µm] over the record of the model refitted on the samples
-            ``train`` (a slice of the record's past), whether that refit converged), x̂
-            None where it failed.
-        margin: the refits' statistical stop (the screen stops where they would).
-    """
-
-    z: FloatArray
-    jacobian: FloatArray
-    lower: FloatArray
-    upper: FloatArray
-    scale: FloatArray
-    simulate: Callable[[FloatArray, int], FloatArray | None]
-    refit: Callable[[slice], tuple[FloatArray | None, bool]]
-    margin: float = STATISTICAL_MARGIN
-
-
-def _screen(lo: Leaveout, x_hat: FloatArray, r: FloatArray, train: slice, stop: int) -> FloatArray | None:
-    """The screen's prediction over the first ``stop`` samples for the fold refitted on
-    ``train``: the refit's first step from z* (module docs) as the solver takes it — the
-    bounded Gauss–Newton step on those rows (:func:`boucwen.levenberg.first_step`; none
-    where the remaining step is within the statistical margin, as the refit stops there),
-    within the solver's first trust region, kept where it lowers the cost of those rows,
-    else shortened to a quarter and tried again (four tries; then z* itself, where the
-    refit ends when no step lowers the cost)."""
-    rows = -r[train]
-    cost = float(rows @ rows)
-    radius = float(np.linalg.norm(lo.z / lo.scale)) or 1.0
-    for _ in range(_SCREEN_TRIES):
-        z1 = first_step(
-            rows, lo.jacobian[train], lo.z, lo.lower, lo.upper, x_scale=lo.scale, margin=lo.margin, radius=radius
-        )
-        step = float(np.linalg.norm((z1 - lo.z) / lo.scale))
-        if step == 0.0:
-            break
-        x1 = lo.simulate(z1, max(stop, train.stop))
-        if x1 is not None:
-            left = x1[train] - (x_hat[train] + r[train])
-            if float(left @ left) < cost:
-                return x1
-        radius = 0.25 * step
-    return x_hat[: max(stop, train.stop)]
-
-
-def held_out(
-    record: Record, lo: Leaveout, x_hat: FloatArray, folds: Folds, exact: bool, workers: int | None = 1
-) -> CrossValidation:
-    """The held-out residual [µm] of the fit ``lo`` (simulated ``x_hat`` [µm] over the
-    record) on ``folds``: each fold's from the model refitted on its training samples
-    (``exact``) or from the screen's step (module docs)."""
-    r = record.x - x_hat
-    held = np.full(r.size, np.nan)
-
-    def one(k: int) -> tuple[FloatArray | None, bool]:
-        train, stop = folds.train(k), folds.test(k).stop
-        if exact:
-            return lo.refit(train)
-        return _screen(lo, x_hat, r, train, stop), True
-
-    out = thread_map(one, list(range(folds.count)), workers if exact else 1)
-    converged = []
-    for k, (x_k, ok) in enumerate(out):
-        sl = folds.test(k)
-        if x_k is None:
-            converged.append(False)
-            continue
-        held[sl] = record.x[sl] - x_k[sl]
-        converged.append(ok)
-    return CrossValidation.of(held, r, folds, tuple(converged), exact)
 
 
 #: The grid the model's own sampling-rate error is measured against: twice as fine as
@@ -393,7 +300,7 @@ def base(record: Record, offline: FitResult, conv: Convergence, folds: int, firs
     """The base model: the offline fit (:func:`boucwen.fit`, its global search of
     starts) converged by ``conv`` and scored on ``folds`` forward folds, the first origin
     where the past holds ``first_origin`` of what the record tells about its unknowns
-    (:class:`~boucwen.diagnosis.judge.Folds`)."""
+    (:class:`~boucwen.diagnosis.heldout.Folds`)."""
     start = ExtendedFit(offline.params, EffectSet(), offline.h0, offline.rms_um, offline.max_um, offline.nfev, True)
     solved = _converge(record, start, EffectSet(), conv)
     return scored(record, solved, Folds.of(record, folds, first_origin, solved.jacobian), conv)
@@ -474,7 +381,7 @@ def _ranked(record: Record, current: Scored, starts: list[EffectSet], added: tup
     return [starts[k] for k in order if math.isfinite(costs[k])]
 
 
-def _starts(
+def starts_of(
     record: Record, current: Scored, names: tuple[str, ...], max_delay: int, warm: ExtendedFit | None
 ) -> list[EffectSet]:
     """Starting effect sets adding ``names`` to the current model: the starts of the
@@ -488,14 +395,21 @@ def _starts(
         starts = [cls.beside(s) for s in first]
     else:
         starts = candidate_starts(name, record, fit.params, fit.effects, fit.h0, max_delay=max_delay)
-    if warm is not None:
-        held = {e.name: e for e in effects_of(warm.effects)}
-        if all(k in held for k in names):
-            effects = fit.effects
-            for k in names:
-                effects = with_effect(effects, held[k])
-            starts.append(effects)
-    return starts
+    return starts + _warm_start(current, names, warm)
+
+
+def _warm_start(current: Scored, names: tuple[str, ...], warm: ExtendedFit | None) -> list[EffectSet]:
+    """The current model's effects with ``names`` at the values ``warm`` holds for them
+    (none where it does not hold them all)."""
+    if warm is None:
+        return []
+    held = {e.name: e for e in effects_of(warm.effects)}
+    if not all(k in held for k in names):
+        return []
+    effects = current.fit.effects
+    for k in names:
+        effects = with_effect(effects, held[k])
+    return [effects]
 
 
 def add(
@@ -508,16 +422,22 @@ def add(
     *,
     dropped: Scored | None = None,
     warm: ExtendedFit | None = None,
+    ranked: list[EffectSet] | None = None,
 ) -> Scored | str:
     """The current model with ``names`` added (to ``dropped``, the current model without
     the effect it swaps out, where the move is a swap), converged from the best
-    :data:`STARTS` starts (module docs; ``warm``: a fit that held the same effects) and
-    scored by the screen; or why there is no such candidate (no start can be simulated,
-    or the fitted effect is not what its name says: :meth:`boucwen.effects.Effect.rejects`)."""
+    :data:`STARTS` starts (module docs; ``warm``: a fit that held the same effects;
+    ``ranked``: the starts already ranked best first, by the move's score,
+    :mod:`~boucwen.diagnosis.score`) and scored by the screen; or why there is no such
+    candidate (no start can be simulated, or the fitted effect is not what its name
+    says: :meth:`boucwen.effects.Effect.rejects`)."""
     origin = current if dropped is None else dropped
-    starts = _starts(record, origin, names, max_delay, warm)
-    if len(starts) > STARTS:
-        starts = _ranked(record, origin, starts, names)[:STARTS]
+    if ranked is not None:
+        starts = ranked[:STARTS] + _warm_start(origin, names, warm)
+    else:
+        starts = starts_of(record, origin, names, max_delay, warm)
+        if len(starts) > STARTS:
+            starts = _ranked(record, origin, starts, names)[:STARTS]
     best: Solved | None = None
     for s in starts:
         try:
@@ -663,9 +583,15 @@ def oscillator(record: Record, folds: Folds, conv: Convergence) -> Structure | s
     return Structure("oscillator", whole, x, cv, whole.success, len(OSCILLATOR_UNKNOWNS), lo)
 
 
-def on_bounds(fit: ExtendedFit, record: Record, tolerance: float) -> list[AtBound]:
+#: A fitted unknown within this share [-] of its bound's size (at least 1) is reported on
+#: the bound (``Diagnosis.at_bounds``): the record asks for more than the model allows
+#: there. A millionth: the solver's own steps near a bound are far larger.
+BOUND_TOLERANCE = 1e-6
+
+
+def on_bounds(fit: ExtendedFit, record: Record, tolerance: float = BOUND_TOLERANCE) -> list[AtBound]:
     """The unknowns of ``fit`` that ended on a bound of the fit over ``record`` (within
-    ``tolerance`` of its size, at least 1)."""
+    ``tolerance`` of its size, at least 1: :data:`BOUND_TOLERANCE`)."""
     layout = _layout(record, fit.effects)
     z = layout.pack(fit.params, fit.effects, fit.h0)
     lo, hi = layout.bounds()

@@ -1,36 +1,6 @@
 """The one judge of the diagnosis: forward validation, and the test that accepts a move
 (:func:`judge`).
 
-**Held-out error: forward in time** (:class:`Folds`). What a user relies on is the model
-predicting data it has not seen: later in the record, and on another record. The record
-is cut at K origins o₁ < … < o_K; fold k is refitted on the samples before its origin
-alone, [0, o_k), and predicts the samples from o_k to the next origin (the last fold to
-the end), the model running from the record's start on its own state through them.
-Every sample after o₁ is predicted once, each by a model that has seen only its past
-(rolling-origin evaluation; Tashman 2000, Bergmeir, Hyndman & Koo 2018). Two reasons
-for forward rather than interleaved folds:
-
-* a slow effect fitted beside a held-out segment's neighbours on both sides (creep with
-  a long time constant, a gain drift, a static nonlinearity driven by a slow input)
-  can take up the record's own slow drift, which runs continuously across the segment
-  and which another day does not share; fitted on the past alone it must *predict* that
-  drift, which it can only do where the input drives it;
-* a measured record rests, steps once, oscillates and holds: the refit needs the step
-  and enough of what follows to see a step response by, and the samples that test it
-  are the ones after.
-
-**Where the origins lie.** The vocabulary holds effects that the input's travel reveals
-(the hysteresis, a static nonlinearity, a lag, a mode, a delay) and effects that elapsed
-time reveals (creep, a drift, a gain drift). The origins are the quantiles of the record's
-*excitation* M(k) = ½·E(k)/E(n) + ½·k/n, half its voltage travel so far (E: the total
-variation of u, smoothed over a millisecond and counted beyond its noise, so that a rest
-adds nothing) and half its elapsed time: o₁ where M reaches ``first_origin`` (½: the
-first refit holds half of both), the others evenly in M after it. A rest adds time but
-no travel, so a record that rests for two thirds of its length and then oscillates has
-its first origin in the oscillation, after the step; a long final hold is tested for
-what elapsed time reveals. The first origin also holds at least a share
-``first_origin`` of the travel, so that the first refit has seen the step.
-
 **The test** (:func:`gain`, :func:`judge`). For candidate c against reference r, the
 per-sample loss difference on the predicted samples is d_i = e_r,i² − e_c,i² [µm²]; the
 move gains ḡ = mean(d). Its sampling error is the long-run variance of d (Newey–West,
@@ -74,181 +44,24 @@ import numpy as np
 from scipy import stats
 
 from ..checks import FloatArray
-from ..metrics import rms
-from ..record import Record, travel_steps
+from .heldout import CrossValidation
+from .rules import rule
 
 __all__ = [
-    "CrossValidation",
     "Decision",
-    "Folds",
     "Gain",
     "apart",
+    "autocovariance",
     "dependence_length",
-    "excitation",
     "gain",
     "judge",
     "level",
-    "on_common_folds",
     "threshold",
 ]
 
 #: Sokal's window constant: the autocorrelation is summed out to the first lag W with
 #: W ≥ c·τ_int(W) (c = 5 keeps the truncation bias below e⁻⁵ for an exponential decay).
 _SOKAL_C = 5.0
-
-
-def excitation(record: Record) -> FloatArray:
-    """The record's excitation so far, M(k) for k = 0 … n − 1 (module docs): half its
-    voltage travel share (:func:`boucwen.record.travel_steps`: a rest adds none), half
-    its elapsed time share, rising from 0 to 1."""
-    n = len(record)
-    travel = np.concatenate([[0.0], np.cumsum(travel_steps(record))])
-    total = float(travel[-1])
-    share = travel / total if total > 0 else np.zeros(n)
-    return np.asarray(0.5 * share + 0.5 * np.arange(n) / max(n - 1, 1))
-
-
-#: Eigenvalues of the record's information below this share of the largest belong to
-#: directions the record does not determine: the share of them the past holds is not
-#: asked for.
-_INFO_RCOND = 1e-10
-
-
-def informed(jacobian: FloatArray, share: float) -> int:
-    """The first sample k such that the samples before it hold on average ``share`` of
-    the information the whole record holds about each unknown: tr((JᵀJ)⁻¹·J_[0,k)ᵀJ_[0,k))
-    / p reaches ``share`` (over the directions JᵀJ determines, p of them; ``jacobian`` J,
-    one row per sample). The average, not the least: an unknown that only the record's
-    last burst tells about (a rate term, a fast mode) would otherwise push the origin to
-    the end, while the refits before it leave that unknown where the whole record put
-    it."""
-    n, p = jacobian.shape
-    if p == 0 or n < 2:
-        return int(min(max(1, round(share * n)), max(n - 1, 1)))
-    w, v = np.linalg.eigh(jacobian.T @ jacobian)
-    keep = w > _INFO_RCOND * max(float(w[-1]), 1e-300)
-    z = jacobian @ (v[:, keep] / np.sqrt(w[keep]))
-    # Each sample's share of the information, summed over the directions: its leverage.
-    leverage = np.sum(z * z, axis=1) / z.shape[1]
-    k = int(np.searchsorted(np.cumsum(leverage), share - 1e-12, side="left")) + 1
-    return int(min(max(k, 1), n - 1))
-
-
-@dataclass(frozen=True)
-class Folds:
-    """The forward-validation folds of a record (module docs).
-
-    Attributes:
-        n: samples of the record.
-        origins: o₁ < … < o_K: fold k is refitted on [0, o_k) and predicts [o_k, o_k+1)
-            (the last fold to the end).
-    """
-
-    n: int
-    origins: tuple[int, ...]
-
-    @classmethod
-    def of(cls, record: Record, count: int, first_origin: float, jacobian: FloatArray) -> Folds:
-        """``count`` folds of ``record`` (module docs): the first origin where the past
-        holds on average a share ``first_origin`` of what the record tells about each
-        unknown of the model whose Jacobian over the record is ``jacobian`` (the base
-        model), the others evenly in the record's excitation after it; fewer where the
-        record cannot hold them (each fold predicts at least one sample)."""
-        n = len(record)
-        first = informed(jacobian, first_origin)
-        level = excitation(record)
-        targets = level[first] + (1.0 - level[first]) * np.arange(1, count) / count
-        origins = [first, *(int(np.searchsorted(level, q, side="left")) for q in targets)]
-        kept: list[int] = []
-        for o in origins:
-            o = max(o, kept[-1] + 1 if kept else 1)
-            if o < n:
-                kept.append(o)
-        return cls(n, tuple(kept))
-
-    @property
-    def count(self) -> int:
-        return len(self.origins)
-
-    def train(self, k: int) -> slice:
-        """The samples fold ``k`` is refitted on: the record before its origin."""
-        return slice(0, self.origins[k])
-
-    def test(self, k: int) -> slice:
-        """The samples fold ``k`` predicts."""
-        stop = self.origins[k + 1] if k + 1 < len(self.origins) else self.n
-        return slice(self.origins[k], stop)
-
-    @property
-    def tested(self) -> slice:
-        """Every predicted sample: from the first origin to the end."""
-        return slice(self.origins[0] if self.origins else self.n, self.n)
-
-    def mask(self, usable: tuple[bool, ...]) -> FloatArray:
-        """A boolean mask over the record of the samples predicted by the folds that are
-        ``usable``."""
-        out = np.zeros(self.n, dtype=bool)
-        for k, ok in enumerate(usable):
-            if ok:
-                out[self.test(k)] = True
-        return out
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"n": self.n, "origins": list(self.origins)}
-
-
-@dataclass(frozen=True, eq=False)
-class CrossValidation:
-    """The held-out residual of a model and its summaries.
-
-    Attributes:
-        residual: held-out residual [µm], sample by sample (nan before the first origin:
-            no fold predicts those samples).
-        folds: the folds.
-        in_sample_rms_um: RMS of x − x̂ of the model fitted on the whole record [µm].
-        rms_um: RMS of ``residual`` over the folds whose refit converged [µm] (nan where
-            none did).
-        fold_rms_um: RMS of ``residual`` per fold [µm].
-        converged: per fold, whether its refit converged (a first-order screen counts as
-            converged: it is confirmed by refits where a decision depends on it).
-        exact: the refits were converged (else their first-order screen).
-    """
-
-    residual: FloatArray
-    folds: Folds
-    in_sample_rms_um: float
-    rms_um: float
-    fold_rms_um: list[float]
-    converged: tuple[bool, ...]
-    exact: bool
-
-    @classmethod
-    def of(
-        cls, held: FloatArray, in_sample: FloatArray, folds: Folds, converged: tuple[bool, ...], exact: bool
-    ) -> CrossValidation:
-        """The summaries of the held-out residual ``held`` [µm] over ``folds``, of which
-        those ``converged`` count."""
-        mask = folds.mask(converged)
-        overall = rms(held[mask]) if mask.any() else math.nan
-        per_fold = [rms(held[folds.test(k)]) for k in range(folds.count)]
-        return cls(held, folds, rms(in_sample), overall, per_fold, tuple(converged), exact)
-
-    @classmethod
-    def whole(cls, residual: FloatArray) -> CrossValidation:
-        """A residual every sample of which is unseen (a model carried to another
-        record) as one fold."""
-        folds = Folds(residual.size, (0,))
-        return cls.of(residual, residual, folds, (True,), True)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "rms_um": self.rms_um,
-            "in_sample_rms_um": self.in_sample_rms_um,
-            "fold_rms_um": self.fold_rms_um,
-            "converged": list(self.converged),
-            "origins": list(self.folds.origins),
-            "exact": self.exact,
-        }
 
 
 @dataclass(frozen=True)
@@ -282,7 +95,7 @@ class Gain:
         return self.statistic
 
 
-def _autocovariance(a: FloatArray, lags: int) -> FloatArray:
+def autocovariance(a: FloatArray, lags: int) -> FloatArray:
     """Σᵢ aᵢ·aᵢ₊ℓ for ℓ = 0 … ``lags`` (by FFT)."""
     n = a.size
     size = 1 << int(2 * n - 1).bit_length()
@@ -297,7 +110,7 @@ def dependence_length(e: FloatArray) -> int:
     n = e.size
     if n < 4:
         return 1
-    acov = _autocovariance(e - np.mean(e), n - 1)
+    acov = autocovariance(e - np.mean(e), n - 1)
     if acov[0] <= 0:
         return 1
     rho = acov / acov[0]
@@ -343,8 +156,8 @@ def gain(candidate: CrossValidation, reference: CrossValidation) -> Gain:
         e = (ck if overall_better else rk) - np.mean(ck if overall_better else rk)
         delta = rk - ck
         lags = min(dependence_length(e), ck.size - 1)
-        gamma = _autocovariance(e, lags) / ck.size
-        s_delta = _autocovariance(delta, lags)
+        gamma = autocovariance(e, lags) / ck.size
+        s_delta = autocovariance(delta, lags)
         weights = np.concatenate([[1.0], 2.0 * (1.0 - np.arange(1, lags + 1) / (lags + 1))])
         var += 4.0 * float(np.sum(weights * gamma * s_delta)) / n**2
         # The independent terms of e·δ in the fold: its length over their integrated
@@ -397,6 +210,7 @@ class Decision:
         unknowns: the number of unknowns the candidate adds (negative: removes).
         exact: the held-out errors it read came from converged refits (else from their
             first-order screen, which only leaves out moves far from the threshold).
+        rule: the rule that decided it (:data:`boucwen.diagnosis.rules.RULES`).
     """
 
     move: str
@@ -410,6 +224,10 @@ class Decision:
     reason: str
     unknowns: int
     exact: bool = True
+    rule: str = "forward_gain"
+
+    def __post_init__(self) -> None:
+        rule(self.rule)  # a decision names a rule of the registry
 
     @property
     def label(self) -> str:
@@ -445,6 +263,7 @@ class Decision:
             "reason": self.reason,
             "unknowns": self.unknowns,
             "exact": self.exact,
+            "rule": self.rule,
         }
 
 
@@ -468,19 +287,15 @@ def judge(
     record's sampling interval [µm RMS] (:func:`boucwen.diagnosis.fits.resolution`): a
     gain below its mean square may be a candidate reshaping that error, and is not
     enough. A gain that cannot be computed (no fold compared) never accepts."""
-    if not math.isfinite(g.mean_um2) or math.isnan(g.statistic):
+    if not math.isfinite(g.mean_um2) or not math.isfinite(g.statistic):
+        # A statistic that is not a number is no evidence either way: never a decision.
+        why = (
+            "no fold's refit converged for both models: the record cannot judge them"
+            if not math.isfinite(g.mean_um2) or math.isnan(g.statistic)
+            else "the two models predict the held-out samples alike (no sampling error to weigh the gain by)"
+        )
         return Decision(
-            move,
-            effects,
-            candidate,
-            reference,
-            g,
-            math.nan,
-            math.nan,
-            False,
-            "no fold's refit converged for both models: the record cannot judge them",
-            unknowns,
-            exact,
+            move, effects, candidate, reference, g, math.nan, math.nan, False, why, unknowns, exact, "not_judgeable"
         )
     t_min = threshold(level_, g.dof)
     needed = max(min_share * max(g.reference_mse_um2 - noise_um**2, 0.0), resolution_um**2)
@@ -498,24 +313,19 @@ def judge(
             if needed > resolution_um**2
             else f"held-out gain significant but below the model's own sampling-rate error ({resolution_um:.2g} µm RMS)"
         )
+    by = (
+        "forward_gain"
+        if enough or not significant
+        else ("least_share" if needed > resolution_um**2 else "sampling_resolution")
+    )
     return Decision(
-        move, effects, candidate, reference, g, t_min, needed, significant and enough, reason, unknowns, exact
+        move, effects, candidate, reference, g, t_min, needed, significant and enough, reason, unknowns, exact, by
     )
 
 
 def _share(g: Gain, noise_um: float) -> str:
     beyond = g.reference_mse_um2 - noise_um**2
     return f"{g.mean_um2 / beyond:.1%} of the error" if beyond > 0 else "none of the error (it is noise)"
-
-
-def on_common_folds(a: CrossValidation, b: CrossValidation) -> tuple[float, float]:
-    """The held-out RMS errors [µm] of ``a`` and ``b`` over the folds whose refits
-    converged for both (nan where none did): two models' unseen errors on the same
-    samples."""
-    mask = a.folds.mask(tuple(x and y for x, y in zip(a.converged, b.converged)))
-    if not mask.any():
-        return math.nan, math.nan
-    return rms(a.residual[mask]), rms(b.residual[mask])
 
 
 def apart(a: CrossValidation, b: CrossValidation, level_: float) -> bool:

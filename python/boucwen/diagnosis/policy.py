@@ -54,9 +54,6 @@ class DiagnosisPolicy:
             of fits; no record of a piezo stack has needed more than four.
         max_delay_samples: largest whole-sample delay tried [samples] (1 … 1000). 8: a
             sensor or A/D latency of a few samples; longer delays are a lag.
-        bound_tolerance: a fitted unknown within this share [-] of its bound's size (at
-            least 1) is reported on the bound (``Diagnosis.at_bounds``): the record asks
-            for more than the model allows there.
         confident_share: least share [-] (0 … 1) of the base model's held-out
             mean-square error beyond the noise that the returned model must remove for
             its names to be ``confident`` where its residual is not consistent with
@@ -78,7 +75,6 @@ class DiagnosisPolicy:
     screen_band: float = 3.0
     max_effects: int = 4
     max_delay_samples: int = 8
-    bound_tolerance: float = 1e-6
     confident_share: float = 0.9
     noise_alpha: float = ALPHA
     noise_tolerance: float = TOLERANCE
@@ -91,7 +87,6 @@ class DiagnosisPolicy:
         check_number("screen_band", self.screen_band, 0.0, 100.0)
         check_int("max_effects", self.max_effects, 0, 8)
         check_int("max_delay_samples", self.max_delay_samples, 1, 1000)
-        check_number("bound_tolerance", self.bound_tolerance, 0.0, 0.5)
         check_number("confident_share", self.confident_share, 0.0, 1.0)
         # The ranges :func:`~boucwen.residual.unexplained` accepts.
         check_number("noise_alpha", self.noise_alpha, 1e-12, 0.5)

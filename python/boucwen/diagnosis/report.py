@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from .._core import EffectSet, Params
@@ -248,8 +250,9 @@ class Diagnosis:
         }
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON report (without the arrays)."""
-        return {
+        """The JSON report (without the arrays); every figure finite, or null with its
+        reason under ``"non_finite"`` (:func:`finite_document`)."""
+        doc = {
             "effects": list(self.effects),
             "rms_before_um": self.rms_before_um,
             "max_before_um": self.max_before_um,
@@ -265,6 +268,8 @@ class Diagnosis:
             "structure": None if self.structure is None else self.structure.to_dict(),
             "boundedness": None if self.boundedness is None else self.boundedness.to_dict(),
         }
+        out: dict[str, Any] = finite_document(doc)
+        return out
 
     def summary(self) -> str:
         """One line: effects and errors."""
@@ -302,11 +307,61 @@ class Diagnosis:
         return f"Diagnosis({self.summary()})"
 
 
+#: Why a figure of the report is not a number, by its name (the last key of its path).
+_WHY_NOT_FINITE = {
+    "gain_um2": "no fold's refit converged for both models: the gain cannot be computed",
+    "se_um2": "no fold's refit converged for both models: the gain cannot be computed",
+    "t": "no fold's refit converged for both models, or both predict alike: no statistic",
+    "fold_gain_um2": "this fold's refit did not converge for both models",
+    "reference_mse_um2": "no fold's refit converged for both models",
+    "threshold_t": "the move was not judged (no statistic)",
+    "needed_um2": "the move was not judged (no statistic)",
+    "rms_um": "no fold's refit converged: no held-out error",
+    "fold_rms_um": "this fold predicts no sample, or its refit did not converge",
+    "cv_rms_before_um": "no fold's refit converged for both models",
+    "cv_rms_after_um": "no fold's refit converged for both models",
+}
+
+
+def finite_document(doc: Any) -> Any:
+    """``doc`` with every float that is not finite replaced by None, and a list
+    ``"non_finite"`` beside it (at the top of a dict document) naming each one's path,
+    its value and why it is not a number (:data:`_WHY_NOT_FINITE`, by its name; else
+    "not computable on this record"): a report that JSON can carry, that loses nothing."""
+    found: list[dict[str, str]] = []
+
+    def walk(obj: Any, path: str, name: str) -> Any:
+        if hasattr(obj, "to_dict") and callable(obj.to_dict):
+            obj = obj.to_dict()
+        if isinstance(obj, dict):
+            return {str(k): walk(v, f"{path}.{k}" if path else str(k), str(k)) for k, v in obj.items()}
+        if isinstance(obj, (list, tuple)):
+            return [walk(v, f"{path}[{i}]", name) for i, v in enumerate(obj)]
+        if isinstance(obj, (bool, np.bool_)):
+            return bool(obj)
+        if isinstance(obj, (float, np.floating)):
+            v = float(obj)
+            if math.isfinite(v):
+                return v
+            why = _WHY_NOT_FINITE.get(name, "not computable on this record")
+            found.append({"path": path, "value": str(v), "why": why})
+            return None
+        if isinstance(obj, np.integer):
+            return int(obj)
+        return obj
+
+    out = walk(doc, "", "")
+    if isinstance(out, dict):
+        out["non_finite"] = [*out.get("non_finite", []), *found] if isinstance(out.get("non_finite"), list) else found
+    return out
+
+
 def write_report(result: Diagnosis, path: str | os.PathLike[str], data: dict[str, Any] | None = None) -> None:
     """Writes the JSON report (:meth:`Diagnosis.to_dict`, plus ``data`` if given)."""
     doc = result.to_dict()
     if data is not None:
         doc["data"] = data
+        doc = finite_document(doc)
     with open(path, "w", encoding="utf-8") as fh:
         json.dump(doc, fh, indent=2, allow_nan=False)
 

@@ -29,12 +29,18 @@ model held before reads that model's fit; an effect added again beside another m
 starts from the values it took before). What the residual follows (the look-alike tests
 of :mod:`boucwen.residual.lookalike`) is reported beside each set; it never decides.
 
+**Scored before fitted.** Each add move is first scored at the current model
+(:mod:`~boucwen.diagnosis.score`): only a move whose score could pass the judge is
+fitted; the others are listed among the round's rejected moves with their score. Drops
+are fitted before the swaps that start from them, once a round.
+
 **Exactness where it decides.** Each candidate's held-out errors first come from the
 screen (the first Gauss–Newton step of each fold's refit); a decision is read from
-converged refits wherever it could go either way — every accepted move, every move whose
-statistic lies within ``screen_band`` of its threshold, every candidate that might share
-the best one's ambiguity set — and from the screen only where it is far from the
-threshold. With ``Convergence(screen=False)`` every decision reads converged refits.
+converged refits wherever it could change what the round takes — the move it would
+take, every accepted drop, every move whose statistic lies within ``screen_band`` of its
+threshold, every candidate that might share the best one's ambiguity set — and from the
+screen only where it is far from the threshold. With ``Convergence(screen=False)`` every
+decision reads converged refits.
 
 **Screening on a copy** (records of more than :data:`SCREEN_MIN_SAMPLES` samples sampled
 faster than :data:`SCREEN_RATE_HZ`) wraps the fits; it never decides. Every move is first
@@ -52,9 +58,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Any, Union
 
+from .._core import EffectSet
 from ..effects import FN_MAX_NYQUIST_FRACTION, VOCABULARY, effect_class, simulate_chain
 from ..lsq import thread_map
 from ..record import Record
@@ -63,8 +71,10 @@ from ..residual.evidence import spectral_peak
 from ..residual.lookalike import named
 from . import fits
 from .fits import Convergence, Scored, Structure
-from .judge import Decision, Folds, apart, gain, judge, level, threshold
+from .heldout import Folds
+from .judge import Decision, apart, gain, judge, level, threshold
 from .policy import DiagnosisPolicy
+from .score import Score, Scorer, in_sample_needed
 
 __all__ = [
     "OSCILLATOR",
@@ -111,6 +121,11 @@ class Move:
     drops: str | None = None
 
     @property
+    def label(self) -> str:
+        """The move in words, as :attr:`Decision.label` and the round's rejected moves say it."""
+        return " ".join((self.kind, *self.effects))
+
+    @property
     def effects(self) -> tuple[str, ...]:
         """What the move concerns, as :attr:`Decision.effects` lists it."""
         if self.kind == "structure":
@@ -132,6 +147,8 @@ class Round:
         signatures: what the look-alike tests name on the current model's residual.
         screened: with screening on a copy, the decisions on the copy (which only choose
             what is fitted on the full record).
+        scores: each add move's score at the current model (:mod:`~boucwen.diagnosis.score`),
+            by the move's label; a move whose score did not pass was not fitted.
     """
 
     decisions: tuple[Decision, ...]
@@ -140,6 +157,7 @@ class Round:
     rejected: dict[str, str]
     signatures: tuple[str, ...]
     screened: tuple[Decision, ...] = ()
+    scores: dict[str, Score] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -149,6 +167,7 @@ class Round:
             "rejected": dict(self.rejected),
             "signatures": list(self.signatures),
             "screened": [d.to_dict() for d in self.screened],
+            "scores": {k: v.to_dict() for k, v in self.scores.items()},
         }
 
 
@@ -245,11 +264,12 @@ def _candidate(
     fitted: dict[frozenset[str], Model | str],
     workers: int | None,
     warm: Any = None,
+    ranked: list[EffectSet] | None = None,
 ) -> Model | str:
     """The candidate of ``move`` from ``current`` on ``record`` (from ``fitted`` where the
     search holds it), or why there is none; ``warm``: a fit of the same model elsewhere
     (on the screened copy) whose values start it, beside the starts of the search's own
-    fits."""
+    fits; ``ranked``: the move's starts ranked by its score."""
     key = _after(current.names, move)
     if key in fitted:
         return fitted[key]
@@ -275,6 +295,7 @@ def _candidate(
         policy.max_delay_samples,
         dropped=origin if isinstance(origin, Scored) and move.drops is not None else None,
         warm=warm if warm is not None else _warm(fitted, move.adds),
+        ranked=ranked,
     )
 
 
@@ -338,6 +359,7 @@ def _decide(
             reason,
             added,
             exact,
+            "drop_earns" if judged else keep.rule,
         )
     if not fitted.converged:
         d = Decision(
@@ -352,20 +374,24 @@ def _decide(
             "the candidate's fit did not converge",
             d.unknowns,
             d.exact,
+            "converged",
         )
     return d
 
 
 def _near(d: Decision, move: Move, band: float) -> bool:
-    """The screen may have decided ``d`` wrongly: accepted, within the band of its
-    threshold, or not computed."""
+    """The screen may have decided ``d`` wrongly where it matters: an accepted drop,
+    a statistic within the band of its threshold, or one not computed."""
     stat = d.gain.statistic
     if move.kind == "drop":
         # The statistic of keeping the effect is minus the drop's.
         stat = -stat
     if not math.isfinite(stat) or not math.isfinite(d.threshold):
         return True
-    return d.accepted or abs(stat - d.threshold) <= band
+    # An accepted drop is taken before any add; an accepted add far above its threshold
+    # is confirmed only where it may be taken or share the taken move's ambiguity set
+    # (_Round.settle): beaten clearly by the best, its verdict changes nothing.
+    return (d.accepted and move.kind == "drop") or abs(stat - d.threshold) <= band
 
 
 def screen_copy(record: Record) -> Record | None:
@@ -504,6 +530,54 @@ class _Round:
         return c
 
 
+def _scored_moves(
+    record: Record,
+    current: Scored,
+    moves: list[Move],
+    state: Search,
+    policy: DiagnosisPolicy,
+    noise_um: float,
+    resolution_um: float,
+    round_: int,
+) -> tuple[dict[int, Score], dict[int, list[EffectSet]]]:
+    """Each add move's score at the current model (:mod:`~boucwen.diagnosis.score`) and
+    its starts ranked by it, by the move's index."""
+    scorer = Scorer(record, current.x, current.jacobian, current.fit.params, current.fit.h0)
+    lvl = level(policy.alpha, len(moves), round_)
+    needed = in_sample_needed(current.fit.rms_um**2, noise_um, policy.min_share, resolution_um)
+    scores: dict[int, Score] = {}
+    ranked: dict[int, list[EffectSet]] = {}
+    for k, m in enumerate(moves):
+        if m.kind not in ("add", "add_tied"):
+            continue
+        starts = fits.starts_of(record, current, m.adds, policy.max_delay_samples, _warm(state.fitted, m.adds))
+        scores[k], ranked[k] = scorer.score(starts, m.adds, lvl, needed)
+    return scores, ranked
+
+
+def _fitted_move(
+    record: Record,
+    current: Scored,
+    moves: list[Move],
+    unscored: dict[int, str],
+    wanted: list[bool],
+    copied: list[Any],
+    ranked: dict[int, list[EffectSet]],
+    conv: Convergence,
+    policy: DiagnosisPolicy,
+    folds: Folds,
+    state: Search,
+    k: int,
+) -> Model | str:
+    """Move ``k``'s candidate, or why it has none: its score did not pass, the screened
+    copy did not rank it, or :func:`_candidate`'s reason."""
+    if k in unscored:
+        return unscored[k]
+    if not wanted[k]:
+        return "not among the moves the screened copy ranks first"
+    return _candidate(record, current, moves[k], conv, policy, folds, state.fitted, 1, copied[k], ranked.get(k))
+
+
 def _on_copy(copy: Record | None, current: Model, conv: Convergence, policy: DiagnosisPolicy) -> Scored | None:
     """The current model refitted and scored on the copy, or None where the copy cannot
     hold it."""
@@ -608,38 +682,49 @@ def search(
         if not moves:
             state.stopped = "the residual is consistent with the record's noise" if quiet else "no move left to try"
             break
+        round_no = len(state.rounds) + 1
+        scores, ranked = _scored_moves(record, current, moves, state, policy, noise_um, resolution_um, round_no)
+        # A move whose score does not pass is not fitted (with conv.score off, every move is).
+        unscored = {k: f"not fitted: {sc.reason}" for k, sc in scores.items() if conv.score and not sc.passed}
         on_copy = _on_copy(copy, current, conv, policy)
         screened: list[Decision] = []
         say(
             f"round {len(state.rounds) + 1}: {len(moves)} moves from {list(current.names) or 'the base model'}"
             + (f", screened on every {round(copy.dt / record.dt)}th sample" if on_copy is not None and copy else "")
         )
-        wanted = [True] * len(moves)
+        wanted = [k not in unscored for k in range(len(moves))]
         copied: list[Any] = [None] * len(moves)
-        if on_copy is not None and copy is not None:
-            wanted, screened, copied = _chosen_on_copy(
+        kept = [k for k in range(len(moves)) if wanted[k]]
+        if on_copy is not None and copy is not None and kept:
+            on, screened, starts_on = _chosen_on_copy(
                 copy,
                 on_copy,
                 current,
                 record,
-                moves,
+                [moves[k] for k in kept],
                 conv,
                 policy,
                 noise_um,
                 workers,
-                len(state.rounds) + 1,
+                round_no,
                 resolution_um,
             )
+            for k, w, c in zip(kept, on, starts_on):
+                wanted[k], copied[k] = w, c
 
-        candidates = thread_map(
-            lambda job: (
-                _candidate(record, job[0], job[1], conv, policy, folds, state.fitted, 1, job[3])
-                if job[2]
-                else "not among the moves the screened copy ranks first"
-            ),
-            [(current, m, w, c) for m, w, c in zip(moves, wanted, copied)],
-            workers,
+        job = partial(
+            _fitted_move, record, current, moves, unscored, wanted, copied, ranked, conv, policy, folds, state
         )
+        # Drops first: a swap starts from its drop, fitted once in the round.
+        drops = [k for k, m in enumerate(moves) if m.kind == "drop"]
+        candidates: list[Model | str] = [""] * len(moves)
+        for k, c in zip(drops, thread_map(job, drops, workers)):
+            candidates[k] = c
+            if not isinstance(c, str):
+                state.fitted[_after(current.names, moves[k])] = c
+        rest = [k for k in range(len(moves)) if k not in drops]
+        for k, c in zip(rest, thread_map(job, rest, workers)):
+            candidates[k] = c
         rnd = _Round(
             record,
             current,
@@ -649,7 +734,7 @@ def search(
             policy,
             workers,
             conv.screen,
-            len(state.rounds) + 1,
+            round_no,
             resolution_um,
         )
         rnd.settle()
@@ -666,11 +751,12 @@ def search(
             verdict = "accepted" if d.accepted else "no"
             how = "" if d.exact else ", screened"
             say(f"  {d.label:28s} held-out RMS {f.cv.rms_um:.4g} µm: {verdict} ({d.reason}{how})")
-        rejected = {
-            " ".join((m.kind, *m.effects)): c for m, c in zip(moves, rnd.judged.candidates) if isinstance(c, str)
-        }
+        rejected = {m.label: c for m, c in zip(moves, rnd.judged.candidates) if isinstance(c, str)}
+        for k in unscored:
+            say(f"  {moves[k].label:28s} {unscored[k]}")
         signatures = tuple(sorted(named(lookalike_tests(record, current.x))))
         round_ = _take(rnd, state, signatures, rejected, tuple(screened))
+        round_ = replace(round_, scores={moves[k].label: sc for k, sc in scores.items()})
         state.rounds.append(round_)
         state.swaps = {frozenset(f.names): f for m, _, f in rows if m.kind == "swap" and isinstance(f, Scored)}
         if round_.taken is None:

@@ -45,7 +45,8 @@ from ..effects import ExtendedFit, effect_class, simulate_chain
 from ..effects.base import without
 from ..metrics import max_abs, rms
 from ..record import Record
-from .judge import CrossValidation, Decision, gain, judge, level
+from .heldout import CrossValidation
+from .judge import Decision, gain, judge, level
 from .policy import DiagnosisPolicy
 
 __all__ = [
@@ -216,9 +217,11 @@ def judged_on(
             min_share=policy.min_share,
             unknowns=0,
         )
+        # A gain that cannot be computed keeps the effect: no decision from a number that is none.
+        dropped = keep.rule != "not_judgeable" and not keep.accepted
         reason = (
             "on the validation record, "
-            + ("it earns its place: " if keep.accepted else "it does not earn its place: ")
+            + ("it does not earn its place: " if dropped else "it earns its place or cannot be judged: ")
             + keep.reason
         )
         g = gain(rest_cv, keep_cv)
@@ -231,16 +234,17 @@ def judged_on(
                 g,
                 keep.threshold,
                 keep.needed_um2,
-                not keep.accepted,
+                dropped,
                 reason,
                 0,
+                rule="drop_earns" if keep.rule != "not_judgeable" else keep.rule,
             )
         )
         say(
             f"  validation {name:9s}: {with_it[1].rms_um:.4g} µm with it, {without_it[1].rms_um:.4g} µm without"
-            + ("" if keep.accepted else " — dropped")
+            + (" — dropped" if dropped else "")
         )
-        if not keep.accepted:
+        if dropped:
             current = rest
     return current, decisions
 

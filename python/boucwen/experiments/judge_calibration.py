@@ -26,7 +26,11 @@ move adds is in the record, so every acceptance is a false accept. It prints
    made on a finer grid, so a move can truly predict part of that stepping error on
    held-out data (a staircase's steps at 20 kHz leave 29 nm RMS of it), and the
    second condition is what refuses such a gain;
-2. the distribution of the **screen's error** on the statistic, screen − refits, over
+   The rate is printed with its exact (Clopper–Pearson) 95 % interval over the moves;
+2. the share of these moves whose **score** (:mod:`boucwen.diagnosis.score`) passes, so
+   would be fitted at all, and how many of the judge's false accepts the score would have
+   left unfitted;
+3. the distribution of the **screen's error** on the statistic, screen − refits, over
    every move judged: its quantiles and largest magnitude, the band
    (:attr:`boucwen.DiagnosisPolicy.screen_band`) it supports, and how many decisions
    the screen would have taken differently outside that band (none may).
@@ -46,11 +50,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from ..diagnosis import DiagnosisPolicy
 from ..diagnosis import fits as fitting
-from ..diagnosis.judge import Folds, gain, threshold
+from ..diagnosis.heldout import Folds
+from ..diagnosis.judge import gain, threshold
 from ..diagnosis.judge import level as move_level
+from ..diagnosis.score import Scorer, in_sample_needed
 from ..diagnosis.search import Move, proposals
 from ..effects import VOCABULARY
 from ..fit import fit_record
@@ -59,7 +66,7 @@ from ..residual import noise_level
 from .suite_records import FAMILIES, NOISE_UM, RATES_HZ, VOCABULARY_MAKERS, make_suite_record
 from .undeclared_records import PARAM_SETS
 
-__all__ = ["DEFAULT_OUT", "NOMINAL_ALPHA", "calibration_cases", "judge_moves", "main", "summary"]
+__all__ = ["DEFAULT_OUT", "NOMINAL_ALPHA", "calibration_cases", "clopper_pearson", "judge_moves", "main", "summary"]
 
 DEFAULT_OUT = "out/judge_calibration"
 #: The level the false-accept rate per move is held to.
@@ -123,8 +130,12 @@ def judge_moves(case: dict[str, Any], policy: DiagnosisPolicy, workers: int | No
     lvl = move_level(policy.alpha, len(moves), 1)
     ref_exact = fitting.confirmed(record, reference, workers)
     resolution_um = fitting.resolution(record, reference.fit)
+    scorer = Scorer(record, reference.x, reference.jacobian, reference.fit.params, reference.fit.h0)
+    needed_in = in_sample_needed(reference.fit.rms_um**2, noise, policy.min_share, resolution_um)
     rows = []
     for m in moves:
+        starts = fitting.starts_of(record, reference, m.adds, policy.max_delay_samples, None)
+        score, _ = scorer.score(starts, m.adds, lvl, needed_in)
         cand = _fitted(record, reference, m, conv, folds, policy)
         if cand is None:
             continue
@@ -148,6 +159,8 @@ def judge_moves(case: dict[str, Any], policy: DiagnosisPolicy, workers: int | No
                 "search_threshold": threshold(lvl, g_exact.dof),
                 "screen_threshold": threshold(lvl, g_screen.dof),
                 "enough": bool(g_exact.mean_um2 >= needed and g_exact.mean_um2 > 0),
+                "score_p": score.p_value,
+                "score_passed": bool(score.passed),
             }
         )
     return rows
@@ -162,6 +175,16 @@ def _fitted(
 
 def _finite(rows: list[dict[str, Any]], key: str) -> list[dict[str, Any]]:
     return [r for r in rows if r["converged"] and math.isfinite(r[key])]
+
+
+def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """The exact (Clopper–Pearson) interval of a rate of ``k`` in ``n`` [-]."""
+    if n == 0:
+        return math.nan, math.nan
+    tail = (1.0 - confidence) / 2.0
+    low = float(stats.beta.ppf(tail, k, n - k + 1)) if k > 0 else 0.0
+    high = float(stats.beta.ppf(1.0 - tail, k + 1, n - k)) if k < n else 1.0
+    return low, high
 
 
 def summary(rows: list[dict[str, Any]], band: float) -> dict[str, Any]:
@@ -180,10 +203,19 @@ def summary(rows: list[dict[str, Any]], band: float) -> dict[str, Any]:
         for r in both
         if r["screen"] <= r["screen_threshold"] - band and r["exact"] > r["search_threshold"] and r["enough"]
     ]
+    records = len({r["record"] for r in rows})
+    accepted = int(np.sum(nominal))
+    low, high = clopper_pearson(accepted, len(nominal))
     return {
+        "records": records,
         "moves": len(judged),
         "nominal_alpha": NOMINAL_ALPHA,
         "false_accept_rate_nominal": float(np.mean(nominal)) if nominal else math.nan,
+        "false_accept_rate_interval_95": [low, high],
+        "score_passed_rate": float(np.mean([r.get("score_passed", True) for r in judged])) if judged else math.nan,
+        "false_accepts_the_score_leaves_unfitted": int(
+            sum(n and not r.get("score_passed", True) for n, r in zip(nominal, judged))
+        ),
         "significant_rate_nominal": float(np.mean(alone)) if alone else math.nan,
         "false_accepts_full_rule": int(np.sum(full)),
         "screen_minus_exact": {
@@ -202,7 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m boucwen.experiments.judge_calibration", description=(__doc__ or "").split("\n\n")[0]
     )
-    parser.add_argument("--records", type=int, default=24, help="records of the development half (default 24)")
+    parser.add_argument("--records", type=int, default=40, help="records of the development half (default 40)")
     parser.add_argument("--out", default=DEFAULT_OUT, metavar="DIR", help=f"output folder (default {DEFAULT_OUT})")
     args = parser.parse_args(argv)
     policy = DiagnosisPolicy()
