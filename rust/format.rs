@@ -34,8 +34,10 @@ pub const VERSION: u8 = 7;
 
 /// Largest window \[samples\] a snapshot may declare (and the Python binding
 /// accepts): 10⁷ samples, about 0.6 GB of window points. A corrupt length must
-/// not turn into an allocation the process cannot survive.
-pub const MAX_WINDOW_LEN: usize = crate::identify::PaperConfig::MAX_WINDOW;
+/// not turn into an allocation the process cannot survive. The paper identifier's
+/// largest window (`PaperConfig::MAX_WINDOW`) is this bound: its snapshot code checks
+/// at compile time that the two agree.
+pub const MAX_WINDOW_LEN: usize = 10_000_000;
 
 /// Kind byte of a [`crate::Model`] snapshot.
 pub(crate) const KIND_MODEL: u8 = 1;

@@ -9,6 +9,9 @@ use alloc::vec::Vec;
 use super::*;
 use crate::format::{corrupt, Reader, Snapshot, Writer, KIND_PAPER, MAX_WINDOW_LEN};
 
+// The format's bound on a declared window is the largest window a configuration accepts.
+const _: () = assert!(MAX_WINDOW_LEN == PaperConfig::MAX_WINDOW);
+
 impl Snapshot for PaperIdentifier {
     fn to_bytes(&self) -> Vec<u8> {
         let mut w = Writer::new(KIND_PAPER);
