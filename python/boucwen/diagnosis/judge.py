@@ -57,6 +57,7 @@ __all__ = [
     "judge",
     "level",
     "threshold",
+    "within_margin",
 ]
 
 #: Sokal's window constant: the autocorrelation is summed out to the first lag W with
@@ -333,3 +334,11 @@ def apart(a: CrossValidation, b: CrossValidation, level_: float) -> bool:
     condition 1 of the rule at level ``level_`` (module docs)."""
     g = gain(a, b)
     return not math.isnan(g.statistic) and abs(g.statistic) > threshold(level_, g.dof)
+
+
+def within_margin(a: CrossValidation, b: CrossValidation, level_: float) -> bool:
+    """The record does not tell ``a`` from ``b``: their gain can be computed and does not
+    pass condition 1 at level ``level_``. A gain that cannot be computed (no fold
+    compared) is no evidence that two models are alike."""
+    g = gain(a, b)
+    return math.isfinite(g.statistic) and abs(g.statistic) <= threshold(level_, g.dof)

@@ -186,8 +186,9 @@ _ALL = (
     Rule(
         "fewest_unknowns",
         "search",
-        "Within the leading move's ambiguity set (moves it does not tell apart) the model takes the accepted "
-        "member with the fewest unknowns, then the largest statistic; the others are its rivals.",
+        "Within the leading move's ambiguity set (converged candidates it does not tell apart, on a comparison "
+        "the record could make) the model takes the accepted member with the fewest unknowns, then the largest "
+        "statistic; the others are its rivals.",
         "The one-standard-error rule: prefer the simplest model not clearly worse (Breiman et al. 1984).",
         "search._take",
     ),

@@ -72,7 +72,7 @@ from ..residual.lookalike import named
 from . import fits
 from .fits import Convergence, Scored, Structure
 from .heldout import Folds
-from .judge import Decision, apart, gain, judge, level, threshold
+from .judge import Decision, apart, gain, judge, level, threshold, within_margin
 from .policy import DiagnosisPolicy
 from .score import Score, Scorer, in_sample_needed
 
@@ -813,7 +813,9 @@ def _take(
     best = j.candidates[best_k]
     assert not isinstance(best, str)
     growing = [(m, d, f) for m, d, f in rows if m.kind != "drop"]
-    tied = [t for t in growing if t[2] is best or not apart(t[2].cv, best.cv, rnd.level)]
+    # The ambiguity set: what the record cannot tell from the best, on a comparison it
+    # could make; a candidate whose fit did not converge is no one's rival.
+    tied = [t for t in growing if t[2] is best or (t[2].converged and within_margin(t[2].cv, best.cv, rnd.level))]
     # The structure is taken only as the round's best (Round.best: it waits while an
     # input-driven move is accepted); within the set it stays the taken move's rival.
     structure_best = j.moves[best_k].kind == "structure"
