@@ -6,7 +6,8 @@
 # 1. `maturin build --release --zig` into dist/: one abi3 wheel for CPython >= 3.10, tagged
 #    manylinux2014 (glibc >= 2.17; pyproject.toml, [tool.maturin] compatibility). Zig (the
 #    ziglang package from PyPI, installed into .venv with maturin) links it against glibc
-#    2.17's symbols whatever this host's glibc. The build shares target/ with the others.
+#    2.17's symbols whatever this host's glibc. scripts/setup_env.sh builds the extension of
+#    .venv the same way, so after it this build only packs the wheel.
 # 2. A fresh virtual environment in a temporary folder, with no cargo or rustc on PATH: the
 #    wheel installed there (NumPy, SciPy and Matplotlib from PyPI), then scripts/wheel_smoke.py
 #    run from that folder, outside the repository, so only the installed package is imported.
@@ -19,8 +20,10 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q "maturin>=1.5,<2" ziglang
 rm -f dist/boucwen-*.whl
-# maturin finds zig as `python3 -m ziglang`: .venv's python first on PATH.
-PATH="$root/.venv/bin:$PATH" .venv/bin/maturin build --release --zig --out dist
+# maturin finds zig as `python3 -m ziglang`: .venv's python first on PATH. The same build as
+# scripts/setup_env.sh's (same options, target/x86_64-unknown-linux-gnu): after it, only
+# the packing is left.
+PATH="$root/.venv/bin:$PATH" .venv/bin/maturin build --release --zig --compatibility manylinux2014 --out dist
 wheels=(dist/boucwen-*.whl)
 if [ "${#wheels[@]}" != 1 ] || [ ! -f "${wheels[0]}" ]; then
   echo "wheel.sh: expected one wheel in dist/, found: ${wheels[*]}" >&2
@@ -60,6 +63,5 @@ if run_clean bash -c 'command -v cargo || command -v rustc'; then
   echo "wheel.sh: a Rust toolchain is still on PATH" >&2
   exit 1
 fi
-run_clean python -m pip install -q --upgrade pip >/dev/null
 run_clean python -m pip install -q "$wheel"
 run_clean python wheel_smoke.py
