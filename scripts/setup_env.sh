@@ -17,4 +17,8 @@ extras=""
 echo "== building and installing boucwen (release build of the Rust extension)"
 # A stale build of the extension must never shadow the fresh one.
 find python/boucwen -maxdepth 1 -name '_core*.so' -delete
-python -m pip install -q ".${extras}"
+# Built as the wheel is (scripts/wheel.sh): linked by Zig against glibc 2.17's symbols, so
+# the two share one build in target/x86_64-unknown-linux-gnu. maturin and Zig (the ziglang
+# package) live in .venv, where the build runs (no build isolation).
+python -m pip install -q "maturin>=1.5,<2" ziglang
+MATURIN_PEP517_ARGS="--zig --compatibility manylinux2014" python -m pip install -q --no-build-isolation ".${extras}"

@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# The test commands (README, "Tests"; .ci/run runs both):
+# The test commands (README, "Tests"; docs/testing.md; .ci/run runs both):
 #
 #   bash scripts/test.sh          every check and every test but the slow ones: formatting,
 #                                 lints, type checks and docs (Rust, then Python), the Rust unit
 #                                 and integration tests (cargo profile test-release: release code
 #                                 without LTO, built once; the example and the C library of
 #                                 tests/test_embed.py come from that build), the examples, the
-#                                 no_std build, then
+#                                 no_std build, the manylinux2014 wheel (scripts/wheel.sh: built,
+#                                 installed in a fresh venv with no Rust on PATH, smoke-tested), then
 #                                 pytest on every core against the installed extension (the stub
 #                                 check with mypy.stubtest included), the tests marked slow left out
 #   bash scripts/test.sh --slow   the slow statistical checks: pytest -m slow on every core (the
@@ -50,10 +51,10 @@ fi
 
 step "cargo fmt --check"
 cargo fmt --check
-step "ruff check python tests benches examples"
-ruff check python tests benches examples
-step "ruff format --check python tests benches examples"
-ruff format --check python tests benches examples
+step "ruff check python tests benches examples scripts"
+ruff check python tests benches examples scripts
+step "ruff format --check python tests benches examples scripts"
+ruff format --check python tests benches examples scripts
 step "mypy (strict, python/boucwen)"
 mypy
 step "cargo clippy --all-targets --all-features -- -D warnings"
@@ -71,5 +72,7 @@ python examples/fit_and_identify.py
 step "no_std core for thumbv7em-none-eabihf (Cortex-M4F/M7)"
 rustup target add thumbv7em-none-eabihf
 cargo rustc --release --lib --crate-type rlib --no-default-features --target thumbv7em-none-eabihf
+step "wheel: maturin build --release --zig (abi3, manylinux2014), installed and smoke-tested without Rust"
+bash scripts/wheel.sh
 step "pytest -m 'not slow' (every core; the slow checks: bash scripts/test.sh --slow)"
 "${pytest_all[@]}" -m "not slow" tests
