@@ -66,6 +66,7 @@ def test_result_fields_and_json():
     d = diagnose(rec.u, rec.x, rec.dt)
     doc = json.loads(json.dumps(d.to_dict()))
     assert set(doc) == {
+        "non_finite",
         "effects",
         "rms_before_um",
         "max_before_um",

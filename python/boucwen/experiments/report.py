@@ -382,7 +382,8 @@ def _speed(r: Mapping[str, Any]) -> str:
     [--baseline FILE]``, with its caption."""
     return (
         "`python benches/diagnosis_speed.py --baseline BEFORE.json --out out/diagnosis_speed` "
-        f"(package {r['version']}; baseline: the same script run on the previous release):\n\n{r['table']}"
+        f"(package {r['version']}; baseline: the same script run on the code before the change, the ratio "
+        f"baseline / this run; wall and CPU seconds):\n\n{r['table']}"
     )
 
 
