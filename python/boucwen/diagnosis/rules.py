@@ -5,7 +5,7 @@ the screen that chooses which moves are fitted, what makes a fit no candidate, h
 search takes a move, and how sure the report says each name is. Each
 :class:`~boucwen.diagnosis.judge.Decision` names the rule that decided it
 (``Decision.rule``); the list in docs/diagnosis.md is this registry's
-:func:`markdown` (``python -m boucwen.diagnosis.rules`` prints it, and a test holds the
+:func:`markdown` (``python -m boucwen.diagnosis`` prints it, and a test holds the
 docs to it). A stranger counts the rules here, not in the search.
 
 Stages, in the order a move meets them: ``folds`` (where the held-out data lie),
@@ -16,7 +16,6 @@ is).
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 
 __all__ = ["RULES", "Rule", "markdown", "rule"]
@@ -240,7 +239,3 @@ def markdown() -> str:
     lines = ["| stage | rule | what it decides | why | where |", "|---|---|---|---|---|"]
     lines += [f"| {r.stage} | `{r.name}` | {r.decides} | {r.reason} | `{r.where}` |" for r in _ALL]
     return "\n".join(lines)
-
-
-if __name__ == "__main__":
-    sys.stdout.write(markdown() + "\n")
