@@ -317,17 +317,7 @@ def _first_order(record: Record, current: Scored, effects: EffectSet, added: tup
     xs = box.layout.simulate(v, record.u, record.dt)
     if xs is None:
         return math.inf
-    owners = [label.split(".", 1)[0] for label in box.layout.labels()]
-    columns = [current.jacobian]
-    for i, owner in enumerate(owners):
-        if owner not in added:
-            continue
-        h = 1e-3 * float(box.scale[i])
-        moved = v.copy()
-        moved[i] = v[i] + h if v[i] + h <= box.upper[i] else v[i] - h
-        x2 = box.layout.simulate(moved, record.u, record.dt)
-        if x2 is not None:
-            columns.append(((x2 - xs) / (moved[i] - v[i]))[:, None])
+    columns = [current.jacobian, *(d[:, None] for d in box.directions(added, xs, record.u, record.dt))]
     basis = np.column_stack(columns)
     norms = np.linalg.norm(basis, axis=0)
     keep = norms > 0

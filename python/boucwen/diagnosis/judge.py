@@ -55,6 +55,7 @@ __all__ = [
     "dependence_length",
     "gain",
     "judge",
+    "least_gain",
     "level",
     "threshold",
     "within_margin",
@@ -268,6 +269,13 @@ class Decision:
         }
 
 
+def least_gain(mse_um2: float, noise_um: float, min_share: float, resolution_um: float) -> float:
+    """The least gain a move must bring [µm²] (condition 2, module docs): ``min_share`` of
+    the reference's mean-square error ``mse_um2`` beyond the noise, and no less than the
+    mean square of the model's own sampling-rate error ``resolution_um``."""
+    return max(min_share * max(mse_um2 - noise_um**2, 0.0), resolution_um**2)
+
+
 def judge(
     move: str,
     effects: tuple[str, ...],
@@ -299,7 +307,7 @@ def judge(
             move, effects, candidate, reference, g, math.nan, math.nan, False, why, unknowns, exact, "not_judgeable"
         )
     t_min = threshold(level_, g.dof)
-    needed = max(min_share * max(g.reference_mse_um2 - noise_um**2, 0.0), resolution_um**2)
+    needed = least_gain(g.reference_mse_um2, noise_um, min_share, resolution_um)
     significant = g.statistic > t_min
     enough = g.mean_um2 >= needed and g.mean_um2 > 0
     if significant and enough:

@@ -67,7 +67,7 @@ from ..effects import fit_box
 from ..record import Record
 from .judge import autocovariance, dependence_length
 
-__all__ = ["DRAWS", "GAIN_SHARE", "SCREEN_FACTOR", "Score", "Scorer", "in_sample_needed", "sup_test"]
+__all__ = ["DRAWS", "GAIN_SHARE", "SCREEN_FACTOR", "Score", "Scorer", "sup_test"]
 
 #: Draws of the supremum's null (its p-value resolved to about 1/DRAWS).
 DRAWS = 999
@@ -78,8 +78,6 @@ GAIN_SHARE = 0.5
 #: A direction whose part outside the current model's span is below this share of its
 #: size adds nothing the current model cannot do.
 _OUTSIDE = 1e-7
-#: The finite-difference step of an unknown's direction, a share of its typical size.
-_STEP = 1e-3
 
 
 @dataclass(frozen=True)
@@ -165,28 +163,18 @@ class Scorer:
         changes the prediction (a corner, a mode, a delay: the parameter under the
         alternative fixed at a grid point, the step its one direction), else — an effect
         started at its neutral value, a creep's or a drift's gains at 0 — the derivative
-        along each unknown of the ``added`` effects (a forward difference of :data:`_STEP`
-        of its typical size); None where the start cannot be simulated."""
+        along each unknown of the ``added`` effects
+        (:meth:`boucwen.effects.fit.Box.directions`); None where the start cannot be
+        simulated."""
         rec = self.record
         box = fit_box(rec, self.params, start, self.h0)
-        v = box.v0
-        xs = box.layout.simulate(v, rec.u, rec.dt)
+        xs = box.layout.simulate(box.v0, rec.u, rec.dt)
         if xs is None or not np.all(np.isfinite(xs)):
             return None
         step = xs - self.x_hat
         if float(np.linalg.norm(step)) > _OUTSIDE * float(np.linalg.norm(self.x_hat)):
             return step[:, None]
-        columns = []
-        owners = [label.split(".", 1)[0] for label in box.layout.labels()]
-        for i, owner in enumerate(owners):
-            if owner not in added:
-                continue
-            h = _STEP * float(box.scale[i])
-            moved = v.copy()
-            moved[i] = v[i] + h if v[i] + h <= box.upper[i] else v[i] - h
-            x2 = box.layout.simulate(moved, rec.u, rec.dt)
-            if x2 is not None and np.all(np.isfinite(x2)):
-                columns.append((x2 - xs) / (moved[i] - v[i]))
+        columns = [d for d in box.directions(added, xs, rec.u, rec.dt) if np.all(np.isfinite(d))]
         return np.column_stack(columns) if columns else step[:, None]
 
     def score(
@@ -282,10 +270,3 @@ def _share(gain: float, needed: float) -> str:
     if needed <= 0:
         return f"{math.sqrt(max(gain, 0.0)):.3g} µm RMS"
     return f"{gain / needed:.3g}× the least that passes"
-
-
-def in_sample_needed(mse_um2: float, noise_um: float, min_share: float, resolution_um: float) -> float:
-    """The least gain the judge asks of a move [µm²], from the in-sample mean-square
-    error ``mse_um2`` of the current model: ``min_share`` of it beyond the noise, and the
-    model's own sampling-rate error (:func:`boucwen.diagnosis.judge.judge`)."""
-    return max(min_share * max(mse_um2 - noise_um**2, 0.0), resolution_um**2)

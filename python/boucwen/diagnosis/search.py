@@ -72,9 +72,9 @@ from ..residual.lookalike import named
 from . import fits
 from .fits import Convergence, Scored, Structure
 from .heldout import Folds
-from .judge import Decision, apart, gain, judge, level, threshold, within_margin
+from .judge import Decision, apart, gain, judge, least_gain, level, threshold, within_margin
 from .policy import DiagnosisPolicy
-from .score import Score, Scorer, in_sample_needed
+from .score import Score, Scorer
 
 __all__ = [
     "OSCILLATOR",
@@ -544,7 +544,8 @@ def _scored_moves(
     its starts ranked by it, by the move's index."""
     scorer = Scorer(record, current.x, current.jacobian, current.fit.params, current.fit.h0)
     lvl = level(policy.alpha, len(moves), round_)
-    needed = in_sample_needed(current.fit.rms_um**2, noise_um, policy.min_share, resolution_um)
+    # In-sample, as the score is: the current model's own mean-square error.
+    needed = least_gain(current.fit.rms_um**2, noise_um, policy.min_share, resolution_um)
     scores: dict[int, Score] = {}
     ranked: dict[int, list[EffectSet]] = {}
     for k, m in enumerate(moves):

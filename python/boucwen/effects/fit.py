@@ -353,6 +353,26 @@ class Box:
     upper: FloatArray
     scale: FloatArray
 
+    def directions(
+        self, effects: tuple[str, ...], x_start: FloatArray, u: FloatArray, dt: float, share: float = 1e-3
+    ) -> list[FloatArray]:
+        """∂x̂/∂v at the start ``v0`` (where the model predicts ``x_start`` [µm] from ``u``
+        [V]) along each unknown of the named ``effects``: a forward difference of ``share``
+        of its typical size (backward where the step would leave its upper bound), one
+        simulation each; the unknowns whose step cannot be simulated are left out."""
+        v = self.v0
+        out: list[FloatArray] = []
+        for i, label in enumerate(self.layout.labels()):
+            if label.split(".", 1)[0] not in effects:
+                continue
+            h = share * float(self.scale[i])
+            moved = v.copy()
+            moved[i] = v[i] + h if v[i] + h <= self.upper[i] else v[i] - h
+            x2 = self.layout.simulate(moved, u, dt)
+            if x2 is not None:
+                out.append((x2 - x_start) / (moved[i] - v[i]))
+        return out
+
 
 def fit_box(record: Record, params: Params, effects: EffectSet, h0: float) -> Box:
     """The :class:`Box` of a fit of ``record`` started at (params, effects, h0)."""

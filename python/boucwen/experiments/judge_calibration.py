@@ -55,9 +55,9 @@ from scipy import stats
 from ..diagnosis import DiagnosisPolicy
 from ..diagnosis import fits as fitting
 from ..diagnosis.heldout import Folds
-from ..diagnosis.judge import gain, threshold
+from ..diagnosis.judge import gain, least_gain, threshold
 from ..diagnosis.judge import level as move_level
-from ..diagnosis.score import Scorer, in_sample_needed
+from ..diagnosis.score import Scorer
 from ..diagnosis.search import Move, proposals
 from ..effects import VOCABULARY
 from ..fit import fit_record
@@ -131,7 +131,7 @@ def judge_moves(case: dict[str, Any], policy: DiagnosisPolicy, workers: int | No
     ref_exact = fitting.confirmed(record, reference, workers)
     resolution_um = fitting.resolution(record, reference.fit)
     scorer = Scorer(record, reference.x, reference.jacobian, reference.fit.params, reference.fit.h0)
-    needed_in = in_sample_needed(reference.fit.rms_um**2, noise, policy.min_share, resolution_um)
+    needed_in = least_gain(reference.fit.rms_um**2, noise, policy.min_share, resolution_um)
     rows = []
     for m in moves:
         starts = fitting.starts_of(record, reference, m.adds, policy.max_delay_samples, None)
@@ -141,7 +141,7 @@ def judge_moves(case: dict[str, Any], policy: DiagnosisPolicy, workers: int | No
             continue
         exact = fitting.confirmed(record, cand, workers)
         g_screen, g_exact = gain(cand.cv, reference.cv), gain(exact.cv, ref_exact.cv)
-        needed = max(policy.min_share * max(g_exact.reference_mse_um2 - noise**2, 0.0), resolution_um**2)
+        needed = least_gain(g_exact.reference_mse_um2, noise, policy.min_share, resolution_um)
         rows.append(
             {
                 "record": rec.label,
