@@ -79,6 +79,7 @@ def test_result_fields_and_json():
         "decisions",
         "unseen",
         "at_bounds",
+        "base_loop_on_bounds",
         "structure",
         "boundedness",
     }
@@ -131,6 +132,7 @@ def test_result_fields_and_json():
     assert d.unseen is not None and d.unseen.folds == doc["evidence"]["policy"]["folds"]
     assert doc["unseen"] == d.unseen.to_dict()
     assert doc["at_bounds"] == [b.to_dict() for b in d.at_bounds]
+    assert doc["base_loop_on_bounds"] == [b.to_dict() for b in d.base_loop]
 
 
 def test_evidence_points_the_right_way():

@@ -370,6 +370,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             )
     for b in result.at_bounds:
         print(f"on a bound of the fit: {b.parameter} = {b.value:.4g} ({b.side} bound {b.bound:.4g})")
+    if result.base_loop:
+        print(result.base_loop_summary())
     if result.boundedness is not None:
         print(f"returned model: {result.boundedness.summary()}")
     taken = ", ".join(x.label for x in result.taken) or "none"

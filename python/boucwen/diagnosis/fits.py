@@ -50,6 +50,7 @@ from ..oscillator import OscillatorFit, linearised
 from ..oscillator import fit as fit_oscillator
 from ..oscillator import simulate as simulate_oscillator
 from ..record import Record
+from ..region import PAIR_NAMES, pair
 from .heldout import CrossValidation, Folds, Leaveout, held_out
 
 __all__ = [
@@ -71,6 +72,7 @@ __all__ = [
     "confirmed",
     "drop",
     "held_out",
+    "loop_on_bounds",
     "on_bounds",
     "oscillator",
     "refit",
@@ -591,3 +593,29 @@ def on_bounds(fit: ExtendedFit, record: Record, tolerance: float = BOUND_TOLERAN
             if math.isfinite(bound) and abs(v - bound) <= tolerance * max(1.0, abs(bound)):
                 out.append(AtBound(label, float(v), float(bound), side))
     return out
+
+
+#: The unknowns of the base loop's shape (:meth:`boucwen.effects.Layout.labels`): its
+#: exponent and the pair (β + γ, β − γ) that bends each branch.
+LOOP_SHAPE = ("n", *PAIR_NAMES)
+
+#: A bending coefficient c ∈ {β + γ, β − γ} whose term c·Xⁿ at the record's displacement
+#: span X is below this share of A bends no branch the record can see: it is on its
+#: bound 0 (the branch is a straight line), whatever its value.
+FLAT_SHARE = 1e-3
+
+
+def loop_on_bounds(fit: ExtendedFit, record: Record) -> list[AtBound]:
+    """The base loop's shape unknowns (:data:`LOOP_SHAPE`) of ``fit`` on a bound of the
+    fit over ``record``: the exponent n on either bound (:func:`on_bounds`), a bending
+    coefficient on its bound 0 or too small to bend a branch over the record's span
+    (:data:`FLAT_SHARE`). Where the base model's fit ends so, the base loop cannot take the
+    record's loop: what it lacks is the loop's shape, which an effect fitted beside it
+    takes up only by mistake."""
+    found = {b.parameter: b for b in on_bounds(fit, record) if b.parameter in LOOP_SHAPE}
+    p = fit.params
+    span = max(float(np.ptp(record.x)), 1e-12)
+    for name, c in zip(PAIR_NAMES, pair(p.beta, p.gamma)):
+        if name not in found and abs(c) * span**p.n <= FLAT_SHARE * abs(p.A):
+            found[name] = AtBound(name, float(c), 0.0, "lower")
+    return [found[k] for k in LOOP_SHAPE if k in found]

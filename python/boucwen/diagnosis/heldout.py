@@ -49,6 +49,27 @@ convergence:
 
 The search reads the screen where a decision is far from its threshold and the refits
 everywhere else (:mod:`~boucwen.diagnosis.search`).
+
+**What belongs to the record, not the device** (:data:`PER_RECORD`, one place). A user
+carries the model to the device's next record and re-estimates there what is that
+record's own; each held-out span is scored the same way, alike for every model, before
+its error is counted (:func:`less_record_part`):
+
+* the **offset** and a **straight-line trend in time**, by linear least squares on the
+  span itself: a sensor's zero, the mounting, the day's temperature and a sensor's
+  settling belong to the day, not to the device, and move from one record to the next;
+  a move whose gain lives in the record's own trend (a creep element slower than the
+  span, a drift's level) then earns nothing, while one that follows the input keeps
+  its gain;
+* the **initial state** of h and of each effect: on another record it is re-estimated
+  there (:func:`boucwen.diagnosis.unseen.carried`, h0 by a scalar search); on a forward
+  span it is the model's own, run from the record's start through the span's past — the
+  voltage before the span is known to a user there, so the state is predicted, not
+  fitted;
+* the record's **own effects** (:attr:`boucwen.effects.Effect.of_record`: a drift, a mains
+  pickup whose phase is the record's): left out of a model carried to another record;
+  on a forward span fitted on the span's past like the device's, as a user with that
+  record's past would.
 """
 
 from __future__ import annotations
@@ -67,18 +88,52 @@ from ..metrics import rms
 from ..record import Record, travel_steps
 
 __all__ = [
+    "PER_RECORD",
     "CrossValidation",
     "Folds",
     "Leaveout",
     "excitation",
     "held_out",
     "informed",
+    "less_record_part",
     "on_common_folds",
 ]
 
 #: Tries of the screen's step (each a quarter of the one before), as the solver's first
 #: trust regions.
 _SCREEN_TRIES = 4
+
+
+#: What each held-out span re-estimates as its own before its error is counted (module
+#: docs, "What belongs to the record"): the unknown and its reason.
+PER_RECORD: dict[str, str] = {
+    "offset": "a sensor's zero and the mounting differ from one record to the next",
+    "trend": "the day's temperature and a sensor's settling: a straight line in time, not driven by the input",
+    "initial state": "what the voltage did before the record began, which no record of the device holds",
+    "the record's own effects": "a drift or a mains pickup belongs to the record (Effect.of_record)",
+}
+
+#: A span re-estimates its trend from this many samples on (with fewer, its offset alone:
+#: a line through two samples would leave no error to count).
+_TREND_FROM = 3
+
+
+def less_record_part(residual: FloatArray, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``residual`` [µm] of a span at times ``t`` [s] less its record's own part (module
+    docs): its least-squares offset and straight-line trend over its finite samples
+    (the offset alone below three samples). Returns the residual left and the
+    coefficients (offset [µm] at the span's first sample, trend [µm/s]; 0 where not
+    estimated)."""
+    r = np.asarray(residual, dtype=float)
+    tt = np.asarray(t, dtype=float) - float(t[0]) if r.size else np.asarray(t, dtype=float)
+    ok = np.isfinite(r)
+    coef = np.zeros(2)
+    if not ok.any():
+        return r.copy(), coef
+    cols = 2 if int(ok.sum()) >= _TREND_FROM else 1
+    basis = np.column_stack([np.ones(r.size), tt])[:, :cols]
+    coef[:cols] = np.linalg.lstsq(basis[ok], r[ok], rcond=None)[0]
+    return r - basis @ coef[:cols], coef
 
 
 def excitation(record: Record) -> FloatArray:
@@ -186,7 +241,8 @@ class CrossValidation:
     """The held-out residual of a model and its summaries.
 
     Attributes:
-        residual: held-out residual [µm], sample by sample (nan before the first origin:
+        residual: held-out residual [µm], sample by sample, each fold's span less its
+            own offset and trend (:func:`less_record_part`; nan before the first origin:
             no fold predicts those samples).
         folds: the folds.
         in_sample_rms_um: RMS of x − x̂ of the model fitted on the whole record [µm].
@@ -293,7 +349,8 @@ def held_out(
 ) -> CrossValidation:
     """The held-out residual [µm] of the fit ``lo`` (simulated ``x_hat`` [µm] over the
     record) on ``folds``: each fold's from the model refitted on its training samples
-    (``exact``) or from the screen's step (module docs)."""
+    (``exact``) or from the screen's step (module docs), less the span's own offset and
+    trend (:func:`less_record_part`)."""
     r = record.x - x_hat
     held = np.full(r.size, np.nan)
 
@@ -310,7 +367,7 @@ def held_out(
         if x_k is None:
             converged.append(False)
             continue
-        held[sl] = record.x[sl] - x_k[sl]
+        held[sl] = less_record_part(record.x[sl] - x_k[sl], record.t[sl])[0]
         converged.append(ok)
     return CrossValidation.of(held, r, folds, tuple(converged), exact)
 

@@ -152,6 +152,7 @@ def outcome(
         decisions=(*decisions, *on_validation),
         taken=tuple(r.taken for r in state.rounds if r.taken is not None),
         at_bounds=fits.on_bounds(final.fit, record),
+        base_loop=fits.loop_on_bounds(base.fit, record),
         unseen=unseen,
         explained=Explained(record, final, rivals, swaps, conv, policy, noise_um),
         structure=structure,

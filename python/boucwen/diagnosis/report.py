@@ -158,6 +158,10 @@ class Diagnosis:
         taken: the moves the search took, in order.
         at_bounds: the returned model's unknowns that ended on a bound of the fit
             (:class:`AtBound`).
+        base_loop: the base model's loop-shape unknowns (n, β + γ, β − γ) that ended on
+            a bound of its fit (:func:`boucwen.diagnosis.fits.loop_on_bounds`): where any
+            did, the base loop does not fit this device, and the effects named beside it
+            may be taking up what the loop lacks.
         unseen: errors on data the fits did not see [µm]: forward validation of the
             base and returned models and, with a validation record, both carried to it
             (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
@@ -191,6 +195,7 @@ class Diagnosis:
     decisions: tuple[Decision, ...] = ()
     taken: tuple[Decision, ...] = ()
     at_bounds: list[AtBound] = field(default_factory=list)
+    base_loop: list[AtBound] = field(default_factory=list)
     unseen: Unseen | None = None
     explained: Explained | None = field(default=None, repr=False)
     structure: NamedStructure | None = None
@@ -265,6 +270,7 @@ class Diagnosis:
             "decisions": [d.to_dict() for d in self.decisions],
             "unseen": {} if self.unseen is None else self.unseen.to_dict(),
             "at_bounds": [b.to_dict() for b in self.at_bounds],
+            "base_loop_on_bounds": [b.to_dict() for b in self.base_loop],
             "structure": None if self.structure is None else self.structure.to_dict(),
             "boundedness": None if self.boundedness is None else self.boundedness.to_dict(),
         }
@@ -291,6 +297,8 @@ class Diagnosis:
         bounds = "".join(f"; {b.parameter} = {b.value:.4g} on its {b.side} bound" for b in self.at_bounds)
         if self.boundedness is not None and not self.boundedness.passed:
             bounds += f"; {self.boundedness.summary()}"
+        if self.base_loop:
+            bounds += f"; {self.base_loop_summary()}"
         if self.structure is not None:
             s = self.structure
             return (
@@ -302,6 +310,14 @@ class Diagnosis:
             f"effects: {named}; RMS {self.rms_before_um:.4g} → {self.rms_after_um:.4g} µm, "
             f"max {self.max_before_um:.4g} → {self.max_after_um:.4g} µm{cv}{bounds}"
         )
+
+    def base_loop_summary(self) -> str:
+        """What the base model's fit says of the base loop where its shape ended on a
+        bound (:attr:`base_loop`); empty where it did not."""
+        if not self.base_loop:
+            return ""
+        on = ", ".join(f"{b.parameter} = {b.value:.3g} on its {b.side} bound {b.bound:.3g}" for b in self.base_loop)
+        return f"the base loop does not fit this device ({on}): the named effects may take up what it lacks"
 
     def __repr__(self) -> str:
         return f"Diagnosis({self.summary()})"

@@ -51,6 +51,26 @@ _ALL = (
         "heldout.Folds.of",
     ),
     Rule(
+        "record_part",
+        "folds",
+        "Each held-out span's error is counted after its own offset and straight-line trend in time are "
+        "re-estimated on the span by least squares, alike for both models; a model carried to another record "
+        "has its initial state re-estimated there too, and leaves the record's own effects behind.",
+        "A user carries the device to the next record and re-estimates there what belongs to that record (a "
+        "sensor's zero, the day's temperature, a sensor's settling); a gain that lives in the record's trend "
+        "does not carry, one that follows the input does.",
+        "heldout.less_record_part, unseen.carried",
+    ),
+    Rule(
+        "creep_span",
+        "candidate",
+        "No creep element is slower than the record its fit sees (time constants from 10 samples to the "
+        "record's length).",
+        "Over a span T an element of time constant much beyond T answers a step by a straight line in time, "
+        "which the record's own trend makes as well: the record cannot tell it from the day's drift.",
+        "effects.creep.creep_time_constants",
+    ),
+    Rule(
         "score_level",
         "screen",
         "An add move is fitted only where its score at the current model (the supremum over its grid) has a "

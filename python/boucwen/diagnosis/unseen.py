@@ -45,7 +45,7 @@ from ..effects import ExtendedFit, effect_class, simulate_chain
 from ..effects.base import without
 from ..metrics import max_abs, rms
 from ..record import Record
-from .heldout import CrossValidation
+from .heldout import CrossValidation, less_record_part
 from .judge import Decision, gain, judge, level
 from .policy import DiagnosisPolicy
 
@@ -138,18 +138,19 @@ def device_part(effects: EffectSet) -> EffectSet:
 
 def carried(fit: ExtendedFit, record: Record) -> tuple[FloatArray, ValidationError] | None:
     """The displacement [µm] ``fit`` predicts over ``record`` when carried there (its
-    device part, with the offset, the trend and h0 of ``record`` re-estimated by least
-    squares: h0 by a bounded scalar search over ± the record's displacement span, kept
-    only where it beats h0 = 0), and its error; None when it cannot be simulated."""
+    device part, with what is the record's own re-estimated there
+    (:data:`~boucwen.diagnosis.heldout.PER_RECORD`): the offset and the trend by least
+    squares (:func:`~boucwen.diagnosis.heldout.less_record_part`), h0 by a bounded scalar
+    search over ± the record's displacement span, kept only where it beats h0 = 0), and
+    its error; None when it cannot be simulated."""
     effects = device_part(fit.effects)
-    basis = np.column_stack([np.ones(len(record)), record.t - record.t[0]])
 
     def fitted(h0: float) -> tuple[FloatArray, FloatArray] | None:
         xs = simulate_chain(fit.params, effects, record.u, record.dt, h0)
         if xs is None:
             return None
-        coef = np.linalg.lstsq(basis, record.x - xs, rcond=None)[0]
-        return xs + basis @ coef, coef
+        left, coef = less_record_part(record.x - xs, record.t)
+        return record.x - left, coef
 
     def cost(h0: float) -> float:
         out = fitted(h0)

@@ -28,12 +28,18 @@ CREEP_ELEMENTS_PER_DECADE = 2
 def creep_time_constants(dt: float, duration_s: float, max_count: int = 10) -> list[float]:
     """Log-spaced creep time constants τ_i [s] for a record of ``duration_s`` [s].
 
-    From 10·dt (faster elements look like part of kv) to three times the record's
-    length (the creep that is still running at the end of the record),
+    From 10·dt (faster elements look like part of kv) to the record's length,
     :data:`CREEP_ELEMENTS_PER_DECADE` per decade, between 2 and ``max_count``.
+
+    No element is slower than the span its fit sees: over a span T an element of
+    τ ≫ T answers a step by g·t/τ, a straight line in time that the record's own trend
+    (:data:`boucwen.diagnosis.heldout.PER_RECORD`: a day's temperature, a sensor's
+    settling) makes as well; the record cannot tell the device's creep there from the
+    day's drift, and a fit that holds such an element carries the day's trend to the
+    next record. The creep still running at the end of a record is that trend's to take.
     """
     lo = 10.0 * dt
-    hi = max(3.0 * duration_s, 2.0 * lo)
+    hi = max(duration_s, 2.0 * lo)
     count = int(min(max_count, max(2, round(CREEP_ELEMENTS_PER_DECADE * math.log10(hi / lo)) + 1)))
     return [float(v) for v in np.geomspace(lo, hi, count)]
 
