@@ -7,7 +7,7 @@ import pytest
 
 from boucwen import EffectSet, Params, simulate_extended
 from boucwen.diagnosis import fits
-from boucwen.diagnosis.heldout import CrossValidation, Folds, excitation, informed
+from boucwen.diagnosis.heldout import CrossValidation, Folds, excitation, informed, less_record_part
 from boucwen.diagnosis.judge import apart, dependence_length, gain, judge, level, threshold
 from boucwen.effects import ExtendedFit, solve_extended_record
 from boucwen.record import validate_record
@@ -208,15 +208,34 @@ def test_the_held_out_error_is_that_of_refits_on_the_past_written_out_here():
     solved = fits.solved_at(record, fit)
     folds = Folds.of(record, 4, 0.5, solved.jacobian)
     model = fits.scored(record, solved, folds, conv, exact=True)
+    expected = np.full(len(record), np.nan)
     for k in range(folds.count):
         weights = np.zeros(len(record))
         weights[folds.train(k)] = 1.0
         out = solve_extended_record(record, fit.params, fit.effects, fit.h0, max_nfev=200, weights=weights)
         sl = folds.test(k)
-        np.testing.assert_allclose(model.cv.residual[sl], record.x[sl] - out.x[sl], atol=2e-3 * float(np.std(record.x)))
+        expected[sl] = record.x[sl] - out.x[sl]
+    # Counted as a user carries the model: less the record's offset and trend there.
+    expected = less_record_part(expected, record.t)[0]
+    np.testing.assert_allclose(model.cv.residual, expected, atol=2e-3 * float(np.std(record.x)))
     assert all(model.cv.converged) and folds.count == 4
     assert np.isnan(model.cv.residual[: folds.origins[0]]).all()
     # The screen (the refit's first step) lands where the refits do on this record.
     screened = fits.scored(record, solved, folds, conv)
     assert not screened.cv.exact and model.cv.exact
     assert screened.cv.rms_um == pytest.approx(model.cv.rms_um, rel=0.02)
+
+
+def test_the_records_own_offset_and_trend_are_taken_out_and_what_the_input_drives_is_left():
+    t = np.arange(2000) * 1e-3
+    driven = 0.3 * np.sin(2 * np.pi * 7 * t)
+    r = np.where(t >= 0.5, driven + 0.4 - 0.2 * t, np.nan)  # nan: no fold predicts there
+    left, offset, trend = less_record_part(r, t)
+    assert np.isnan(left[t < 0.5]).all()
+    assert offset == pytest.approx(0.4 - 0.2 * 0.5, abs=0.01) and trend == pytest.approx(-0.2, abs=0.02)
+    # What follows the input stays (a line takes out almost none of it).
+    np.testing.assert_allclose(left[t >= 0.5], driven[t >= 0.5], atol=0.02)
+    # Two samples: the offset alone, so that an error is left to count.
+    left2, _, trend2 = less_record_part(np.array([1.0, 2.0]), np.array([0.0, 1.0]))
+    assert trend2 == 0.0 and left2 == pytest.approx([-0.5, 0.5])
+    assert np.isnan(less_record_part(np.full(3, np.nan), np.arange(3.0))[0]).all()

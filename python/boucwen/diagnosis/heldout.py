@@ -52,15 +52,19 @@ everywhere else (:mod:`~boucwen.diagnosis.search`).
 
 **What belongs to the record, not the device** (:data:`PER_RECORD`, one place). A user
 carries the model to the device's next record and re-estimates there what is that
-record's own; each held-out span is scored the same way, alike for every model, before
-its error is counted (:func:`less_record_part`):
+record's own; the held-out samples are scored the same way, alike for every model,
+before their error is counted (:func:`less_record_part`):
 
-* the **offset** and a **straight-line trend in time**, by linear least squares on the
-  span itself: a sensor's zero, the mounting, the day's temperature and a sensor's
-  settling belong to the day, not to the device, and move from one record to the next;
-  a move whose gain lives in the record's own trend (a creep element slower than the
-  span, a drift's level) then earns nothing, while one that follows the input keeps
-  its gain;
+* the record's **offset** and **straight-line trend in time**, by linear least squares
+  on the record's held-out samples together (every fold's span: they are one record, one
+  day, with one sensor zero and one drift): a sensor's zero, the mounting, the day's
+  temperature and a sensor's settling belong to the day, not to the device, and move
+  from one record to the next; a move whose gain lives in the record's own trend (a
+  creep element as slow as the record, a drift's level and rate) then earns nothing,
+  while one that follows the input keeps its gain. One line for the record, not one per
+  fold: a line per span of a short record would also take the slow part of what the
+  input drives there (a creep's response to each step, a tenth of a second long), which
+  another record does not share with the day;
 * the **initial state** of h and of each effect: on another record it is re-estimated
   there (:func:`boucwen.diagnosis.unseen.carried`, h0 by a scalar search); on a forward
   span it is the model's own, run from the record's start through the span's past — the
@@ -113,27 +117,30 @@ PER_RECORD: dict[str, str] = {
     "the record's own effects": "a drift or a mains pickup belongs to the record (Effect.of_record)",
 }
 
-#: A span re-estimates its trend from this many samples on (with fewer, its offset alone:
-#: a line through two samples would leave no error to count).
+#: The trend is re-estimated from this many samples on (with fewer, the offset alone: a
+#: line through two samples would leave no error to count).
 _TREND_FROM = 3
 
 
-def less_record_part(residual: FloatArray, t: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``residual`` [µm] of a span at times ``t`` [s] less its record's own part (module
-    docs): its least-squares offset and straight-line trend over its finite samples
-    (the offset alone below three samples). Returns the residual left and the
-    coefficients (offset [µm] at the span's first sample, trend [µm/s]; 0 where not
-    estimated)."""
+def less_record_part(residual: FloatArray, t: FloatArray) -> tuple[FloatArray, float, float]:
+    """``residual`` [µm] at times ``t`` [s] less the record's own part (module docs): one
+    offset and one straight-line trend in time, by least squares over its finite samples
+    (a nan stays nan: a sample no model predicted); the trend left out where fewer than
+    three samples would leave no error to count. Returns the residual left, the offset
+    [µm] at the first finite sample and the trend [µm/s] (0 where not estimated)."""
     r = np.asarray(residual, dtype=float)
-    tt = np.asarray(t, dtype=float) - float(t[0]) if r.size else np.asarray(t, dtype=float)
-    ok = np.isfinite(r)
-    coef = np.zeros(2)
-    if not ok.any():
-        return r.copy(), coef
-    cols = 2 if int(ok.sum()) >= _TREND_FROM else 1
+    rows = np.isfinite(r)
+    left = r.copy()
+    if not rows.any():
+        return left, 0.0, 0.0
+    tt = np.asarray(t, dtype=float)
+    tt = tt - float(tt[np.flatnonzero(rows)[0]])
+    cols = 2 if int(rows.sum()) >= _TREND_FROM else 1
     basis = np.column_stack([np.ones(r.size), tt])[:, :cols]
-    coef[:cols] = np.linalg.lstsq(basis[ok], r[ok], rcond=None)[0]
-    return r - basis @ coef[:cols], coef
+    coef = np.zeros(2)
+    coef[:cols] = np.linalg.lstsq(basis[rows], r[rows], rcond=None)[0]
+    left[rows] = r[rows] - basis[rows] @ coef[:cols]
+    return left, float(coef[0]), float(coef[1])
 
 
 def excitation(record: Record) -> FloatArray:
@@ -241,9 +248,9 @@ class CrossValidation:
     """The held-out residual of a model and its summaries.
 
     Attributes:
-        residual: held-out residual [µm], sample by sample, each fold's span less its
-            own offset and trend (:func:`less_record_part`; nan before the first origin:
-            no fold predicts those samples).
+        residual: held-out residual [µm], sample by sample, less the record's offset and
+            trend re-estimated on it (:func:`less_record_part`; nan before the first
+            origin: no fold predicts those samples).
         folds: the folds.
         in_sample_rms_um: RMS of x − x̂ of the model fitted on the whole record [µm].
         rms_um: RMS of ``residual`` over the folds whose refit converged [µm] (nan where
@@ -349,8 +356,8 @@ def held_out(
 ) -> CrossValidation:
     """The held-out residual [µm] of the fit ``lo`` (simulated ``x_hat`` [µm] over the
     record) on ``folds``: each fold's from the model refitted on its training samples
-    (``exact``) or from the screen's step (module docs), less the span's own offset and
-    trend (:func:`less_record_part`)."""
+    (``exact``) or from the screen's step (module docs), less the record's offset and
+    trend re-estimated on the held-out samples together (:func:`less_record_part`)."""
     r = record.x - x_hat
     held = np.full(r.size, np.nan)
 
@@ -367,8 +374,9 @@ def held_out(
         if x_k is None:
             converged.append(False)
             continue
-        held[sl] = less_record_part(record.x[sl] - x_k[sl], record.t[sl])[0]
+        held[sl] = record.x[sl] - x_k[sl]
         converged.append(ok)
+    held = less_record_part(held, record.t)[0]
     return CrossValidation.of(held, r, folds, tuple(converged), exact)
 
 

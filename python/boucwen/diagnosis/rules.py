@@ -53,12 +53,14 @@ _ALL = (
     Rule(
         "record_part",
         "folds",
-        "Each held-out span's error is counted after its own offset and straight-line trend in time are "
-        "re-estimated on the span by least squares, alike for both models; a model carried to another record "
-        "has its initial state re-estimated there too, and leaves the record's own effects behind.",
+        "The held-out error is counted after the record's offset and straight-line trend in time are "
+        "re-estimated on its held-out samples together by least squares, alike for both models; a model carried "
+        "to another record has that record's offset, trend and initial state re-estimated there, and leaves the "
+        "record's own effects behind.",
         "A user carries the device to the next record and re-estimates there what belongs to that record (a "
         "sensor's zero, the day's temperature, a sensor's settling); a gain that lives in the record's trend "
-        "does not carry, one that follows the input does.",
+        "does not carry, one that follows the input does. One line per record, as a day has one zero and one "
+        "drift: a line per fold would also take what the input drives slowly.",
         "heldout.less_record_part, unseen.carried",
     ),
     Rule(

@@ -149,8 +149,8 @@ def carried(fit: ExtendedFit, record: Record) -> tuple[FloatArray, ValidationErr
         xs = simulate_chain(fit.params, effects, record.u, record.dt, h0)
         if xs is None:
             return None
-        left, coef = less_record_part(record.x - xs, record.t)
-        return record.x - left, coef
+        left, offset, trend = less_record_part(record.x - xs, record.t)
+        return record.x - left, np.array([offset, trend])
 
     def cost(h0: float) -> float:
         out = fitted(h0)
