@@ -142,16 +142,18 @@ def test_diagnose_prints_the_report_without_output_files(tmp_path, capsys, drift
     assert "wrote" not in out and sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]
 
 
-def test_diagnose_judges_on_a_validation_record_and_prints_unseen_errors(tmp_path, capsys, drift_samples):
-    # The second half of the record as a second record of the same device.
+def test_diagnose_judges_on_validation_records_and_prints_unseen_errors(tmp_path, capsys, drift_samples):
+    # The second half of the record as two more records of the same device.
     t, u, x = drift_samples
-    half = t.size // 2
+    half, three = t.size // 2, 3 * t.size // 4
     a = _csv(tmp_path / "a.csv", "t_s,u_V,x_um", (t[:half], u[:half], x[:half]))
-    b = _csv(tmp_path / "b.csv", "t_s,u_V,x_um", (t[half:] - t[half], u[half:], x[half:]))
-    assert main(["diagnose", str(a), "--validate", str(b)]) == 0
+    b = _csv(tmp_path / "b.csv", "t_s,u_V,x_um", (t[half:three] - t[half], u[half:three], x[half:three]))
+    c = _csv(tmp_path / "c.csv", "t_s,u_V,x_um", (t[three:] - t[three], u[three:], x[three:]))
+    assert main(["diagnose", str(a), "--validate", str(b), "--validate", str(c)]) == 0
     out = capsys.readouterr().out
     assert "unseen data (4 forward folds)" in out
-    assert f"validation record {b} ({t.size - half} samples, offset and initial state re-estimated)" in out
+    for path, samples in ((b, three - half), (c, t.size - three)):
+        assert f"validation record {path} ({samples} samples, offset, trend and initial state re-estimated)" in out
     assert "drift: confident" in out or "drift: tentative" in out
 
 

@@ -115,7 +115,7 @@ def test_a_second_record_refutes_the_explanation_it_contradicts():
     )
     said: list[str] = []
     left, decisions = settled(
-        validate_record(exp.u, x_b, DT),
+        [validate_record(exp.u, x_b, DT)],
         [lag.fit, delay.fit],
         ["input_lag", "delay"],
         DiagnosisPolicy(),
@@ -127,7 +127,7 @@ def test_a_second_record_refutes_the_explanation_it_contradicts():
     assert any("refuted" in line and "delay" in line for line in said)
     # Two explanations the record cannot tell apart both stay.
     left, _ = settled(
-        validate_record(exp.u, x_b, DT), [lag.fit, lag.fit], ["a", "b"], DiagnosisPolicy(), 0.005, said.append
+        [validate_record(exp.u, x_b, DT)], [lag.fit, lag.fit], ["a", "b"], DiagnosisPolicy(), 0.005, said.append
     )
     assert left == (0, 1)
 

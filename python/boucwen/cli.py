@@ -311,7 +311,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         source = _source(args, rec)
     if "citation" in rec.meta:
         source.update(citation=rec.meta["citation"], licence=rec.meta["licence"])
-    val = None if args.validate is None else _read_record(args, args.validate)
+    vals = [_read_record(args, path) for path in args.validate or ()]
     if args.next_experiment:
         from .diagnosis.experiment import Limits
 
@@ -322,7 +322,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         rec.dt,
         progress=args.progress,
         seed=args.seed,
-        validate=None if val is None else (val.u, val.x, val.dt),
+        validate=[(v.u, v.x, v.dt) for v in vals] or None,
     )
     print(f"{rec.name}: {len(rec)} samples, dt = {rec.dt:.6g} s")
     units = rec.meta.get("read_units")
@@ -361,13 +361,14 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             f"unseen data ({unseen.folds} forward folds): rms {unseen.cv_rms_before_um:.4g} um "
             f"(base model) -> {unseen.cv_rms_after_um:.4g} um (returned model)"
         )
-        on_val = unseen.validation
-        if on_val is not None and on_val.before is not None and on_val.after is not None:
-            print(
-                f"validation record {args.validate} ({on_val.samples} samples, "
-                "offset and initial state re-estimated): "
-                f"rms {on_val.before.rms_um:.4g} um (base model) -> {on_val.after.rms_um:.4g} um"
-            )
+        for path, on_val in zip(args.validate or (), unseen.validation):
+            if on_val.before is not None and on_val.after is not None:
+                print(
+                    f"validation record {path} ({on_val.samples} samples, "
+                    "offset, trend and initial state re-estimated): "
+                    f"rms {on_val.before.rms_um:.4g} um (base model) -> {on_val.after.rms_um:.4g} um "
+                    f"({on_val.ratio:.3g}x)"
+                )
     for b in result.at_bounds:
         print(f"on a bound of the fit: {b.parameter} = {b.value:.4g} ({b.side} bound {b.bound:.4g})")
     if result.base_loop:
@@ -447,9 +448,11 @@ def _add_diagnose(sub: _Subparsers) -> None:
     p.add_argument(
         "--validate",
         metavar="B.csv",
+        action="append",
         default=None,
-        help="a second record of the same device (read like DATA): each effect must also predict it better, "
-        "and the report gives both models' errors on it",
+        help="another record of the same device (read like DATA; repeat for several: other days, other "
+        "excitations): each effect must also predict them better, each with its offset, trend and initial "
+        "state re-estimated, and the report gives both models' errors on each",
     )
     p.add_argument(
         "--next-experiment",

@@ -55,10 +55,14 @@ not told what it contains, and selects a model by one loop under one judge:
    within the record's limits, on which the explanations it left (each tentative name
    and its rivals) predict most differently.
 
-With a second record of the device (``validate``; the recorded experiment, or any other),
-the explanations the first record left are settled there (one is refuted where another
-passes the judge against it there; the model keeps the one left), and each effect of the
-device must also earn its place there by the same judge (:mod:`~boucwen.diagnosis.unseen`).
+With other records of the device (``validate``: one or several — the recorded
+experiment, another day, another excitation), each left out whole of the fit, the
+explanations the first record left are settled there (one is refuted where another passes
+the judge against it there; the model keeps the one left), and each effect of the device
+must also earn its place there by the same judge, the model carried to each record with
+that record's offset, trend and initial state re-estimated on it
+(:mod:`~boucwen.diagnosis.unseen`); the report gives each record's error before and
+after.
 
 Every number is a field of :class:`~boucwen.diagnosis.policy.DiagnosisPolicy`; what
 describes one effect is on its class. What the residual follows (spectral lines, spans,
@@ -80,6 +84,7 @@ numbers), :mod:`~boucwen.diagnosis.rules` (the rules and their reasons),
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -136,7 +141,7 @@ def diagnose(
     max_effects: int | None = None,
     seed: int = 0,
     workers: int | None = None,
-    validate: tuple[ArrayLike, ArrayLike, float] | None = None,
+    validate: tuple[ArrayLike, ArrayLike, float] | Sequence[tuple[ArrayLike, ArrayLike, float]] | None = None,
     policy: DiagnosisPolicy | None = None,
     convergence: Convergence | None = None,
 ) -> Diagnosis:
@@ -153,9 +158,10 @@ def diagnose(
         seed: seed of :func:`boucwen.fit`'s random starts.
         workers: threads for the candidates of a round (default: the number of CPUs; 1
             runs everything in turn).
-        validate: a second record of the same device, ``(u [V], x [µm], dt [s])``: each
-            effect must also earn its place there (:mod:`~boucwen.diagnosis.unseen`),
-            and the report gives both models' errors on it.
+        validate: other records of the same device, each ``(u [V], x [µm], dt [s])``
+            (one such tuple, or a list of them): each effect must also earn its place
+            on them together (:mod:`~boucwen.diagnosis.unseen`), and the report gives
+            both models' errors on each.
         policy: the numbers (:class:`~boucwen.diagnosis.policy.DiagnosisPolicy`; the
             default instance when None).
         convergence: how the fits are converged (:class:`~boucwen.diagnosis.fits.Convergence`;
@@ -175,10 +181,33 @@ def diagnose(
         max_effects=max_effects,
         seed=seed,
         workers=workers,
-        validate=None if validate is None else validate_record(*validate),
+        validate=_records_of(validate),
         policy=policy,
         convergence=convergence,
     )
+
+
+def _records_of(
+    validate: tuple[ArrayLike, ArrayLike, float] | Sequence[tuple[ArrayLike, ArrayLike, float]] | None,
+) -> tuple[Record, ...]:
+    """The validation records ``validate`` gives (none, one ``(u, x, dt)`` or a list of
+    them), each checked; the k-th named ``"validation record k"`` (from 1)."""
+    if validate is None:
+        return ()
+    if not isinstance(validate, (tuple, list)):
+        raise TypeError(f"validate must be (u, x, dt) or a list of them, got {type(validate).__name__}")
+    # One record is (u, x, dt) with dt a number; a list of records holds tuples.
+    one = len(validate) == 3 and isinstance(validate[2], (int, float, np.number))
+    items = [validate] if one else list(validate)
+    if not items:
+        raise ValueError("validate holds no record: give (u, x, dt) or a list of them, or None")
+    out = []
+    for k, item in enumerate(items, 1):
+        if not isinstance(item, (tuple, list)) or len(item) != 3:
+            raise TypeError(f"validate record {k} must be (u, x, dt)")
+        u, x, dt = item
+        out.append(validate_record(u, x, dt, name=f"validation record {k}"))
+    return tuple(out)
 
 
 def _policy_of(policy: DiagnosisPolicy | None, folds: int | None, max_effects: int | None) -> DiagnosisPolicy:
@@ -202,12 +231,12 @@ def diagnose_record(
     max_effects: int | None = None,
     seed: int = 0,
     workers: int | None = None,
-    validate: Record | None = None,
+    validate: Record | Sequence[Record] | None = None,
     policy: DiagnosisPolicy | None = None,
     convergence: Convergence | None = None,
 ) -> Diagnosis:
     """:func:`diagnose` on a checked :class:`~boucwen.record.Record` (same options, same
-    result; ``validate`` a checked record too)."""
+    result; ``validate`` a checked record or a sequence of them)."""
     started = time.perf_counter()
     say = reporter(progress, "diagnose", started)
     policy = _policy_of(policy, folds, max_effects)
@@ -239,4 +268,5 @@ def diagnose_record(
         say=say,
     )
     say(f"search ended: {state.stopped}")
-    return outcome(record, base, state, validate, policy, conv, noise_um, say, started, workers)
+    others = () if validate is None else (validate,) if isinstance(validate, Record) else tuple(validate)
+    return outcome(record, base, state, others, policy, conv, noise_um, say, started, workers)

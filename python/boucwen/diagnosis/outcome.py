@@ -22,7 +22,7 @@ from ..effects.base import without
 from ..io import jsonable
 from ..metrics import max_abs, rms
 from ..record import Record
-from ..residual import Unexplained, fit_evidence, lookalike_tests, noise_level, unexplained
+from ..residual import Unexplained, fit_evidence, lookalike_tests, unexplained
 from . import fits
 from .experiment import Explained, explanations
 from .fits import Convergence, Scored, Structure
@@ -31,7 +31,7 @@ from .judge import Decision
 from .policy import DiagnosisPolicy
 from .report import Diagnosis, ModelFit, NamedEffect, NamedStructure
 from .search import OSCILLATOR, Search, rival_order
-from .unseen import OnValidation, Unseen, judged_on, prediction_error, settled
+from .unseen import OnValidation, Unseen, judged_on, pooled_noise, prediction_error, settled
 
 __all__ = ["named", "outcome"]
 
@@ -40,7 +40,7 @@ def outcome(
     record: Record,
     base: Scored,
     state: Search,
-    validate: Record | None,
+    validate: tuple[Record, ...],
     policy: DiagnosisPolicy,
     conv: Convergence,
     noise_um: float,
@@ -49,23 +49,25 @@ def outcome(
     workers: int | None,
 ) -> Diagnosis:
     """The :class:`Diagnosis` of the search ``state``: the model judged on the validation
-    record, its errors, what it leaves, how sure each name is."""
+    records (``validate``, none or several), its errors, what it leaves, how sure each
+    name is."""
     decisions = [d for r in state.rounds for d in r.decisions]
     final = state.input_driven
     other = state.current if isinstance(state.current, Structure) else None
     rivals = {k: set(v) for k, v in state.rivals.items()}
     swaps = dict(state.swaps)
     on_validation: list[Decision] = []
-    if validate is not None and other is None:
+    if validate and other is None:
         final, rivals, swaps, on_validation = _settle(record, validate, final, rivals, swaps, policy, conv, say)
-    if validate is not None and other is None and final.names:
-        say(f"judging {', '.join(final.names)} on the validation record ({len(validate)} samples)")
+    if validate and other is None and final.names:
+        samples = sum(len(v) for v in validate)
+        say(f"judging {', '.join(final.names)} on {len(validate)} validation record(s) ({samples} samples)")
         kept, judged = judged_on(
             validate,
             final.fit,
             lambda model, name: fits.refit(record, model, without(model.effects, name), conv),
             policy,
-            noise_level(validate.x).sigma_um,
+            pooled_noise(validate),
             say,
         )
         on_validation += judged
@@ -106,10 +108,9 @@ def outcome(
         folds=policy.folds,
         cv_rms_before_um=cv_before,
         cv_rms_after_um=cv_after,
-        validation=(
-            OnValidation(len(validate), prediction_error(base.fit, validate), prediction_error(final.fit, validate))
-            if validate is not None
-            else None
+        validation=tuple(
+            OnValidation(len(v), prediction_error(base.fit, v), prediction_error(final.fit, v), v.name)
+            for v in validate
         ),
     )
     evidence: dict[str, Any] = {
@@ -184,7 +185,7 @@ def _order_added(state: Search, names: tuple[str, ...]) -> list[str]:
 
 def _settle(
     record: Record,
-    validate: Record,
+    validate: tuple[Record, ...],
     final: Scored,
     rivals: dict[str, set[str]],
     swaps: dict[frozenset[str], Scored],
@@ -193,7 +194,7 @@ def _settle(
     say: Any,
 ) -> tuple[Scored, dict[str, set[str]], dict[frozenset[str], Scored], list[Decision]]:
     """The explanations the record could not tell apart, settled on the validation
-    record (:func:`~boucwen.diagnosis.unseen.settled`): the model kept, its rivals left,
+    records (:func:`~boucwen.diagnosis.unseen.settled`): the model kept, its rivals left,
     the swaps still fitted from it, and the decisions. The model keeps the returned
     explanation where the validation record does not refute it; else, of those it leaves
     (which it cannot tell apart), the simplest, then the one whose gain over the refuted
@@ -201,9 +202,9 @@ def _settle(
     members = explanations(record, final, rivals, swaps, conv, policy)
     if len(members) < 2:
         return final, rivals, swaps, []
-    say(f"settling {', '.join(m.label for m in members)} on the validation record")
+    say(f"settling {', '.join(m.label for m in members)} on the validation records")
     left, decisions = settled(
-        validate, [m.fit for m in members], [m.label for m in members], policy, noise_level(validate.x).sigma_um, say
+        validate, [m.fit for m in members], [m.label for m in members], policy, pooled_noise(validate), say
     )
     if 0 in left:
         keep = 0
@@ -226,7 +227,7 @@ def _settle(
         }
         return final, kept, {k: v for k, v in swaps.items() if any(m.scored is v for m in members)}, decisions
     out, into = chosen.replaces
-    say(f"the validation record refutes {members[0].label}: the model takes {chosen.label}")
+    say(f"the validation records refute {members[0].label}: the model takes {chosen.label}")
     left_for = {
         m.replaces[1] for i, m in enumerate(members) if i in left and i != keep and m.replaces and m.replaces[0] == out
     }

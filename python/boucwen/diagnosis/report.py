@@ -163,7 +163,7 @@ class Diagnosis:
             did, the base loop does not fit this device, and the effects named beside it
             may be taking up what the loop lacks.
         unseen: errors on data the fits did not see [µm]: forward validation of the
-            base and returned models and, with a validation record, both carried to it
+            base and returned models and, with validation records, both carried to each
             (:class:`~boucwen.diagnosis.unseen.Unseen`; None if not computed).
         explained: the record, the returned model and its rivals, for
             :meth:`next_experiment` (None where the diagnosis was not run here).
@@ -291,9 +291,9 @@ class Diagnosis:
             if unseen is not None
             else ""
         )
-        val = unseen.validation if unseen is not None else None
-        if val is not None and val.before is not None and val.after is not None:
-            cv += f"; validation record RMS {val.before.rms_um:.4g} → {val.after.rms_um:.4g} µm"
+        for val in unseen.validation if unseen is not None else ():
+            if val.before is not None and val.after is not None:
+                cv += f"; {val.name or 'validation record'} RMS {val.before.rms_um:.4g} → {val.after.rms_um:.4g} µm"
         bounds = "".join(f"; {b.parameter} = {b.value:.4g} on its {b.side} bound" for b in self.at_bounds)
         if self.boundedness is not None and not self.boundedness.passed:
             bounds += f"; {self.boundedness.summary()}"

@@ -4,8 +4,9 @@ Two kinds of unseen data judge the returned model:
 
 * **forward validation** on the record itself (:mod:`~boucwen.diagnosis.judge`: each
   fold predicted by the model refitted on the record before it), for every record;
-* a **second record of the same device** (``validate``), where the user has one: the
-  model fitted on the first record carried to the second. What is carried is the
+* **other records of the same device** (``validate``: one or several — another day,
+  another excitation), where the user has them: the model fitted on the first record
+  carried to each, every record left out whole of the fit. What is carried is the
   *device*: the hysteresis and every effect of the actuator, its amplifier and its
   mechanics. What belongs to the *record* is re-estimated on the second one, for every
   model alike: the offset (a different mounting, a different zero), a linear trend
@@ -15,14 +16,15 @@ Two kinds of unseen data judge the returned model:
   (:attr:`boucwen.effects.Effect.of_record`: a drift, a mains pickup whose phase is the
   record's) are left out.
 
-On the second record each effect of the device must earn its place by the same judge
+On the other records each effect of the device must earn its place by the same judge
 as on the first (:func:`~boucwen.diagnosis.judge.judge`, its held-out gain against its
 batch-means sampling error): the model with it against the model without it (the others
-refitted without it on the first record), both carried; one that does not earn its
-place there is dropped (:func:`judged_on`). The record's own effects are judged on the
-record itself.
+refitted without it on the first record), both carried, their errors on every other
+record counted together (each record's own part re-estimated on it: :func:`carried_to`);
+one that does not earn its place there is dropped (:func:`judged_on`). The record's own
+effects are judged on the record itself.
 
-Where the first record could not tell an effect from its rivals, the second one settles
+Where the first record could not tell an effect from its rivals, the other records settle
 the set (:func:`settled`): every explanation carried there, one is refuted where another
 is accepted against it by the same judge; the model keeps the explanation left (the one
 the second record predicts best where several are), and a name with no rival left is no
@@ -45,6 +47,7 @@ from ..effects import ExtendedFit, effect_class, simulate_chain
 from ..effects.base import without
 from ..metrics import max_abs, rms
 from ..record import Record
+from ..residual import noise_level
 from .heldout import CrossValidation, less_record_part
 from .judge import Decision, gain, judge, level
 from .policy import DiagnosisPolicy
@@ -54,7 +57,9 @@ __all__ = [
     "Unseen",
     "ValidationError",
     "carried",
+    "carried_to",
     "judged_on",
+    "pooled_noise",
     "prediction_error",
     "settled",
 ]
@@ -78,24 +83,36 @@ class ValidationError:
 
 @dataclass(frozen=True)
 class OnValidation:
-    """The base and returned models carried to the validation record.
+    """The base and returned models carried to one validation record.
 
     Attributes:
         samples: its number of samples.
         before, after: the base and returned models' errors there (None where one
             cannot be simulated over it).
+        name: the record's name (its file, or ``"record k"``).
     """
 
     samples: int
     before: ValidationError | None
     after: ValidationError | None
+    name: str = ""
+
+    @property
+    def ratio(self) -> float:
+        """The returned model's RMS error over the base model's there [-] (nan where
+        either is missing): below 1, the returned model carries better."""
+        if self.before is None or self.after is None or self.before.rms_um <= 0:
+            return math.nan
+        return self.after.rms_um / self.before.rms_um
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"samples", "before", "after"}`` (JSON-ready)."""
+        """``{"name", "samples", "before", "after", "ratio"}`` (JSON-ready)."""
         return {
+            "name": self.name,
             "samples": self.samples,
             "before": None if self.before is None else self.before.to_dict(),
             "after": None if self.after is None else self.after.to_dict(),
+            "ratio": self.ratio,
         }
 
 
@@ -107,24 +124,25 @@ class Unseen:
         folds: folds of the forward validation.
         cv_rms_before_um, cv_rms_after_um: its RMS error, base and returned models [µm],
             over the folds whose refits converged for both.
-        validation: with a validation record, both models carried to it; else None.
+        validation: with validation records, both models carried to each, in order;
+            else empty.
     """
 
     folds: int
     cv_rms_before_um: float
     cv_rms_after_um: float
-    validation: OnValidation | None = None
+    validation: tuple[OnValidation, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"folds", "cv_rms_before_um", "cv_rms_after_um"}`` and, with a validation
-        record, ``"validation"`` (JSON-ready)."""
+        """``{"folds", "cv_rms_before_um", "cv_rms_after_um"}`` and, with validation
+        records, ``"validation"``: one entry per record (JSON-ready)."""
         out: dict[str, Any] = {
             "folds": self.folds,
             "cv_rms_before_um": self.cv_rms_before_um,
             "cv_rms_after_um": self.cv_rms_after_um,
         }
-        if self.validation is not None:
-            out["validation"] = self.validation.to_dict()
+        if self.validation:
+            out["validation"] = [v.to_dict() for v in self.validation]
         return out
 
 
@@ -171,6 +189,26 @@ def carried(fit: ExtendedFit, record: Record) -> tuple[FloatArray, ValidationErr
     )
 
 
+def carried_to(fit: ExtendedFit, records: Sequence[Record]) -> FloatArray | None:
+    """The residual [µm] of ``fit`` carried to each of ``records`` (:func:`carried`, each
+    with its own part re-estimated there), the records one after another; None where it
+    cannot be simulated over one of them."""
+    out = []
+    for record in records:
+        one = carried(fit, record)
+        if one is None:
+            return None
+        out.append(record.x - one[0])
+    return np.concatenate(out)
+
+
+def pooled_noise(records: Sequence[Record]) -> float:
+    """The sensor noise [µm RMS] of ``records`` together: each record's
+    (:func:`boucwen.residual.noise_level`), pooled by its samples."""
+    n = sum(len(r) for r in records)
+    return math.sqrt(sum(len(r) * noise_level(r.x).sigma_um ** 2 for r in records) / max(n, 1))
+
+
 def prediction_error(fit: ExtendedFit, record: Record) -> ValidationError | None:
     """The error of ``fit`` carried to ``record`` (:func:`carried`); None when it cannot
     be simulated."""
@@ -179,19 +217,19 @@ def prediction_error(fit: ExtendedFit, record: Record) -> ValidationError | None
 
 
 def judged_on(
-    validation: Record,
+    validation: Sequence[Record],
     current: ExtendedFit,
     refit_without: Callable[[ExtendedFit, str], ExtendedFit | None],
     policy: DiagnosisPolicy,
     noise_um: float,
     say: Callable[[str], None],
 ) -> tuple[ExtendedFit, list[Decision]]:
-    """Each effect of the device in ``current`` judged on the ``validation`` record
-    (module docs): ``refit_without(model, name)`` is ``model`` refitted on the identification
-    record without that effect (None where it cannot be); ``noise_um`` the validation
-    record's noise [µm]. Effects are judged in turn, the model updated after each drop.
-    Returns the model and the decisions (``"drop"``, accepted where the effect is
-    dropped)."""
+    """Each effect of the device in ``current`` judged on the ``validation`` records
+    together (module docs): ``refit_without(model, name)`` is ``model`` refitted on the
+    identification record without that effect (None where it cannot be); ``noise_um``
+    the validation records' noise [µm]. Effects are judged in turn, the model updated
+    after each drop. Returns the model and the decisions (``"drop"``, accepted where the
+    effect is dropped)."""
     names = [
         k
         for k in current.effects.names
@@ -200,13 +238,13 @@ def judged_on(
     lvl = level(policy.alpha, len(names))
     decisions: list[Decision] = []
     for name in names:
-        with_it = carried(current, validation)
+        with_it = carried_to(current, validation)
         rest = refit_without(current, name)
-        without_it = None if rest is None else carried(rest, validation)
+        without_it = None if rest is None else carried_to(rest, validation)
         if with_it is None or without_it is None or rest is None:
             continue
-        keep_cv = CrossValidation.whole(validation.x - with_it[0])
-        rest_cv = CrossValidation.whole(validation.x - without_it[0])
+        keep_cv = CrossValidation.whole(with_it)
+        rest_cv = CrossValidation.whole(without_it)
         keep = judge(
             "add",
             (name,),
@@ -221,7 +259,7 @@ def judged_on(
         # A gain that cannot be computed keeps the effect: no decision from a number that is none.
         dropped = keep.rule != "not_judgeable" and not keep.accepted
         reason = (
-            "on the validation record, "
+            "on the validation records, "
             + ("it does not earn its place: " if dropped else "it earns its place or cannot be judged: ")
             + keep.reason
         )
@@ -242,7 +280,7 @@ def judged_on(
             )
         )
         say(
-            f"  validation {name:9s}: {with_it[1].rms_um:.4g} µm with it, {without_it[1].rms_um:.4g} µm without"
+            f"  validation {name:9s}: {rms(with_it):.4g} µm with it, {rms(without_it):.4g} µm without"
             + (" — dropped" if dropped else "")
         )
         if dropped:
@@ -251,7 +289,7 @@ def judged_on(
 
 
 def settled(
-    validation: Record,
+    validation: Sequence[Record],
     members: Sequence[ExtendedFit],
     labels: Sequence[str],
     policy: DiagnosisPolicy,
@@ -259,14 +297,14 @@ def settled(
     say: Callable[[str], None],
 ) -> tuple[tuple[int, ...], list[Decision]]:
     """The explanations (``members``, fitted on the identification record, named
-    ``labels``) that the ``validation`` record does not refute: each carried there
-    (:func:`carried`), a member is refuted where another is accepted against it by the
+    ``labels``) that the ``validation`` records do not refute: each carried there
+    (:func:`carried_to`), a member is refuted where another is accepted against it by the
     judge (:func:`~boucwen.diagnosis.judge.judge`: significant at level α over the pairs,
     and at least ``min_share`` of its error beyond the noise ``noise_um`` [µm]). A member
     that cannot be carried is not refuted. Returns the indices left and the decisions
     (``"swap"`` from the refuted to the one that refutes it, accepted where it does)."""
-    out = [carried(m, validation) for m in members]
-    cvs = {i: CrossValidation.whole(validation.x - o[0]) for i, o in enumerate(out) if o is not None}
+    out = [carried_to(m, validation) for m in members]
+    cvs = {i: CrossValidation.whole(o) for i, o in enumerate(out) if o is not None}
     # Each pair is tested once, in both directions at once (a two-sided test at level α
     # over the pairs: α/2 per side).
     pairs = [(i, j) for i in cvs for j in cvs if i < j]
@@ -288,11 +326,11 @@ def settled(
             min_share=policy.min_share,
             unknowns=0,
         )
-        decisions.append(replace(d, reason="on the validation record: " + d.reason))
+        decisions.append(replace(d, reason="on the validation records: " + d.reason))
         if d.accepted:
             refuted.add(a)
     left = tuple(i for i in range(len(members)) if i not in refuted)
     for i, o in enumerate(out):
-        err = "cannot be simulated" if o is None else f"{o[1].rms_um:.4g} µm"
+        err = "cannot be simulated" if o is None else f"{rms(o):.4g} µm"
         say(f"  validation {labels[i]}: {err}" + (" — refuted" if i in refuted else ""))
     return left, decisions
