@@ -12,9 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from boucwen import diagnose
+from boucwen import SavedOscillator, diagnose, load_model
 from boucwen.cli import main
 from boucwen.datasets import data_dirs
+from boucwen.io import read_csv
+from boucwen.metrics import rms
 from boucwen.oscillator import OscillatorParams, simulate
 
 
@@ -66,8 +68,8 @@ def test_the_benchmark_record_from_the_shell_names_the_oscillator(tmp_path, caps
     lines = path.read_text(encoding="utf-8").splitlines()
     short = tmp_path / "train_short.csv"
     short.write_text("\n".join(lines[: 1 + 4096]) + "\n", encoding="utf-8")
-    report = tmp_path / "r.json"
-    assert main(["diagnose", str(short), "--json", str(report)]) == 0
+    report, model = tmp_path / "r.json", tmp_path / "m.json"
+    assert main(["diagnose", str(short), "--json", str(report), "--model", str(model)]) == 0
     out = capsys.readouterr().out
     assert "input: force [N]; displacement: 'displacement_m' [m, read as µm (× 1e6)]" in out
     assert "model fitted: hysteretic oscillator" in out
@@ -76,6 +78,12 @@ def test_the_benchmark_record_from_the_shell_names_the_oscillator(tmp_path, caps
     # Before: the input-driven base model; after: the oscillator, within 2× the noise.
     assert doc["rms_after_um"] < doc["rms_before_um"] / 20
     assert doc["rms_after_um"] < 2.0 * doc["evidence"]["noise_um"]
+    # The model file holds the oscillator, which simulates to the error it records.
+    saved = load_model(model)
+    assert isinstance(saved, SavedOscillator) and saved.source.made_by == "diagnose"
+    rec = read_csv(short)
+    assert saved.source.rms_um == pytest.approx(doc["rms_after_um"], rel=1e-9)
+    assert rms(rec.x - saved.simulate(rec.u) * 1e6) == pytest.approx(doc["rms_after_um"], rel=1e-9)
 
 
 def test_a_piezo_record_keeps_the_input_driven_model_the_oscillator_tried_and_refuted():

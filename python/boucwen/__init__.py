@@ -12,7 +12,8 @@ Precision Engineering 38 (2014) 921–927).
   :class:`HorizonStatus`, :class:`RpemStatus` or :class:`PaperStatus`); :class:`Bank` runs C channels per call;
 - :func:`fit` identifies them offline from a record (output-error least squares);
 - :class:`SavedModel` is a model as a file (:func:`load_model`, :meth:`SavedModel.save`,
-  one versioned JSON schema that the command line's ``--model`` writes and reads);
+  one versioned JSON schema that the command line's ``--model`` writes and reads, the
+  measurement chain included; :class:`SavedOscillator` the hysteretic oscillator's);
 - :func:`diagnose` finds which effects (:class:`EffectSet`) a record holds beyond the model;
   each effect is a typed object (:class:`Creep`, :class:`InputLag`, :class:`GainDrift`,
   :class:`Electrostriction`, :class:`Resonance`, :class:`Resonance2`, :class:`Drift`,
@@ -67,7 +68,7 @@ from .effects import (
     effects_of,
 )
 from .fit import FitResult, fit
-from .model_file import ModelSource, SavedModel, load_model
+from .model_file import ModelSource, SavedModel, SavedOscillator, load_model
 from .status import HorizonStatus, PaperStatus, RpemStatus, StepStatus
 
 __all__ = [
@@ -109,6 +110,7 @@ __all__ = [
     "RpemStatus",
     "Saturation",
     "SavedModel",
+    "SavedOscillator",
     "StepStatus",
     "__version__",
     "diagnose",

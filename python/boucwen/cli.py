@@ -21,8 +21,11 @@ Subcommands:
 * ``boucwen invert --model M.json --target XD.csv --out U.csv [--u-min V] [--u-max V]``:
   the feedforward voltage for a desired displacement, through the model's effects where
   they have an inverse; prints the predicted tracking error, the limit hits and the
-  samples the model cannot reach (and why, where the model's branch slope says so).
-* ``boucwen simulate --model M.json U.csv --out X.csv``: a model file run open loop.
+  samples the model cannot reach (and why, where the model's branch slope says so). A
+  model whose command a DAC holds (``between_samples`` ``"hold"``) gets a command meant
+  to be held, solved against the staircase (:mod:`boucwen.held_inverse`).
+* ``boucwen simulate --model M.json U.csv --out X.csv [--periodic]``: a model file (a
+  piezo model or a hysteretic oscillator) run open loop through its measurement chain.
 * ``--model M.json`` of ``fit``, ``diagnose`` and ``identify`` writes the model file
   (:mod:`boucwen.model_file`); ``boucwen --version`` prints the version.
 * ``boucwen reproduce [--out DIR] [--quick]``: the paper's experiment on the
@@ -79,7 +82,7 @@ if TYPE_CHECKING:
     from numpy.typing import NDArray
 
     from .checks import FloatArray
-    from .model_file import SavedModel
+    from .model_file import AnyModel, SavedModel
     from .record import Record
 
     # What ``add_subparsers`` returns; each subcommand adds its parser to it.
@@ -403,16 +406,15 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         plot_diagnosis(result, rec.t, rec.u, rec.x, args.plot, title=rec.name)
         print(f"wrote {args.plot}")
     if args.model:
-        from .model_file import ModelSource, SavedModel
+        from .model_file import ModelSource, SavedModel, SavedOscillator
 
-        origin = ModelSource.of_record(rec, "diagnose", None if structure is not None else result.x_extended)
-        SavedModel(result.params, result.h0_um, rec.dt, result.effect_set, origin).save(args.model)
-        what = (
-            "the input-driven rival: a model file holds input-driven models; the oscillator's parameters are "
-            "printed above and in --json"
-            if structure is not None
-            else "the returned model, with its effects"
-        )
+        origin = ModelSource.of_record(rec, "diagnose", result.x_extended)
+        if structure is not None:
+            SavedOscillator.of_fit(structure.fit, rec.dt, origin).save(args.model)
+            what = "the hysteretic oscillator: force [N] in, displacement [m] out; boucwen simulate runs it"
+        else:
+            SavedModel(result.params, result.h0_um, rec.dt, result.effect_set, origin).save(args.model)
+            what = "the returned model, with its effects"
         print(f"wrote {args.model} ({what})")
     return EXIT_OK
 
@@ -485,14 +487,32 @@ def _add_diagnose(sub: _Subparsers) -> None:
 IDENTIFY_INIT_SHARE = 0.2
 
 
-def _load_model(path: str) -> SavedModel:
-    from .model_file import load_model
+def _load_model(path: str) -> AnyModel:
+    from .model_file import SavedOscillator, load_model
 
     model = load_model(path)
-    named = ", ".join(e.name for e in model.named_effects) or "none"
     made = f", made by {model.source.made_by}" if model.source.made_by else ""
     record = f" on {model.source.record}" if model.source.record else ""
-    print(f"{path}: model{made}{record}; effects: {named}; dt = {model.dt_s:.6g} s")
+    filtered = f", output filter {model.output.name or 'FIR'} ({len(model.output.taps)} taps)" if model.output else ""
+    chain = f"input {model.input} between samples{filtered}"
+    if isinstance(model, SavedOscillator):
+        print(f"{path}: hysteretic oscillator{made}{record}; {chain}; dt = {model.dt_s:.6g} s")
+        return model
+    named = ", ".join(e.name for e in model.named_effects if e.name != "between_samples") or "none"
+    print(f"{path}: model{made}{record}; effects: {named}; {chain}; dt = {model.dt_s:.6g} s")
+    return model
+
+
+def _load_piezo(path: str, command: str) -> SavedModel:
+    """The piezo model of a model file; a one-line error for an oscillator's."""
+    from ._core import InvalidParams
+    from .model_file import SavedOscillator
+
+    model = _load_model(path)
+    if isinstance(model, SavedOscillator):
+        raise InvalidParams(
+            f"{path}: a hysteretic oscillator (force in, displacement out); boucwen {command} takes a piezo model"
+        )
     return model
 
 
@@ -561,7 +581,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     n = len(rec)
     print(f"{rec.name}: {n} samples, dt = {rec.dt:.6g} s")
     if args.init is not None:
-        init = _load_model(args.init)
+        init = _load_piezo(args.init, "identify --init")
         _check_rate(init, rec.dt)
         scored_from = 0
     else:
@@ -682,18 +702,20 @@ def _add_identify(sub: _Subparsers) -> None:
 # --------------------------------------------------------------------------- invert, simulate
 
 
-def _read_signal(args: argparse.Namespace, path: str, quantity: str) -> tuple[FloatArray, FloatArray, float]:
+def _read_signal(
+    args: argparse.Namespace, path: str, quantity: str, unit: str | None = None
+) -> tuple[FloatArray, FloatArray, float]:
     from .io import read_signal
 
     t, values, dt, meta = read_signal(path, quantity, columns=args.columns, dt=args.dt)
     read = meta["read"]
     t_col = f"t = {read['t']!r} [s]" if read["t"] is not None else f"no time column, dt = {dt:.6g} s"
-    unit = "V" if quantity == "u" else "um"
+    unit = unit or ("V" if quantity == "u" else "um")
     print(f"{path}: {values.size} samples, {t_col}, {quantity} = {read[quantity]!r} [{unit}]")
     return t, values, dt
 
 
-def _check_rate(model: SavedModel, dt: float) -> None:
+def _check_rate(model: AnyModel, dt: float) -> None:
     import math
 
     if not math.isclose(dt, model.dt_s, rel_tol=1e-6):
@@ -709,7 +731,7 @@ def _cmd_invert(args: argparse.Namespace) -> int:
     from .metrics import max_abs, rms
 
     _prepare_output(args.out)
-    model = _load_model(args.model)
+    model = _load_piezo(args.model, "invert")
     t, x_d, dt = _read_signal(args, args.target, "x")
     _check_rate(model, dt)
     present = params_of(model.effects)
@@ -720,14 +742,25 @@ def _cmd_invert(args: argparse.Namespace) -> int:
         print(f"{', '.join(modes)}: inverted by the mode's own inverse on the target (x_d + 2ζ/ω·ẋ_d + ẍ_d/ω²)")
     if ignored:
         print(f"{', '.join(ignored)}: in the reading only; the inverse ignores it (the predicted error includes it)")
-    if "between_samples" in present:
+    if model.output is not None:
         print(
-            f"between_samples ({present['between_samples']['input']}): the inverse takes the command as a straight "
-            "line between samples (the predicted error, the model run on the voltage, includes the difference)"
+            "output filter: the logger's, in the reading only; the inverse ignores it (the predicted error includes it)"
+        )
+    if model.input == "bandlimited":
+        print(
+            "between_samples (bandlimited): the inverse takes the command as a straight line between samples "
+            "(the predicted error, the model run on the voltage, includes the difference)"
         )
     inverted = set_of({k: v for k, v in present.items() if k not in (*_MODES, "between_samples")})
     ahead = _through_modes(x_d, dt, [present[k] for k in modes], present.get("drift"))
-    u, _ = invert(model.params, ahead, dt, model.h0_um, u_min=args.u_min, u_max=args.u_max, effects=inverted)
+    if model.input == "hold":
+        from .held_inverse import invert_held
+
+        lead = " (through the input lag: each command leads its target by one sample)" if "input_lag" in present else ""
+        print(f"between_samples (hold): a command for a DAC to hold, solved against the held staircase{lead}")
+        u = invert_held(model.params, inverted, ahead, dt, model.h0_um, u_min=args.u_min, u_max=args.u_max)
+    else:
+        u, _ = invert(model.params, ahead, dt, model.h0_um, u_min=args.u_min, u_max=args.u_max, effects=inverted)
     x_model = model.simulate(u, dt)
     err = x_model - x_d
     print(f"voltage: {np.min(u):.4g} to {np.max(u):.4g} V over {u.size} samples")
@@ -847,14 +880,25 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .io import write_csv
+    from .model_file import SavedOscillator
 
     _prepare_output(args.out)
     model = _load_model(args.model)
-    t, u, dt = _read_signal(args, args.data, "u")
-    _check_rate(model, dt)
-    x = model.simulate(u, dt)
-    print(f"displacement: {np.min(x):.4g} to {np.max(x):.4g} µm over {x.size} samples (open loop, from h0)")
-    write_csv(args.out, {"t_s": t, "u_V": u, "x_um": x})
+    if isinstance(model, SavedOscillator):
+        t, force, dt = _read_signal(args, args.data, "u", unit="N")
+        _check_rate(model, dt)
+        y = model.simulate(force, dt, periodic=args.periodic)
+        print(f"displacement: {np.min(y):.4g} to {np.max(y):.4g} m over {y.size} samples (from the model's state)")
+        # Every digit: a file run through the command gives the model's output itself.
+        write_csv(args.out, {"t_s": t, "force_N": force, "y_m": y}, digits=17)
+    else:
+        if args.periodic:
+            raise ValueError("--periodic is for an oscillator's force; a piezo model's voltage path is its own")
+        t, u, dt = _read_signal(args, args.data, "u")
+        _check_rate(model, dt)
+        x = model.simulate(u, dt)
+        print(f"displacement: {np.min(x):.4g} to {np.max(x):.4g} µm over {x.size} samples (open loop, from h0)")
+        write_csv(args.out, {"t_s": t, "u_V": u, "x_um": x}, digits=17)
     print(f"wrote {args.out}")
     return EXIT_OK
 
@@ -862,19 +906,29 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _add_simulate(sub: _Subparsers) -> None:
     p = sub.add_parser(
         "simulate",
-        help="run a model open loop on a voltage",
-        description="Runs the model of a model file, with its effects, open loop from its h0 on the voltage "
-        "of a CSV file; writes t_s,u_V,x_um.",
+        help="run a model open loop on a voltage (or an oscillator on a force)",
+        description="Runs the model of a model file, with its effects and its measurement chain (the input "
+        "between samples, the logger's output filter), open loop from its initial state on the voltage of a CSV "
+        "file; writes t_s,u_V,x_um (every digit). An oscillator's file takes a force [N] and writes "
+        "t_s,force_N,y_m.",
     )
     p.add_argument("--model", required=True, metavar="M.json", help="model file (boucwen fit/diagnose --model)")
     p.add_argument(
         "data",
         metavar="U.csv",
-        help="voltage [V]: a CSV with time [s] and voltage columns (t,u; any name read by boucwen fit, e.g. "
-        "boucwen invert's output), or named or positioned by --columns",
+        help="voltage [V] (an oscillator: force [N]): a CSV with time [s] and input columns (t,u; any name read "
+        "by boucwen fit, e.g. boucwen invert's output), or named or positioned by --columns",
     )
     _add_signal_options(p, "T,U", "voltage file")
-    p.add_argument("--out", required=True, metavar="X.csv", help="displacement (written: t_s,u_V,x_um)")
+    p.add_argument(
+        "--out", required=True, metavar="X.csv", help="displacement (written: t_s,u_V,x_um; t_s,force_N,y_m)"
+    )
+    p.add_argument(
+        "--periodic",
+        action="store_true",
+        help="an oscillator's force is a whole number of periods (its band-limited path is then exactly the "
+        "Fourier interpolation)",
+    )
     p.set_defaults(handler=_cmd_simulate)
 
 
