@@ -180,7 +180,7 @@ def carried(fit: ExtendedFit, record: Record) -> tuple[FloatArray, ValidationErr
     span = max(float(np.ptp(record.x)), 1e-9)
     found = minimize_scalar(cost, bounds=(-span, span), method="bounded", options={"xatol": 1e-6 * span})
     h0, (x_hat, coef) = 0.0, at_zero
-    best = fitted(float(found.x)) if found.fun < cost(0.0) else None
+    best = fitted(float(found.x)) if found.fun < rms(record.x - at_zero[0]) else None
     if best is not None:
         h0, (x_hat, coef) = float(found.x), best
     err = record.x - x_hat
@@ -237,8 +237,9 @@ def judged_on(
     ]
     lvl = level(policy.alpha, len(names))
     decisions: list[Decision] = []
+    # The current model's residual there, again only after a drop changes it.
+    with_it = carried_to(current, validation)
     for name in names:
-        with_it = carried_to(current, validation)
         rest = refit_without(current, name)
         without_it = None if rest is None else carried_to(rest, validation)
         if with_it is None or without_it is None or rest is None:
@@ -284,7 +285,7 @@ def judged_on(
             + (" — dropped" if dropped else "")
         )
         if dropped:
-            current = rest
+            current, with_it = rest, without_it
     return current, decisions
 
 
